@@ -1,0 +1,128 @@
+"""One harness that runs any policy on any env id over a list of seeds and scores it.
+
+The harness is the only code that reads ``info`` (the truth), and only to score: the policy sees
+observations alone. Per-task metrics are registered in :data:`METRICS` by env id.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Iterable, Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+from agents.base import Policy
+
+TRACE_KEYS = ("time", "position", "wrench_true", "wrench_est", "fan_position", "jet_axis_y", "axis_error")
+"""``info`` entries recorded at every step when present (plus ``reward``)."""
+
+
+@dataclass
+class Episode:
+    """The recorded trace of one episode: arrays over steps, keyed as in ``info``."""
+
+    seed: int
+    trace: dict[str, np.ndarray]
+    total_reward: float
+    length: int
+    termination_reason: str | None
+
+
+@dataclass
+class Evaluation:
+    """Per-seed metrics, their mean over seeds, and the episodes they came from."""
+
+    env_id: str
+    seeds: list[int]
+    per_seed: list[dict[str, float]]
+    episodes: list[Episode] = field(repr=False)
+
+    @property
+    def mean(self) -> dict[str, float]:
+        keys = self.per_seed[0].keys() if self.per_seed else ()
+        return {k: float(np.mean([m[k] for m in self.per_seed])) for k in keys}
+
+
+def fan_tracking_metrics(episode: Episode, settle_time: float = 5.0, band: float = 0.15) -> dict[str, float]:
+    """Paper 000 Fig. 7 scores: mean |y - y_axis| after ``settle_time`` (m), fraction of time within
+    ``band`` of the axis, and time to first come within ``band`` (s; inf if never)."""
+    t = episode.trace["time"]
+    error = np.abs(episode.trace["axis_error"])
+    late = t >= settle_time
+    inside = error <= band
+    first = np.flatnonzero(inside)
+    return {
+        "mean_abs_error_after_5s": float(np.mean(error[late])) if np.any(late) else math.nan,
+        "fraction_within_0.15m": float(np.mean(inside)),
+        "time_to_0.15m": float(t[first[0]]) if first.size else math.inf,
+        "episode_seconds": float(t[-1]),
+        "return": episode.total_reward,
+        "terminated_early": float(episode.termination_reason is not None),
+    }
+
+
+def generic_metrics(episode: Episode) -> dict[str, float]:
+    return {
+        "episode_seconds": float(episode.trace["time"][-1]),
+        "return": episode.total_reward,
+        "terminated_early": float(episode.termination_reason is not None),
+    }
+
+
+METRICS: dict[str, Callable[[Episode], dict[str, float]]] = {
+    "QuadWrench/FanTracking-v0": fan_tracking_metrics,
+}
+
+
+def _canonical_id(env_id: str) -> str:
+    return env_id.split(":", 1)[1] if ":" in env_id else env_id
+
+
+def run_episode(
+    policy: Policy, env: gym.Env, seed: int, options: Mapping[str, Any] | None = None
+) -> Episode:
+    """Run ``policy`` on ``env`` for one episode from ``reset(seed=seed, options=options)``."""
+    observation, info = env.reset(seed=seed, options=dict(options or {}))
+    policy.reset(env)
+    records: dict[str, list] = {k: [info[k]] for k in TRACE_KEYS if k in info}
+    rewards = [0.0]
+    total, length, reason = 0.0, 0, None
+    while True:
+        observation, reward, terminated, truncated, info = env.step(policy.act(observation))
+        total += reward
+        length += 1
+        rewards.append(reward)
+        for key, values in records.items():
+            values.append(info[key])
+        if terminated or truncated:
+            reason = info.get("termination_reason")
+            break
+    trace = {k: np.asarray(v) for k, v in records.items()}
+    trace["reward"] = np.asarray(rewards)
+    return Episode(seed, trace, float(total), length, reason)
+
+
+def evaluate(
+    policy: Policy,
+    env_id: str,
+    seeds: Iterable[int],
+    options: Mapping[str, Any] | None = None,
+    **env_kwargs: Any,
+) -> Evaluation:
+    """Run ``policy`` on ``gym.make(env_id, **env_kwargs)`` once per seed and score every episode.
+
+    ``options`` go to every ``reset`` (e.g. ``{"offset_y": 0.8, "fan_motion": "static"}``).
+    """
+    seeds = [int(s) for s in seeds]
+    if not seeds:
+        raise ValueError("seeds must name at least one seed")
+    score = METRICS.get(_canonical_id(env_id), generic_metrics)
+    env = gym.make(env_id, **env_kwargs)
+    try:
+        episodes = [run_episode(policy, env, seed, options) for seed in seeds]
+    finally:
+        env.close()
+    return Evaluation(env_id, seeds, [score(e) for e in episodes], episodes)

@@ -1,0 +1,194 @@
+"""The vehicle's own flight firmware: velocity -> attitude -> body rates -> motor speeds.
+
+What PX4 is to paper 003's vehicle and the AR.Drone firmware to paper 000's: a cascade of
+
+* a velocity loop (PI, world frame, stiffer vertically where thrust acts directly) giving a desired acceleration, hence a thrust vector whose tilt
+  is limited to ``max_tilt`` (the integrator stops while the tilt limit is active),
+* an attitude loop (proportional on the geometric error ``e_R = ½·vee(R_dᵀR - RᵀR_d)``),
+* a body-rate loop (PI with inertia scaling and the gyroscopic term ``ω × Jω``; the integrator stops
+  while the mixer saturates), and
+* the mixer (eqs. 1, 8-10 of paper 000, nominal coefficients) with saturation handling that gives up
+  yaw torque before thrust, roll and pitch, then clips speeds to the motors' range.
+
+Gains follow from the vehicle: the rate-loop bandwidth is set by the motor time constant ``τ_m``
+(``k_rate = 0.5/τ_m`` gives a damping ratio of ~0.7 for the loop ``k/(s(τ_m s + 1))``), and each outer
+loop is slower than the one inside it. The autopilot reads the vehicle's true state, as the onboard
+state estimate of a real vehicle under motion capture would give it to within sensor noise.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from quad_wrench_env.rotations import quat_from_euler_zyx, rotation_matrix, yaw_of
+from quad_wrench_env.vehicle import GRAVITY, Mixer, VehicleParams
+from quad_wrench_env.world import RigidBodyState
+
+_E_Z = np.array((0.0, 0.0, 1.0))
+
+
+@dataclass(frozen=True)
+class AutopilotGains:
+    """Loop gains (all in 1/s) and limits of the cascade."""
+
+    rate_p: float
+    rate_i: float
+    attitude_p: float
+    yaw_p: float
+    velocity_p: float
+    velocity_i: float
+    climb_p: float
+    climb_i: float
+    setpoint_weight: float = 0.7
+    """Share of the commanded velocity in the proportional term (2-DOF PI): removes the overshoot
+    that the integrator's zero would cause on a step command, leaves disturbance rejection as it is."""
+    max_tilt: float = math.radians(35.0)
+    max_rate: float = 4.0
+    max_yaw_error: float = 0.5
+
+    @classmethod
+    def for_vehicle(cls, vehicle: VehicleParams) -> AutopilotGains:
+        """Gains derived from the motor time constant (see the module docstring)."""
+        tau_m = 0.5 * (vehicle.motor_time_constant_up + vehicle.motor_time_constant_down)
+        rate_p = 0.5 / tau_m
+        attitude_p = rate_p / 3.0
+        velocity_p = attitude_p / 3.0
+        climb_p = rate_p / 3.0
+        # Rotor drag adds its own damping to the horizontal loop: v' = a - d·v. Size the integrator
+        # and the set-point weight on k = k_p + d so every preset answers a step alike (~5 % overshoot).
+        k = velocity_p + vehicle.rotor_drag_decel
+        return cls(
+            rate_p=rate_p, rate_i=0.25 * rate_p**2, attitude_p=attitude_p, yaw_p=0.5 * attitude_p,
+            velocity_p=velocity_p, velocity_i=0.3 * k**2, climb_p=climb_p, climb_i=0.25 * climb_p**2,
+            setpoint_weight=0.7 * k / velocity_p,
+        )
+
+
+class Autopilot:
+    """Cascaded controller producing motor-speed commands from velocity, attitude or wrench setpoints."""
+
+    def __init__(self, vehicle: VehicleParams, dt: float, gains: AutopilotGains | None = None) -> None:
+        self.vehicle = vehicle
+        self.dt = dt
+        self.gains = gains or AutopilotGains.for_vehicle(vehicle)
+        g = self.gains
+        self._velocity_p = np.array((g.velocity_p, g.velocity_p, g.climb_p))
+        self._velocity_i = np.array((g.velocity_i, g.velocity_i, g.climb_i))
+        self.mixer = Mixer(vehicle)
+        self._inertia = np.array(vehicle.inertia)
+        self._w2_min = vehicle.min_rotor_speed**2
+        self._w2_max = vehicle.max_rotor_speed**2
+        self.reset(0.0)
+
+    def reset(self, yaw: float) -> None:
+        """Zero the integrators and hold ``yaw`` (rad)."""
+        self.yaw_setpoint = yaw
+        self._velocity_integral = np.zeros(3)
+        self._rate_integral = np.zeros(3)
+        self.saturated = False
+
+    def trim(self, rotation: np.ndarray, rotor_speeds: np.ndarray) -> None:
+        """Preload the integrators so that, at rest in attitude ``rotation`` with zero errors, the
+        cascade commands ``rotor_speeds``: the state of a vehicle that has been hovering in
+        equilibrium (used at the start of an episode)."""
+        g = self.gains
+        command = self.mixer.wrench(rotor_speeds)
+        self._rate_integral = command[1:] / (self._inertia * g.rate_i)
+        thrust_vector = command[0] * rotation[:, 2]
+        self._velocity_integral = (thrust_vector / self.vehicle.mass - GRAVITY * _E_Z) / self._velocity_i
+
+    # -- outer loops -------------------------------------------------------------------------
+    def velocity_command(self, state: RigidBodyState, velocity: np.ndarray, yaw_rate: float) -> np.ndarray:
+        """Motor speeds that track a world-frame ``velocity`` (m/s) and a yaw rate (rad/s)."""
+        error = velocity - state.velocity
+        proportional = self.gains.setpoint_weight * velocity - state.velocity
+        accel = self._velocity_p * proportional + self._velocity_i * self._velocity_integral
+        thrust_vector = self.vehicle.mass * (accel + GRAVITY * _E_Z)
+        thrust_vector, tilt_limited = self._limit_tilt(thrust_vector)
+        if not (tilt_limited or self.saturated):
+            self._velocity_integral += error * self.dt
+        self._advance_yaw(state, yaw_rate)
+        desired = attitude_from_thrust(thrust_vector, self.yaw_setpoint)
+        thrust = float(thrust_vector @ state.rotation[:, 2])
+        return self._attitude_to_motors(state, desired, thrust)
+
+    def attitude_command(
+        self, state: RigidBodyState, roll: float, pitch: float, yaw_rate: float, thrust: float
+    ) -> np.ndarray:
+        """Motor speeds for a roll and pitch (rad), a yaw rate (rad/s) and a collective thrust (N)."""
+        self._advance_yaw(state, yaw_rate)
+        desired = rotation_matrix(quat_from_euler_zyx(roll, pitch, self.yaw_setpoint))
+        return self._attitude_to_motors(state, desired, thrust)
+
+    def wrench_command(self, thrust: float, body_torque: np.ndarray) -> np.ndarray:
+        """Motor speeds for a collective thrust (N) and body torque (N·m), through the mixer."""
+        return self._mix(np.array((thrust, body_torque[0], body_torque[1], body_torque[2])))
+
+    # -- inner loops -------------------------------------------------------------------------
+    def _advance_yaw(self, state: RigidBodyState, yaw_rate: float) -> None:
+        yaw = yaw_of(state.quaternion)
+        ahead = _wrap(self.yaw_setpoint + yaw_rate * self.dt - yaw)
+        limit = self.gains.max_yaw_error
+        self.yaw_setpoint = yaw + min(limit, max(-limit, ahead))
+
+    def _limit_tilt(self, thrust_vector: np.ndarray) -> tuple[np.ndarray, bool]:
+        vertical = max(thrust_vector[2], 0.1 * self.vehicle.mass * GRAVITY)
+        horizontal = thrust_vector[:2]
+        max_horizontal = vertical * math.tan(self.gains.max_tilt)
+        norm = math.hypot(horizontal[0], horizontal[1])
+        limited = norm > max_horizontal or vertical != thrust_vector[2]
+        if norm > max_horizontal:
+            horizontal = horizontal * (max_horizontal / norm)
+        return np.array((horizontal[0], horizontal[1], vertical)), limited
+
+    def _attitude_to_motors(self, state: RigidBodyState, desired: np.ndarray, thrust: float) -> np.ndarray:
+        g = self.gains
+        r = state.rotation
+        e = desired.T @ r - r.T @ desired
+        attitude_error = 0.5 * np.array((e[2, 1], e[0, 2], e[1, 0]))
+        rates = -np.array((g.attitude_p, g.attitude_p, g.yaw_p)) * attitude_error
+        rates = np.clip(rates, -g.max_rate, g.max_rate)
+        return self._rates_to_motors(state, rates, thrust)
+
+    def _rates_to_motors(self, state: RigidBodyState, rates: np.ndarray, thrust: float) -> np.ndarray:
+        g = self.gains
+        omega = state.body_rates
+        error = rates - omega
+        if not self.saturated:
+            self._rate_integral += error * self.dt
+        angular_accel = g.rate_p * error + g.rate_i * self._rate_integral
+        torque = self._inertia * angular_accel + np.cross(omega, self._inertia * omega)
+        return self._mix(np.array((thrust, torque[0], torque[1], torque[2])))
+
+    def _mix(self, thrust_and_torque: np.ndarray) -> np.ndarray:
+        """Rotor speeds for ``[c_t, tau]``; yaw torque is given up first, then speeds are clipped."""
+        inverse = self.mixer.inverse
+        without_yaw = inverse[:, :3] @ thrust_and_torque[:3]
+        yaw_part = inverse[:, 3] * thrust_and_torque[3]
+        lo, hi = self._w2_min, self._w2_max
+        scale = 1.0
+        for w0, d in zip(without_yaw, yaw_part, strict=True):
+            if d > 0.0 and w0 + d > hi:
+                scale = min(scale, max(0.0, (hi - w0) / d))
+            elif d < 0.0 and w0 + d < lo:
+                scale = min(scale, max(0.0, (lo - w0) / d))
+        squared = without_yaw + scale * yaw_part
+        clipped = np.clip(squared, lo, hi)
+        self.saturated = scale < 1.0 or bool(np.any(clipped != squared))
+        return np.sqrt(clipped)
+
+
+def attitude_from_thrust(thrust_vector: np.ndarray, yaw: float) -> np.ndarray:
+    """Rotation matrix whose body z is along ``thrust_vector`` and whose body x heads to ``yaw``."""
+    z_d = thrust_vector / np.linalg.norm(thrust_vector)
+    heading = np.array((math.cos(yaw), math.sin(yaw), 0.0))
+    y_d = np.cross(z_d, heading)
+    y_d /= np.linalg.norm(y_d)
+    return np.column_stack((np.cross(y_d, z_d), y_d, z_d))
+
+
+def _wrap(angle: float) -> float:
+    return (angle + math.pi) % (2.0 * math.pi) - math.pi

@@ -1,0 +1,205 @@
+"""A fan at ``(0, y_f(t), z_f)`` blowing along +x whose jet moves along y (paper 000 Sec. V, Figs. 6-7).
+
+Velocity field (PHYSICS.md, "Fan"): a round turbulent free jet with centre-line speed
+``u_c(x) = U0·min(1, B·D/x)`` and Gaussian radial profile ``u = u_c·exp(-(r/b)²)``,
+``b(x) = sqrt((D/2)² + (c·x)²)``, where ``r`` is the distance from the jet axis. The air at distance x
+left the fan ``t_transit(x) = ∫₀ˣ dξ/u_c(ξ)`` earlier, so the axis there sits at the fan's *retarded*
+position ``y_f(t - t_transit(x))``. Turbulence multiplies the local mean speed by ``I·n(t)`` in each
+component, ``n`` a unit-variance Ornstein-Uhlenbeck process with time scale ``b/u_c`` at the vehicle.
+Before ``t = 0`` the fan rests where its motion starts.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Protocol
+
+import numpy as np
+
+
+class FanMotion(Protocol):
+    """Lateral position of the fan over time."""
+
+    def y(self, t: np.ndarray) -> np.ndarray:
+        """Fan y (m) at times ``t`` (s, array); times before 0 give the start position."""
+
+
+@dataclass(frozen=True)
+class Static:
+    y0: float = 0.0
+
+    def y(self, t: np.ndarray) -> np.ndarray:
+        return np.full(np.shape(t), self.y0)
+
+
+@dataclass(frozen=True)
+class ConstantSpeed:
+    speed: float = 0.1
+    y0: float = 0.0
+
+    def y(self, t: np.ndarray) -> np.ndarray:
+        return self.y0 + self.speed * np.maximum(t, 0.0)
+
+
+@dataclass(frozen=True)
+class Sine:
+    amplitude: float = 0.5
+    frequency: float = 1.0 / 30.0
+    y0: float = 0.0
+
+    def y(self, t: np.ndarray) -> np.ndarray:
+        return self.y0 + self.amplitude * np.sin(2.0 * math.pi * self.frequency * np.maximum(t, 0.0))
+
+
+@dataclass(frozen=True)
+class PiecewiseVelocity:
+    """Constant velocity over consecutive segments ``(duration s, velocity m/s)``; still afterwards."""
+
+    segments: tuple[tuple[float, float], ...] = ((10.0, 0.1), (10.0, 0.0), (10.0, -0.1))
+    y0: float = 0.0
+
+    def __post_init__(self) -> None:
+        segments = tuple((float(d), float(v)) for d, v in self.segments)
+        if not segments or any(d <= 0 or not math.isfinite(d) or not math.isfinite(v) for d, v in segments):
+            raise ValueError(
+                f"segments={self.segments!r} must be a non-empty list of (duration > 0, velocity)"
+            )
+        object.__setattr__(self, "segments", segments)
+        durations = np.array([d for d, _ in segments])
+        velocities = np.array([v for _, v in segments])
+        object.__setattr__(self, "_starts", np.concatenate(([0.0], np.cumsum(durations))))
+        object.__setattr__(self, "_velocities", np.append(velocities, 0.0))
+        object.__setattr__(
+            self, "_positions", self.y0 + np.concatenate(([0.0], np.cumsum(durations * velocities)))
+        )
+
+    def y(self, t: np.ndarray) -> np.ndarray:
+        t = np.maximum(t, 0.0)
+        k = np.searchsorted(self._starts, t, side="right") - 1  # type: ignore[attr-defined]
+        return self._positions[k] + self._velocities[k] * (t - self._starts[k])  # type: ignore[attr-defined]
+
+
+MOTIONS: dict[str, type] = {
+    "static": Static,
+    "constant_speed": ConstantSpeed,
+    "sine": Sine,
+    "piecewise": PiecewiseVelocity,
+}
+
+
+def make_motion(name: str, **params) -> FanMotion:
+    """A fan motion by name with its parameters; unknown names or parameters raise ``ValueError``."""
+    if name not in MOTIONS:
+        raise ValueError(f"unknown fan motion {name!r}; allowed: {sorted(MOTIONS)}")
+    cls = MOTIONS[name]
+    allowed = set(cls.__dataclass_fields__)
+    unknown = sorted(set(params) - allowed)
+    if unknown:
+        raise ValueError(f"unknown parameter(s) {unknown} for fan motion {name!r}; allowed: {sorted(allowed)}")
+    for key, value in params.items():
+        if key != "segments" and not (isinstance(value, (int, float)) and math.isfinite(value)):
+            raise ValueError(f"fan motion {name!r}: {key}={value!r} must be a finite number")
+    return cls(**params)
+
+
+def _default_motions() -> dict[str, dict]:
+    return {
+        "static": {},
+        "constant_speed": {"speed": 0.1},
+        "sine": {"amplitude": 0.5, "frequency": 1.0 / 30.0},
+        "piecewise": {"segments": [[10.0, 0.1], [10.0, 0.0], [10.0, -0.1]]},
+    }
+
+
+@dataclass
+class FanConfig:
+    """Fan and jet parameters (PHYSICS.md defaults)."""
+
+    enabled: bool = True
+    """False switches the air off (the fan still moves and is reported), e.g. for hover tests."""
+    outlet_diameter: float = 0.5
+    outlet_speed: float = 6.0
+    height: float = 1.0
+    spread: float = 0.42
+    """Jet growth ``c`` in ``b(x)``; 0.113 is free-jet theory, 0.42 fits paper 000 Fig. 6."""
+    centreline_constant: float = 5.8
+    turbulence_intensity: float = 0.15
+    motion: str = "sine"
+    motions: dict[str, dict] = field(default_factory=_default_motions)
+    """Parameters of each motion, by name; ``motion`` picks the one used."""
+
+    def __post_init__(self) -> None:
+        for name in ("outlet_diameter", "outlet_speed", "spread", "centreline_constant"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+                raise ValueError(f"fan.{name}={value!r} must be a finite number > 0")
+        if not (0.0 <= self.turbulence_intensity < 1.0):
+            raise ValueError(f"fan.turbulence_intensity={self.turbulence_intensity!r} must be in [0, 1)")
+        unknown = sorted(set(self.motions) - set(MOTIONS))
+        if unknown:
+            raise ValueError(f"unknown fan motion(s) {unknown} in fan.motions; allowed: {sorted(MOTIONS)}")
+        self.make_motion(self.motion)  # validates the name and its parameters
+
+    def make_motion(self, name: str, **overrides) -> FanMotion:
+        return make_motion(name, **{**self.motions.get(name, {}), **overrides})
+
+
+class FanJet:
+    """The moving, turbulent jet of a fan: a :class:`~quad_wrench_env.disturbances.base.WindField`."""
+
+    def __init__(self, config: FanConfig, motion: FanMotion | None = None) -> None:
+        self.config = config
+        self.motion = motion or config.make_motion(config.motion)
+        self._u0 = config.outlet_speed
+        self._core = config.centreline_constant * config.outlet_diameter
+        """Length ``B·D`` of the potential core, where the centre-line speed is still ``U0``."""
+        self._radius2 = (0.5 * config.outlet_diameter) ** 2
+        self._noise = np.zeros(3)
+        self._rng: np.random.Generator | None = None
+
+    def reset(self, rng: np.random.Generator) -> None:
+        self._rng = rng
+        self._noise = rng.standard_normal(3)  # the stationary distribution of the OU process
+
+    def centreline_speed(self, x: np.ndarray) -> np.ndarray:
+        return self._u0 * np.minimum(1.0, self._core / np.maximum(x, 1e-9))
+
+    def half_width(self, x: np.ndarray) -> np.ndarray:
+        return np.sqrt(self._radius2 + (self.config.spread * x) ** 2)
+
+    def transit_time(self, x: np.ndarray) -> np.ndarray:
+        """``∫₀ˣ dξ / u_c(ξ)``: how long ago the air now at distance x left the fan (s)."""
+        x = np.maximum(x, 0.0)
+        core = self._core
+        beyond = (x * x - core * core) / (2.0 * self._u0 * core)
+        return np.where(x <= core, x / self._u0, core / self._u0 + beyond)
+
+    def axis_y(self, x: float | np.ndarray, t: float) -> np.ndarray:
+        """y of the jet axis at distance ``x`` from the fan at time ``t`` (the fan's retarded y)."""
+        return self.motion.y(t - self.transit_time(np.asarray(x, dtype=float)))
+
+    def fan_y(self, t: float) -> float:
+        return float(self.motion.y(np.asarray(t)))
+
+    def advance(self, dt: float, position: np.ndarray) -> None:
+        if self.config.turbulence_intensity == 0.0 or self._rng is None:
+            return
+        x = max(float(position[0]), 1e-3)
+        time_scale = float(self.half_width(x) / self.centreline_speed(x))
+        decay = math.exp(-dt / time_scale)
+        self._noise = decay * self._noise + math.sqrt(1.0 - decay * decay) * self._rng.standard_normal(3)
+
+    def velocity_at(self, points: np.ndarray, t: float, mean: bool = False) -> np.ndarray:
+        x = points[:, 0]
+        downstream = x > 0.0
+        u_c = self.centreline_speed(x)
+        b = self.half_width(x)
+        dy = points[:, 1] - self.axis_y(x, t)
+        dz = points[:, 2] - self.config.height
+        speed = np.where(downstream, u_c * np.exp(-(dy * dy + dz * dz) / (b * b)), 0.0)
+        if mean:
+            return np.outer(speed, (1.0, 0.0, 0.0))
+        direction = self.config.turbulence_intensity * self._noise
+        direction[0] += 1.0
+        return np.outer(speed, direction)

@@ -1,0 +1,80 @@
+"""Action types: how a normalised action in [-1, 1]⁴ becomes motor-speed commands.
+
+==========  ==========================================================================================
+type        meaning of ``a = (a0, a1, a2, a3)``
+==========  ==========================================================================================
+velocity    world velocity ``(a0, a1)·max_speed_xy``, ``a2·max_speed_z`` and yaw rate ``a3·max_yaw_rate``,
+            flown by the autopilot's full cascade (default)
+attitude    roll ``a0`` and pitch ``a1`` times ``max_tilt_deg``, yaw rate ``a2·max_yaw_rate``, collective
+            thrust ``(1 + a3)·hover thrust``; the autopilot's attitude and rate loops fly it
+wrench      collective thrust ``(1 + a0)·hover thrust`` and body torques ``(a1, a2, a3)`` times
+            ``(l, l, p/k)·hover thrust / 2``, through the mixer
+motors      rotor speed commands ``(a + 1)/2·max rotor speed`` (the motor lag still applies)
+==========  ==========================================================================================
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from quad_wrench_env.autopilot import Autopilot
+from quad_wrench_env.vehicle import GRAVITY
+from quad_wrench_env.world import RigidBodyState
+
+ACTION_TYPES = ("velocity", "attitude", "wrench", "motors")
+
+
+@dataclass
+class ActionLimits:
+    """Physical ranges that the normalised actions span."""
+
+    max_speed_xy: float = 1.0
+    max_speed_z: float = 0.5
+    max_yaw_rate: float = 1.0
+    max_tilt_deg: float = 30.0
+
+    def __post_init__(self) -> None:
+        for name in ("max_speed_xy", "max_speed_z", "max_yaw_rate", "max_tilt_deg"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+                raise ValueError(f"action_limits.{name}={value!r} must be a finite number > 0")
+        if self.max_tilt_deg >= 90.0:
+            raise ValueError(f"action_limits.max_tilt_deg={self.max_tilt_deg} must be below 90")
+
+
+class ActionMap:
+    """Turns a clipped normalised action into motor-speed commands through the autopilot."""
+
+    def __init__(self, action_type: str, autopilot: Autopilot, limits: ActionLimits) -> None:
+        if action_type not in ACTION_TYPES:
+            raise ValueError(f"unknown action_type {action_type!r}; allowed: {list(ACTION_TYPES)}")
+        self.action_type = action_type
+        self.autopilot = autopilot
+        vehicle = autopilot.vehicle
+        self._hover_thrust = vehicle.mass * GRAVITY
+        self._velocity_scale = np.array((limits.max_speed_xy, limits.max_speed_xy, limits.max_speed_z))
+        self._yaw_rate_scale = limits.max_yaw_rate
+        self._tilt_scale = math.radians(limits.max_tilt_deg)
+        self._torque_scale = 0.5 * self._hover_thrust * np.array(
+            (vehicle.arm, vehicle.arm, vehicle.km_over_kf)
+        )
+        self._max_speed = vehicle.max_rotor_speed
+
+    def motor_command(self, action: np.ndarray, state: RigidBodyState) -> np.ndarray:
+        """Rotor speed commands (rad/s) for one physics step."""
+        a = action
+        if self.action_type == "velocity":
+            return self.autopilot.velocity_command(
+                state, a[:3] * self._velocity_scale, a[3] * self._yaw_rate_scale
+            )
+        if self.action_type == "attitude":
+            return self.autopilot.attitude_command(
+                state, a[0] * self._tilt_scale, a[1] * self._tilt_scale, a[2] * self._yaw_rate_scale,
+                (1.0 + a[3]) * self._hover_thrust,
+            )
+        if self.action_type == "wrench":
+            return self.autopilot.wrench_command((1.0 + a[0]) * self._hover_thrust, a[1:] * self._torque_scale)
+        return 0.5 * (a + 1.0) * self._max_speed

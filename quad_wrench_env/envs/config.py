@@ -1,0 +1,63 @@
+"""Settings shared by every QuadWrench environment (defaults from PHYSICS.md)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+from quad_wrench_env.envs.actions import ActionLimits
+
+
+@dataclass
+class ArenaConfig:
+    """Box the vehicle must stay in (m, world frame); leaving it ends the episode."""
+
+    x_min: float = 0.5
+    x_max: float = 6.0
+    y_half_width: float = 4.0
+    z_max: float = 3.0
+
+    def __post_init__(self) -> None:
+        if not (self.x_min < self.x_max and self.y_half_width > 0 and self.z_max > 0):
+            raise ValueError(
+                f"arena x_min={self.x_min}, x_max={self.x_max}, y_half_width={self.y_half_width}, "
+                f"z_max={self.z_max}: need x_min < x_max and positive width and height"
+            )
+
+
+@dataclass
+class EnvConfig:
+    """What every environment is built from; each key may be overridden in ``gym.make``."""
+
+    vehicle: str = "ardrone2"
+    vehicle_params: dict[str, Any] = field(default_factory=dict)
+    """Fields of the vehicle preset to override, e.g. ``{"mass": 0.45}``."""
+    estimator: str = "oracle"
+    estimator_params: dict[str, Any] = field(default_factory=dict)
+    action_type: str = "velocity"
+    action_limits: ActionLimits = field(default_factory=ActionLimits)
+    physics_hz: int = 200
+    policy_hz: int = 50
+    episode_seconds: float = 30.0
+    kf_spread: float = 0.02
+    """Standard deviation of the per-rotor thrust-coefficient error ``ε_i`` (PHYSICS.md)."""
+    arena: ArenaConfig = field(default_factory=ArenaConfig)
+    crash_height: float = 0.1
+    flip_tilt_deg: float = 90.0
+
+    def __post_init__(self) -> None:
+        for name in ("physics_hz", "policy_hz"):
+            value = getattr(self, name)
+            if not (isinstance(value, int) and value > 0):
+                raise ValueError(f"{name}={value!r} must be a positive integer (Hz)")
+        if self.physics_hz % self.policy_hz:
+            raise ValueError(
+                f"policy_hz={self.policy_hz} must divide physics_hz={self.physics_hz}"
+            )
+        if not (math.isfinite(self.episode_seconds) and self.episode_seconds > 0):
+            raise ValueError(f"episode_seconds={self.episode_seconds!r} must be a finite number > 0")
+        if not (0.0 <= self.kf_spread < 0.5):
+            raise ValueError(f"kf_spread={self.kf_spread!r} must be in [0, 0.5)")
+        if not (0.0 < self.flip_tilt_deg <= 180.0):
+            raise ValueError(f"flip_tilt_deg={self.flip_tilt_deg!r} must be in (0, 180]")

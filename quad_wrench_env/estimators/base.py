@@ -1,0 +1,65 @@
+"""What every wrench estimator returns and the interface it implements (ARCHITECTURE.md).
+
+Estimators see only what a real vehicle sees: the thrust and body torque that the *nominal* mixer
+computes from the measured motor speeds, and the measured pose. Force and torque are in the world
+frame (paper 000 Fig. 1), SI units.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Protocol, runtime_checkable
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class WrenchEstimate:
+    """External force (N) and torque (N·m) in the world frame and their 6x6 covariance."""
+
+    force: np.ndarray
+    torque: np.ndarray
+    covariance: np.ndarray
+
+
+@dataclass(frozen=True)
+class StateEstimate:
+    """The estimator's belief about the vehicle's motion (world frame; rates in the body frame)."""
+
+    position: np.ndarray
+    velocity: np.ndarray
+    quaternion: np.ndarray
+    """``[w, x, y, z]``, body -> world."""
+    body_rates: np.ndarray
+
+
+@runtime_checkable
+class Estimator(Protocol):
+    """A wrench estimator stepped at the motion-capture rate."""
+
+    name: str
+
+    def reset(self, position: np.ndarray, quaternion_wxyz: np.ndarray) -> None:
+        """Start from a known pose, at rest, with no external wrench."""
+
+    def step(
+        self,
+        thrust: float,
+        body_torque: np.ndarray,
+        position: np.ndarray,
+        quaternion_wxyz: np.ndarray,
+    ) -> WrenchEstimate:
+        """One step of ``dt``: inputs over the step and the pose measured at its end."""
+
+    @property
+    def state(self) -> StateEstimate:
+        """The estimated motion after the last step."""
+
+
+@runtime_checkable
+class TruthFed(Protocol):
+    """An estimator that is handed the truth before each step (only the ``oracle``)."""
+
+    def observe_truth(
+        self, state: StateEstimate, force: np.ndarray, torque: np.ndarray
+    ) -> None: ...

@@ -1,0 +1,133 @@
+"""Quaternions, rotation matrices and attitude helpers.
+
+Conventions (see ``shared/design/ARCHITECTURE.md``):
+
+* quaternions are Hamilton, scalar first ``[w, x, y, z]`` and rotate body -> world;
+* this is the ONE module that converts to and from PyBullet's ``[x, y, z, w]`` order;
+* ``R = rotation_matrix(q)`` maps body vectors to world vectors, i.e. it is the matrix that paper 000
+  eq. (7) calls ``R^T``.
+
+The functions are written for single vectors on the hot path of the simulation (plain numpy, no
+per-call object construction); the tests check them against ``scipy.spatial.transform.Rotation``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+__all__ = [
+    "from_pybullet",
+    "quat_conjugate",
+    "quat_from_axis_angle",
+    "quat_from_euler_zyx",
+    "quat_from_matrix",
+    "quat_multiply",
+    "quat_normalize",
+    "rotation_matrix",
+    "skew",
+    "tilt_angle",
+    "to_pybullet",
+    "yaw_of",
+]
+
+
+def to_pybullet(q_wxyz: np.ndarray) -> tuple[float, float, float, float]:
+    """Project ``[w, x, y, z]`` -> PyBullet ``(x, y, z, w)``."""
+    return (float(q_wxyz[1]), float(q_wxyz[2]), float(q_wxyz[3]), float(q_wxyz[0]))
+
+
+def from_pybullet(q_xyzw) -> np.ndarray:
+    """PyBullet ``(x, y, z, w)`` -> project ``[w, x, y, z]``."""
+    return np.array((q_xyzw[3], q_xyzw[0], q_xyzw[1], q_xyzw[2]), dtype=float)
+
+
+def quat_multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Hamilton product ``a ⊗ b`` (rotate by ``b`` first, then by ``a``)."""
+    aw, ax, ay, az = a
+    bw, bx, by, bz = b
+    return np.array(
+        (
+            aw * bw - ax * bx - ay * by - az * bz,
+            aw * bx + ax * bw + ay * bz - az * by,
+            aw * by - ax * bz + ay * bw + az * bx,
+            aw * bz + ax * by - ay * bx + az * bw,
+        )
+    )
+
+
+def quat_conjugate(q: np.ndarray) -> np.ndarray:
+    """Inverse of a unit quaternion."""
+    return np.array((q[0], -q[1], -q[2], -q[3]))
+
+
+def quat_normalize(q: np.ndarray) -> np.ndarray:
+    """Unit quaternion with a non-negative scalar part (one of the two signs, chosen canonically)."""
+    q = np.asarray(q, dtype=float)
+    n = math.sqrt(float(q @ q))
+    if not n > 0.0:
+        raise ValueError(f"cannot normalise quaternion {q!r}: its norm is {n}")
+    return q / n if q[0] >= 0.0 else -q / n
+
+
+def quat_from_axis_angle(axis: np.ndarray, angle: float) -> np.ndarray:
+    """Rotation by ``angle`` (rad) about the unit vector ``axis``."""
+    half = 0.5 * angle
+    s = math.sin(half)
+    return np.array((math.cos(half), axis[0] * s, axis[1] * s, axis[2] * s))
+
+
+def quat_from_euler_zyx(roll: float, pitch: float, yaw: float) -> np.ndarray:
+    """Quaternion of ``R = Rz(yaw) Ry(pitch) Rx(roll)`` (intrinsic z-y'-x'', aerospace order)."""
+    cr, sr = math.cos(0.5 * roll), math.sin(0.5 * roll)
+    cp, sp = math.cos(0.5 * pitch), math.sin(0.5 * pitch)
+    cy, sy = math.cos(0.5 * yaw), math.sin(0.5 * yaw)
+    return np.array(
+        (
+            cr * cp * cy + sr * sp * sy,
+            sr * cp * cy - cr * sp * sy,
+            cr * sp * cy + sr * cp * sy,
+            cr * cp * sy - sr * sp * cy,
+        )
+    )
+
+
+def rotation_matrix(q: np.ndarray) -> np.ndarray:
+    """Body -> world rotation matrix of the unit quaternion ``q`` (paper 000 eq. 7, its ``R^T``)."""
+    w, x, y, z = q
+    xx, yy, zz = x * x, y * y, z * z
+    xy, xz, yz = x * y, x * z, y * z
+    wx, wy, wz = w * x, w * y, w * z
+    return np.array(
+        (
+            (1.0 - 2.0 * (yy + zz), 2.0 * (xy - wz), 2.0 * (xz + wy)),
+            (2.0 * (xy + wz), 1.0 - 2.0 * (xx + zz), 2.0 * (yz - wx)),
+            (2.0 * (xz - wy), 2.0 * (yz + wx), 1.0 - 2.0 * (xx + yy)),
+        )
+    )
+
+
+def quat_from_matrix(matrix: np.ndarray) -> np.ndarray:
+    """Unit quaternion ``[w, x, y, z]`` (w >= 0) of a body -> world rotation matrix."""
+    x, y, z, w = Rotation.from_matrix(matrix).as_quat()
+    return quat_normalize(np.array((w, x, y, z)))
+
+
+def yaw_of(q: np.ndarray) -> float:
+    """Heading (rad) of the body x axis projected on the world x-y plane."""
+    w, x, y, z = q
+    return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+
+
+def tilt_angle(q: np.ndarray) -> float:
+    """Angle (rad) between the body z axis and the world z axis."""
+    w, x, y, z = q
+    cos_tilt = 1.0 - 2.0 * (x * x + y * y)
+    return math.acos(max(-1.0, min(1.0, cos_tilt)))
+
+
+def skew(v: np.ndarray) -> np.ndarray:
+    """Cross-product matrix: ``skew(a) @ b == np.cross(a, b)``."""
+    return np.array(((0.0, -v[2], v[1]), (v[2], 0.0, -v[0]), (-v[1], v[0], 0.0)))
