@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import gymnasium as gym
 import numpy as np
 
+from quad_wrench_env.config import build
 from quad_wrench_env.rotations import yaw_of
 
 
@@ -37,7 +38,9 @@ class AdmittancePolicy:
     """``ẏ_cmd = k_p·τ̂_z`` with x, z and yaw held by position feedback (velocity action)."""
 
     def __init__(self, gains: AdmittanceGains | None = None, **kwargs: float) -> None:
-        self.gains = gains or AdmittanceGains(**kwargs)
+        if gains is not None and kwargs:
+            raise ValueError("pass either gains or keyword gains, not both")
+        self.gains = gains or build(AdmittanceGains, kwargs, prefix="admittance.")
         self._layout: dict[str, slice] = {}
         self._scale = np.ones(4)
         self._reference: np.ndarray | None = None
@@ -46,7 +49,8 @@ class AdmittancePolicy:
         base = env.unwrapped
         if base.cfg.action_type != "velocity":
             raise ValueError(
-                f"the admittance controller needs action_type='velocity', the env has {base.cfg.action_type!r}"
+                "the admittance controller needs action_type='velocity', "
+                f"the env has {base.cfg.action_type!r}"
             )
         limits = base.cfg.action_limits
         self._layout = base.obs_layout
@@ -61,18 +65,22 @@ class AdmittancePolicy:
         position = observation[layout["position"]].astype(float)
         yaw = yaw_of(observation[layout["quaternion"]].astype(float))
         if self._reference is None:
-            self._reference = np.array((
-                position[0] if g.x_ref is None else g.x_ref,
-                position[2] if g.z_ref is None else g.z_ref,
-                yaw if g.yaw_ref is None else g.yaw_ref,
-            ))
+            self._reference = np.array(
+                (
+                    position[0] if g.x_ref is None else g.x_ref,
+                    position[2] if g.z_ref is None else g.z_ref,
+                    yaw if g.yaw_ref is None else g.yaw_ref,
+                )
+            )
         x_ref, z_ref, yaw_ref = self._reference
         tau_z = float(observation[layout["torque"]][2])
         yaw_error = (yaw_ref - yaw + math.pi) % (2.0 * math.pi) - math.pi
-        command = np.array((
-            g.k_x * (x_ref - position[0]),
-            g.k_p * tau_z,
-            g.k_z * (z_ref - position[2]),
-            g.k_yaw * yaw_error,
-        ))
+        command = np.array(
+            (
+                g.k_x * (x_ref - position[0]),
+                g.k_p * tau_z,
+                g.k_z * (z_ref - position[2]),
+                g.k_yaw * yaw_error,
+            )
+        )
         return np.clip(command / self._scale, -1.0, 1.0).astype(np.float32)

@@ -81,9 +81,7 @@ def _canonical_id(env_id: str) -> str:
     return env_id.split(":", 1)[1] if ":" in env_id else env_id
 
 
-def run_episode(
-    policy: Policy, env: gym.Env, seed: int, options: Mapping[str, Any] | None = None
-) -> Episode:
+def run_episode(policy: Policy, env: gym.Env, seed: int, options: Mapping[str, Any] | None = None) -> Episode:
     """Run ``policy`` on ``env`` for one episode from ``reset(seed=seed, options=options)``."""
     observation, info = env.reset(seed=seed, options=dict(options or {}))
     policy.reset(env)

@@ -2,8 +2,9 @@
 
 What PX4 is to paper 003's vehicle and the AR.Drone firmware to paper 000's: a cascade of
 
-* a velocity loop (PI, world frame, stiffer vertically where thrust acts directly) giving a desired acceleration, hence a thrust vector whose tilt
-  is limited to ``max_tilt`` (the integrator stops while the tilt limit is active),
+* a velocity loop (2-DOF PI, world frame, stiffer vertically where thrust acts directly) giving a
+  desired acceleration, hence a thrust vector whose tilt is limited to ``max_tilt`` (the integrator
+  stops while the tilt limit is active),
 * an attitude loop (proportional on the geometric error ``e_R = ½·vee(R_dᵀR - RᵀR_d)``),
 * a body-rate loop (PI with inertia scaling and the gyroscopic term ``ω × Jω``; the integrator stops
   while the mixer saturates), and
@@ -23,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from quad_wrench_env.rotations import quat_from_euler_zyx, rotation_matrix, yaw_of
+from quad_wrench_env.rotations import cross, quat_from_euler_zyx, rotation_matrix, yaw_of
 from quad_wrench_env.vehicle import GRAVITY, Mixer, VehicleParams
 from quad_wrench_env.world import RigidBodyState
 
@@ -61,8 +62,14 @@ class AutopilotGains:
         # and the set-point weight on k = k_p + d so every preset answers a step alike (~5 % overshoot).
         k = velocity_p + vehicle.rotor_drag_decel
         return cls(
-            rate_p=rate_p, rate_i=0.25 * rate_p**2, attitude_p=attitude_p, yaw_p=0.5 * attitude_p,
-            velocity_p=velocity_p, velocity_i=0.3 * k**2, climb_p=climb_p, climb_i=0.25 * climb_p**2,
+            rate_p=rate_p,
+            rate_i=0.25 * rate_p**2,
+            attitude_p=attitude_p,
+            yaw_p=0.5 * attitude_p,
+            velocity_p=velocity_p,
+            velocity_i=0.3 * k**2,
+            climb_p=climb_p,
+            climb_i=0.25 * climb_p**2,
             setpoint_weight=0.7 * k / velocity_p,
         )
 
@@ -160,7 +167,7 @@ class Autopilot:
         if not self.saturated:
             self._rate_integral += error * self.dt
         angular_accel = g.rate_p * error + g.rate_i * self._rate_integral
-        torque = self._inertia * angular_accel + np.cross(omega, self._inertia * omega)
+        torque = self._inertia * angular_accel + cross(omega, self._inertia * omega)
         return self._mix(np.array((thrust, torque[0], torque[1], torque[2])))
 
     def _mix(self, thrust_and_torque: np.ndarray) -> np.ndarray:
@@ -185,9 +192,9 @@ def attitude_from_thrust(thrust_vector: np.ndarray, yaw: float) -> np.ndarray:
     """Rotation matrix whose body z is along ``thrust_vector`` and whose body x heads to ``yaw``."""
     z_d = thrust_vector / np.linalg.norm(thrust_vector)
     heading = np.array((math.cos(yaw), math.sin(yaw), 0.0))
-    y_d = np.cross(z_d, heading)
+    y_d = cross(z_d, heading)
     y_d /= np.linalg.norm(y_d)
-    return np.column_stack((np.cross(y_d, z_d), y_d, z_d))
+    return np.column_stack((cross(y_d, z_d), y_d, z_d))
 
 
 def _wrap(angle: float) -> float:

@@ -19,6 +19,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 __all__ = [
+    "cross",
     "from_pybullet",
     "quat_conjugate",
     "quat_from_axis_angle",
@@ -123,9 +124,16 @@ def yaw_of(q: np.ndarray) -> float:
 
 def tilt_angle(q: np.ndarray) -> float:
     """Angle (rad) between the body z axis and the world z axis."""
-    w, x, y, z = q
+    x, y = q[1], q[2]
     cos_tilt = 1.0 - 2.0 * (x * x + y * y)
     return math.acos(max(-1.0, min(1.0, cos_tilt)))
+
+
+def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``a × b`` for 3-vectors or row-wise for (N, 3) arrays (``np.cross`` without its overhead)."""
+    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
+    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
+    return np.stack((a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0), axis=-1)
 
 
 def skew(v: np.ndarray) -> np.ndarray:

@@ -8,6 +8,7 @@ exactly what PyBullet does with a force at a point, in one call instead of one p
 
 from __future__ import annotations
 
+import contextlib
 from dataclasses import dataclass
 
 import numpy as np
@@ -63,15 +64,25 @@ class World:
             p.GEOM_BOX, halfExtents=(half_width, half_width, 0.5 * v.hull_height), physicsClientId=cid
         )
         visual = p.createVisualShape(
-            p.GEOM_BOX, halfExtents=(half_width, half_width, 0.5 * v.hull_height),
-            rgbaColor=(0.2, 0.2, 0.25, 1.0), physicsClientId=cid,
+            p.GEOM_BOX,
+            halfExtents=(half_width, half_width, 0.5 * v.hull_height),
+            rgbaColor=(0.2, 0.2, 0.25, 1.0),
+            physicsClientId=cid,
         )
         self.body = p.createMultiBody(
-            v.mass, hull, visual, basePosition=tuple(position), baseOrientation=to_pybullet(quaternion),
+            v.mass,
+            hull,
+            visual,
+            basePosition=tuple(position),
+            baseOrientation=to_pybullet(quaternion),
             physicsClientId=cid,
         )
         p.changeDynamics(
-            self.body, -1, localInertiaDiagonal=v.inertia, linearDamping=0.0, angularDamping=0.0,
+            self.body,
+            -1,
+            localInertiaDiagonal=v.inertia,
+            linearDamping=0.0,
+            angularDamping=0.0,
             physicsClientId=cid,
         )
 
@@ -85,9 +96,7 @@ class World:
         )
 
     def set_velocity(self, velocity: np.ndarray, angular_velocity: np.ndarray) -> None:
-        p.resetBaseVelocity(
-            self.body, tuple(velocity), tuple(angular_velocity), physicsClientId=self.client
-        )
+        p.resetBaseVelocity(self.body, tuple(velocity), tuple(angular_velocity), physicsClientId=self.client)
 
     def step(self, force: np.ndarray, torque: np.ndarray, centre_of_mass: np.ndarray) -> None:
         """Apply a world-frame force at the centre of mass (its current world position) and a
@@ -110,7 +119,5 @@ class World:
             self.client = None
 
     def __del__(self) -> None:
-        try:
+        with contextlib.suppress(Exception):  # at interpreter shutdown pybullet may be gone already
             self.close()
-        except Exception:  # interpreter shutdown: pybullet may already be gone
-            pass

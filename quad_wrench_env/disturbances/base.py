@@ -11,6 +11,8 @@ from typing import Protocol, runtime_checkable
 
 import numpy as np
 
+from quad_wrench_env.rotations import cross
+
 
 @runtime_checkable
 class WindField(Protocol):
@@ -32,4 +34,4 @@ def resultant(offsets: np.ndarray, forces: np.ndarray) -> tuple[np.ndarray, np.n
 
     Both arrays are (N, 3) in the world frame; returns ``(Σ F_j, Σ r_j × F_j)``.
     """
-    return forces.sum(axis=0), np.cross(offsets, forces).sum(axis=0)
+    return forces.sum(axis=0), cross(offsets, forces).sum(axis=0)

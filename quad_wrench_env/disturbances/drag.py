@@ -18,9 +18,7 @@ class QuadraticDrag:
 
     def __init__(self, drag_area: float, num_points: int, air_density: float = AIR_DENSITY) -> None:
         if drag_area < 0 or num_points < 1:
-            raise ValueError(
-                f"drag_area={drag_area} must be >= 0 and num_points={num_points} >= 1"
-            )
+            raise ValueError(f"drag_area={drag_area} must be >= 0 and num_points={num_points} >= 1")
         self._coefficient = 0.5 * air_density * drag_area / num_points
 
     def forces(self, relative_air_velocity: np.ndarray) -> np.ndarray:

@@ -96,7 +96,9 @@ def make_motion(name: str, **params) -> FanMotion:
     allowed = set(cls.__dataclass_fields__)
     unknown = sorted(set(params) - allowed)
     if unknown:
-        raise ValueError(f"unknown parameter(s) {unknown} for fan motion {name!r}; allowed: {sorted(allowed)}")
+        raise ValueError(
+            f"unknown parameter(s) {unknown} for fan motion {name!r}; allowed: {sorted(allowed)}"
+        )
     for key, value in params.items():
         if key != "segments" and not (isinstance(value, (int, float)) and math.isfinite(value)):
             raise ValueError(f"fan motion {name!r}: {key}={value!r} must be a finite number")

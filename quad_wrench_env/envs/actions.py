@@ -58,8 +58,8 @@ class ActionMap:
         self._velocity_scale = np.array((limits.max_speed_xy, limits.max_speed_xy, limits.max_speed_z))
         self._yaw_rate_scale = limits.max_yaw_rate
         self._tilt_scale = math.radians(limits.max_tilt_deg)
-        self._torque_scale = 0.5 * self._hover_thrust * np.array(
-            (vehicle.arm, vehicle.arm, vehicle.km_over_kf)
+        self._torque_scale = (
+            0.5 * self._hover_thrust * np.array((vehicle.arm, vehicle.arm, vehicle.km_over_kf))
         )
         self._max_speed = vehicle.max_rotor_speed
 
@@ -72,9 +72,14 @@ class ActionMap:
             )
         if self.action_type == "attitude":
             return self.autopilot.attitude_command(
-                state, a[0] * self._tilt_scale, a[1] * self._tilt_scale, a[2] * self._yaw_rate_scale,
+                state,
+                a[0] * self._tilt_scale,
+                a[1] * self._tilt_scale,
+                a[2] * self._yaw_rate_scale,
                 (1.0 + a[3]) * self._hover_thrust,
             )
         if self.action_type == "wrench":
-            return self.autopilot.wrench_command((1.0 + a[0]) * self._hover_thrust, a[1:] * self._torque_scale)
+            return self.autopilot.wrench_command(
+                (1.0 + a[0]) * self._hover_thrust, a[1:] * self._torque_scale
+            )
         return 0.5 * (a + 1.0) * self._max_speed

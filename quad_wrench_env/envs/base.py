@@ -25,11 +25,11 @@ from quad_wrench_env.autopilot import Autopilot, attitude_from_thrust
 from quad_wrench_env.config import build, merged, section
 from quad_wrench_env.disturbances.base import WindField, resultant
 from quad_wrench_env.disturbances.drag import QuadraticDrag
-from quad_wrench_env.estimators import StateEstimate, TruthFed, WrenchEstimate, make_estimator
 from quad_wrench_env.envs.actions import ActionMap
 from quad_wrench_env.envs.config import EnvConfig
+from quad_wrench_env.estimators import StateEstimate, TruthFed, WrenchEstimate, make_estimator
+from quad_wrench_env.rotations import cross, quat_from_matrix
 from quad_wrench_env.rotors import Rotors
-from quad_wrench_env.rotations import quat_from_matrix
 from quad_wrench_env.vehicle import GRAVITY, make_vehicle
 from quad_wrench_env.world import RigidBodyState, World
 
@@ -69,9 +69,7 @@ class QuadWrenchEnv(gym.Env, EzPickle):
     ) -> None:
         EzPickle.__init__(self, config=config, render_mode=render_mode, **overrides)
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise ValueError(
-                f"unknown render_mode {render_mode!r}; allowed: {self.metadata['render_modes']}"
-            )
+            raise ValueError(f"unknown render_mode {render_mode!r}; allowed: {self.metadata['render_modes']}")
         self.render_mode = render_mode
         self.cfg = build(self.config_class, merged(section(config, "env"), overrides))
         cfg = self.cfg
@@ -81,6 +79,7 @@ class QuadWrenchEnv(gym.Env, EzPickle):
         self.max_steps = round(cfg.episode_seconds * cfg.policy_hz)
         self.metadata = {**self.metadata, "render_fps": cfg.policy_hz}
         self.estimator = make_estimator(cfg.estimator, self.vehicle, self.dt, **cfg.estimator_params)
+        self._truth_fed = isinstance(self.estimator, TruthFed)
         self.autopilot = Autopilot(self.vehicle, self.dt)
         self.actions = ActionMap(cfg.action_type, self.autopilot, cfg.action_limits)
         self.rotors = Rotors(self.vehicle, self.dt)
@@ -88,8 +87,7 @@ class QuadWrenchEnv(gym.Env, EzPickle):
         self.drag = QuadraticDrag(self.vehicle.drag_area, len(self.drag_points))
         self.wind_fields: list[WindField] = self._make_wind_fields()
         self.obs_layout = _layout()
-        size = sum(n for _, n in OBSERVATION_FIELDS)
-        self.observation_space = spaces.Box(-np.inf, np.inf, shape=(size,), dtype=np.float32)
+        self.observation_space = self._observation_space()
         self.action_space = spaces.Box(-1.0, 1.0, shape=(4,), dtype=np.float32)
         self._flip_cos = math.cos(math.radians(cfg.flip_tilt_deg))
         self.world = World(self.vehicle, self.dt, gui=render_mode == "human")
@@ -100,6 +98,21 @@ class QuadWrenchEnv(gym.Env, EzPickle):
         self._estimate = WrenchEstimate(np.zeros(3), np.zeros(3), np.zeros((6, 6)))
         self._steps = 0
         self.time = 0.0
+
+    def _observation_space(self) -> spaces.Box:
+        """Finite bounds far outside anything a flight that has not ended can reach (SI units)."""
+        weight = self.vehicle.mass * GRAVITY
+        bound = {
+            "position": 100.0,
+            "velocity": 100.0,
+            "quaternion": 1.0,
+            "body_rates": 100.0,
+            "force": 100.0 * weight,
+            "torque": 100.0 * weight * self.vehicle.hull_radius,
+            "last_action": 1.0,
+        }
+        high = np.concatenate([np.full(n, bound[name]) for name, n in OBSERVATION_FIELDS]).astype(np.float32)
+        return spaces.Box(-high, high, dtype=np.float32)
 
     # -- task hooks ------------------------------------------------------------------------------
     def _make_wind_fields(self) -> list[WindField]:
@@ -244,7 +257,7 @@ class QuadWrenchEnv(gym.Env, EzPickle):
     def _external_loads(self, state: RigidBodyState, mean: bool = False) -> tuple[np.ndarray, np.ndarray]:
         """Everything but gravity, thrust and rotor reaction torque, about the centre of mass (world)."""
         offsets = self.drag_points @ state.rotation.T
-        point_velocity = state.velocity + np.cross(state.angular_velocity, offsets)
+        point_velocity = state.velocity + cross(state.angular_velocity, offsets)
         wind = np.zeros_like(offsets)
         for field in self.wind_fields:
             wind += field.velocity_at(state.position + offsets, self.time, mean)
@@ -254,7 +267,7 @@ class QuadWrenchEnv(gym.Env, EzPickle):
         return resultant(offsets, forces)
 
     def _feed_truth(self, state: RigidBodyState) -> None:
-        if isinstance(self.estimator, TruthFed):
+        if self._truth_fed:
             self.estimator.observe_truth(
                 StateEstimate(state.position, state.velocity, state.quaternion, state.body_rates),
                 self._wrench_true[:3],
@@ -266,8 +279,15 @@ class QuadWrenchEnv(gym.Env, EzPickle):
         est = self.estimator.state
         quaternion = est.quaternion if est.quaternion[0] >= 0 else -est.quaternion
         return np.concatenate(
-            (est.position, est.velocity, quaternion, est.body_rates, self._estimate.force,
-             self._estimate.torque, self._last_action)
+            (
+                est.position,
+                est.velocity,
+                quaternion,
+                est.body_rates,
+                self._estimate.force,
+                self._estimate.torque,
+                self._last_action,
+            )
         ).astype(np.float32)
 
     def _info(self, state: RigidBodyState) -> dict[str, Any]:

@@ -52,9 +52,7 @@ class EnvConfig:
             if not (isinstance(value, int) and value > 0):
                 raise ValueError(f"{name}={value!r} must be a positive integer (Hz)")
         if self.physics_hz % self.policy_hz:
-            raise ValueError(
-                f"policy_hz={self.policy_hz} must divide physics_hz={self.physics_hz}"
-            )
+            raise ValueError(f"policy_hz={self.policy_hz} must divide physics_hz={self.physics_hz}")
         if not (math.isfinite(self.episode_seconds) and self.episode_seconds > 0):
             raise ValueError(f"episode_seconds={self.episode_seconds!r} must be a finite number > 0")
         if not (0.0 <= self.kf_spread < 0.5):

@@ -84,7 +84,8 @@ class FanTrackingEnv(QuadWrenchEnv):
         arena = cfg.arena
         if not (arena.x_min < cfg.start_distance < arena.x_max):
             raise ValueError(
-                f"start_distance={cfg.start_distance} must lie inside the arena ({arena.x_min}, {arena.x_max})"
+                f"start_distance={cfg.start_distance} must lie inside the arena "
+                f"({arena.x_min}, {arena.x_max})"
             )
         self.fan = FanJet(cfg.fan)
         return [self.fan] if cfg.fan.enabled else []

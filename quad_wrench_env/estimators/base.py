@@ -60,6 +60,4 @@ class Estimator(Protocol):
 class TruthFed(Protocol):
     """An estimator that is handed the truth before each step (only the ``oracle``)."""
 
-    def observe_truth(
-        self, state: StateEstimate, force: np.ndarray, torque: np.ndarray
-    ) -> None: ...
+    def observe_truth(self, state: StateEstimate, force: np.ndarray, torque: np.ndarray) -> None: ...

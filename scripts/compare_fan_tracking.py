@@ -1,0 +1,102 @@
+"""Compare agents on FanTracking: a metrics table (stdout and markdown) and plots of y, y_fan, tau_z.
+
+python scripts/compare_fan_tracking.py --config configs/fan_tracking.yaml
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt
+
+from agents import make_agent
+from agents.evaluate import Evaluation, evaluate
+from quad_wrench_env.config import load_yaml
+
+COLUMNS = (
+    ("mean_abs_error_after_5s", "mean abs(y - y_axis) after 5 s [m]", "{:.3f}"),
+    ("fraction_within_0.15m", "time within 0.15 m", "{:.0%}"),
+    ("time_to_0.15m", "first within 0.15 m [s]", "{:.2f}"),
+    ("terminated_early", "ended early", "{:.0%}"),
+)
+
+
+def markdown_table(results: dict[tuple[str, str], Evaluation]) -> str:
+    header = "| agent | case | seeds | " + " | ".join(title for _, title, _ in COLUMNS) + " |"
+    lines = [header, "|" + "---|" * (3 + len(COLUMNS))]
+    for (agent, case), ev in results.items():
+        mean = ev.mean
+        cells = [fmt.format(mean[key]) if math.isfinite(mean[key]) else "never" for key, _, fmt in COLUMNS]
+        seeds = ",".join(str(s) for s in ev.seeds)
+        lines.append(f"| {agent} | {case} | {seeds} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def plot(results: dict[tuple[str, str], Evaluation], path: Path) -> None:
+    cases = sorted({case for _, case in results}, key=list(dict.fromkeys(c for _, c in results)).index)
+    fig, axes = plt.subplots(2, len(cases), figsize=(5 * len(cases), 6), sharex=True, squeeze=False)
+    for col, case in enumerate(cases):
+        top, bottom = axes[0, col], axes[1, col]
+        first = True
+        for (agent, c), ev in results.items():
+            if c != case:
+                continue
+            episode = ev.episodes[0]
+            t = episode.trace["time"]
+            if first:
+                top.plot(t, episode.trace["fan_position"][:, 1], "k--", label="y_fan")
+                top.plot(t, episode.trace["jet_axis_y"], "k:", label="jet axis at vehicle")
+                bottom.plot(t, episode.trace["wrench_true"][:, 5], color="0.6", lw=0.8, label="tau_z true")
+                first = False
+            top.plot(t, episode.trace["position"][:, 1], label=f"y ({agent})")
+            bottom.plot(t, episode.trace["wrench_est"][:, 5], lw=1.0, label=f"tau_z est ({agent})")
+        top.set_title(f"{case} (seed {ev.seeds[0]})")
+        top.set_ylabel("y [m]")
+        bottom.set_ylabel("tau_z [N·m]")
+        bottom.set_xlabel("time [s]")
+        top.legend(fontsize=7)
+        bottom.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--config", default="configs/fan_tracking.yaml")
+    parser.add_argument("--seeds", type=int, nargs="*", help="override the config's seeds")
+    args = parser.parse_args()
+    config = load_yaml(args.config)
+    seeds = args.seeds or config["seeds"]
+    out = Path(config.get("output", "results/fan_tracking"))
+    out.mkdir(parents=True, exist_ok=True)
+    results = {}
+    for agent_name, params in config["agents"].items():
+        for case, options in config["cases"].items():
+            results[agent_name, case] = evaluate(
+                make_agent(agent_name, **(params or {})),
+                config["env_id"],
+                seeds,
+                options=options,
+                config=config,
+            )
+            print(f"done: {agent_name} / {case}", flush=True)
+    table = markdown_table(results)
+    env = config.get("env", {})
+    title = (
+        f"FanTracking, config {args.config}: vehicle {env.get('vehicle', 'ardrone2')}, "
+        f"estimator {env.get('estimator', 'oracle')}, seeds {seeds}"
+    )
+    print(f"\n{title}\n\n{table}\n")
+    (out / "metrics.md").write_text(f"{title}\n\n{table}\n")
+    plot(results, out / "tracking.png")
+    print(f"wrote {out / 'metrics.md'} and {out / 'tracking.png'}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,91 @@
+"""Paper 000's admittance fan tracker with the oracle estimate (Sec. V, Fig. 7)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from agents import make_agent
+from agents.admittance import AdmittancePolicy
+from agents.base import Policy
+from agents.evaluate import evaluate
+from tests.conftest import FAN_TRACKING
+
+GAINS = {"k_p": -20.0, "k_x": 1.0, "k_z": 1.0, "k_yaw": 1.0}  # configs/fan_tracking.yaml
+
+
+def test_conforms_to_the_policy_interface():
+    assert isinstance(AdmittancePolicy(), Policy)
+
+
+def test_reaches_the_axis_of_a_static_fan_from_0_8_m_within_15_s():
+    result = evaluate(
+        make_agent("admittance", **GAINS),
+        FAN_TRACKING,
+        seeds=[0, 1, 2],
+        options={"fan_motion": "static", "offset_y": 0.8},
+        estimator="oracle",
+        episode_seconds=15.0,
+    )
+    for metrics in result.per_seed:
+        assert metrics["time_to_0.15m"] <= 15.0
+        assert metrics["terminated_early"] == 0.0
+
+
+@pytest.mark.parametrize("offset_y", [0.8, -0.8])
+def test_follows_a_fan_moving_at_0_1_m_per_s(offset_y):
+    result = evaluate(
+        make_agent("admittance", **GAINS),
+        FAN_TRACKING,
+        seeds=[0, 1],
+        options={"fan_motion": {"name": "constant_speed", "speed": 0.1, "y0": -1.5}, "offset_y": offset_y},
+        estimator="oracle",
+    )
+    for metrics in result.per_seed:
+        assert metrics["terminated_early"] == 0.0
+        assert metrics["mean_abs_error_after_5s"] < 0.2
+
+
+def test_without_the_torque_feedback_it_does_not_track():
+    """The tracking comes from tau_z: with k_p = 0 the vehicle stays where it started."""
+    result = evaluate(
+        make_agent("admittance", **{**GAINS, "k_p": 0.0}),
+        FAN_TRACKING,
+        seeds=[0],
+        options={"fan_motion": "static", "offset_y": 0.8},
+        estimator="oracle",
+        episode_seconds=15.0,
+    )
+    assert result.per_seed[0]["mean_abs_error_after_5s"] > 0.5
+    assert math.isinf(result.per_seed[0]["time_to_0.15m"])
+
+
+def test_refuses_other_action_types(make_env):
+    env = make_env(action_type="attitude")
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match="'attitude'"):
+        AdmittancePolicy().reset(env)
+
+
+def test_bad_gain_names_are_refused():
+    with pytest.raises(ValueError, match="'admittance.kp'"):
+        make_agent("admittance", kp=1.0)
+    with pytest.raises(ValueError, match="'pid'"):
+        make_agent("pid")
+
+
+def test_command_is_the_papers_law(make_env):
+    env = make_env()
+    obs, _ = env.reset(seed=0, options={"offset_y": 0.0, "fan_motion": "static"})
+    policy = AdmittancePolicy(k_p=-20.0)
+    policy.reset(env)
+    policy.act(obs)  # latches the references at the start pose
+    layout = env.unwrapped.obs_layout
+    obs = obs.copy()
+    obs[layout["torque"]] = (0.0, 0.0, 0.01)
+    action = policy.act(obs)
+    limits = env.unwrapped.cfg.action_limits
+    assert action[1] * limits.max_speed_xy == pytest.approx(-20.0 * 0.01, rel=1e-6)
+    np.testing.assert_allclose(action[[0, 2, 3]], 0.0, atol=1e-6)

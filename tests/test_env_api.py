@@ -1,0 +1,180 @@
+"""FanTracking as Gymnasium and stable-baselines3 expect it; determinism; bad input; clean-up."""
+
+from __future__ import annotations
+
+import pickle
+import warnings
+
+import gymnasium as gym
+import numpy as np
+import pybullet as p
+import pytest
+from gymnasium.utils.env_checker import check_env as gym_check_env
+from stable_baselines3.common.env_checker import check_env as sb3_check_env
+
+from tests.conftest import FAN_TRACKING
+
+
+@pytest.mark.parametrize("action_type", ["velocity", "attitude", "wrench", "motors"])
+def test_env_checkers_pass_without_warnings(make_env, action_type):
+    env = make_env(action_type=action_type)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        gym_check_env(env.unwrapped, skip_render_check=True)
+        sb3_check_env(env.unwrapped, warn=True)
+
+
+def test_reachable_by_module_prefix_without_import():
+    env = gym.make("quad_wrench_env:QuadWrench/FanTracking-v0")
+    env.close()
+
+
+def test_spaces_and_step_types(make_env):
+    env = make_env()
+    obs, info = env.reset(seed=3)
+    assert env.action_space == gym.spaces.Box(-1.0, 1.0, (4,), np.float32)
+    assert obs.dtype == np.float32 and obs.shape == env.observation_space.shape
+    obs, reward, terminated, truncated, info = env.step(env.action_space.sample())
+    assert type(reward) is float and type(terminated) is bool and type(truncated) is bool
+    for key in ("wrench_true", "wrench_est", "position", "fan_position"):
+        assert np.asarray(info[key]).shape == ((6,) if key.startswith("wrench") else (3,))
+    assert set(info["reward_terms"]) >= {"tracking", "effort"}
+    assert reward == pytest.approx(sum(info["reward_terms"].values()))
+    layout = env.unwrapped.obs_layout
+    np.testing.assert_allclose(obs[layout["wrench"]], info["wrench_est"], rtol=1e-6, atol=1e-7)
+    np.testing.assert_allclose(obs[layout["position"]], info["position"], rtol=1e-6)
+
+
+def test_oracle_observes_the_true_wrench(make_env):
+    env = make_env(estimator="oracle")
+    env.reset(seed=0, options={"offset_y": 0.5})
+    for _ in range(10):
+        _, _, _, _, info = env.step(np.zeros(4, dtype=np.float32))
+    np.testing.assert_array_equal(info["wrench_est"], info["wrench_true"])
+    assert info["wrench_true"][0] > 0.1 and info["wrench_true"][5] > 0.0  # +x push, +y side
+
+
+def _rollout(env, seed: int, steps: int = 200):
+    obs, _ = env.reset(seed=seed)
+    env.action_space.seed(seed)
+    observations, rewards = [obs], []
+    for _ in range(steps):
+        obs, reward, terminated, truncated, _ = env.step(env.action_space.sample() * 0.3)
+        observations.append(obs)
+        rewards.append(reward)
+        if terminated or truncated:
+            break
+    return np.array(observations), np.array(rewards)
+
+
+def test_same_seed_same_trajectory_bit_for_bit(make_env):
+    a = _rollout(make_env(), seed=7)
+    env = make_env()
+    _rollout(env, seed=99)  # a different episode in between must not leak into the next
+    b = _rollout(env, seed=7)
+    np.testing.assert_array_equal(a[0], b[0])
+    np.testing.assert_array_equal(a[1], b[1])
+    c = _rollout(env, seed=8)
+    assert not np.array_equal(a[0][: len(c[0])], c[0][: len(a[0])])
+
+
+def test_episode_is_30_s_at_50_hz(make_env):
+    env = make_env(fan={"enabled": False})
+    env.reset(seed=0)
+    steps, truncated = 0, False
+    while not truncated:
+        _, _, terminated, truncated, info = env.step(np.zeros(4, dtype=np.float32))
+        assert not terminated
+        steps += 1
+    assert steps == 1500 and info["time"] == pytest.approx(30.0)
+
+
+def test_leaving_the_arena_ends_the_episode_with_a_reason(make_env):
+    env = make_env(fan={"enabled": False})
+    env.reset(seed=0, options={"offset_y": 0.0})
+    for _ in range(1500):
+        _, _, terminated, _, info = env.step(np.array((0.0, 0.0, -1.0, 0.0), dtype=np.float32))
+        if terminated:
+            break
+    assert terminated and info["termination_reason"] == "crash"
+    assert info["reward_terms"]["crash"] < 0
+
+
+def test_motor_action_can_flip_the_vehicle(make_env):
+    env = make_env(action_type="motors")
+    env.reset(seed=0, options={"offset_y": 0.0})
+    for _ in range(200):
+        _, _, terminated, _, info = env.step(np.array((1.0, 1.0, -1.0, -1.0), dtype=np.float32))
+        if terminated:
+            break
+    assert terminated and info["termination_reason"] in ("flip", "crash")
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [
+        ({"vehicle": "bebop"}, "'bebop'"),
+        ({"estimator": "kalman"}, "'kalman'"),
+        ({"action_type": "joystick"}, "'joystick'"),
+        ({"episode_secs": 10}, "'episode_secs'"),
+        ({"fan": {"sped": 3.0}}, "'fan.sped'"),
+        ({"policy_hz": 30}, "policy_hz=30"),
+        ({"render_mode": "ascii"}, "'ascii'"),
+        ({"vehicle_params": {"mass": 0.0}}, "mass=0.0"),
+    ],
+)
+@pytest.mark.filterwarnings("ignore:.*render_mode")
+def test_bad_construction_input_names_the_value(kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        gym.make(FAN_TRACKING, **kwargs)
+
+
+def test_bad_reset_and_step_input_names_the_value(make_env):
+    env = make_env()
+    with pytest.raises(ValueError, match="offset_y=12"):
+        env.reset(seed=0, options={"offset_y": 12.0})
+    with pytest.raises(ValueError, match="'spin'"):
+        env.reset(seed=0, options={"spin": 1})
+    with pytest.raises(ValueError, match="'zigzag'"):
+        env.reset(seed=0, options={"fan_motion": "zigzag"})
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match="NaN"):
+        env.step(np.array((0.0, np.nan, 0.0, 0.0), dtype=np.float32))
+    with pytest.raises(ValueError, match="shape"):
+        env.step(np.zeros(3, dtype=np.float32))
+
+
+def test_actions_outside_the_box_are_clipped(make_env):
+    env = make_env()
+    env.reset(seed=1)
+    obs, *_ = env.step(np.array((5.0, -5.0, 0.0, 0.0), dtype=np.float32))
+    np.testing.assert_array_equal(obs[env.unwrapped.obs_layout["last_action"]], (1.0, -1.0, 0.0, 0.0))
+
+
+def test_close_is_idempotent_and_no_client_leaks():
+    for _ in range(200):
+        env = gym.make(FAN_TRACKING)
+        env.reset(seed=0)
+        env.close()
+        env.close()
+    assert not any(p.isConnected(physicsClientId=i) for i in range(1024))
+
+
+def test_env_pickles(make_env):
+    env = make_env(fan={"motion": "static"})
+    a, _ = env.reset(seed=5)
+    clone = pickle.loads(pickle.dumps(env))
+    try:
+        b, _ = clone.reset(seed=5)
+        np.testing.assert_array_equal(a, b)
+    finally:
+        clone.close()
+
+
+def test_rgb_array_render_shows_a_scene(make_env):
+    env = make_env(render_mode="rgb_array")
+    env.reset(seed=0)
+    env.step(np.zeros(4, dtype=np.float32))
+    image = env.render()
+    assert image.shape == (360, 480, 3) and image.dtype == np.uint8
+    assert image.std() > 10  # not a blank frame

@@ -1,0 +1,104 @@
+"""The moving jet and the loads it causes on the body (PHYSICS.md, paper 000 Fig. 6)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from quad_wrench_env.disturbances.fan import FanConfig, FanJet, make_motion
+from quad_wrench_env.rotations import quat_from_euler_zyx, rotation_matrix
+from quad_wrench_env.world import RigidBodyState
+
+
+def _still_jet(**config) -> FanJet:
+    jet = FanJet(FanConfig(turbulence_intensity=0.0, motion="static", **config))
+    jet.reset(np.random.default_rng(0))
+    return jet
+
+
+def test_field_is_symmetric_about_the_axis_and_blows_along_x():
+    jet = _still_jet()
+    d = np.linspace(0.0, 1.5, 7)
+    left = jet.velocity_at(np.column_stack((np.full(7, 2.3), d, np.full(7, 1.0))), 0.0)
+    right = jet.velocity_at(np.column_stack((np.full(7, 2.3), -d, np.full(7, 1.0))), 0.0)
+    up = jet.velocity_at(np.column_stack((np.full(7, 2.3), np.zeros(7), 1.0 + d)), 0.0)
+    np.testing.assert_allclose(left, right)
+    np.testing.assert_allclose(left, up)
+    assert np.all(np.diff(left[:, 0]) < 0)
+    np.testing.assert_array_equal(left[:, 1:], 0.0)
+    assert jet.velocity_at(np.array([[-0.5, 0.0, 1.0]]), 0.0)[0, 0] == 0.0
+
+
+def test_centreline_decays_as_one_over_distance_beyond_the_core():
+    jet = _still_jet()
+    core = 5.8 * 0.5
+    x = np.array((1.0, core, 2 * core, 4 * core))
+    u = jet.velocity_at(np.column_stack((x, np.zeros(4), np.ones(4))), 0.0)[:, 0]
+    assert u[0] == pytest.approx(6.0) and u[1] == pytest.approx(6.0)
+    assert u[2] == pytest.approx(3.0) and u[3] == pytest.approx(1.5)
+
+
+def test_axis_follows_the_fan_with_the_transit_delay():
+    jet = FanJet(FanConfig(motion="constant_speed", turbulence_intensity=0.0))
+    delay = 2.3 / 6.0  # inside the potential core the air moves at U0
+    assert jet.transit_time(np.asarray(2.3)) == pytest.approx(delay)
+    assert float(jet.axis_y(2.3, 10.0)) == pytest.approx(0.1 * (10.0 - delay))
+    assert jet.fan_y(10.0) == pytest.approx(1.0)
+
+
+def test_motions():
+    np.testing.assert_allclose(make_motion("static", y0=0.3).y(np.array([0.0, 5.0])), 0.3)
+    sine = make_motion("sine", amplitude=0.5, frequency=0.25)
+    assert float(sine.y(np.asarray(1.0))) == pytest.approx(0.5)
+    piecewise = make_motion("piecewise", segments=[[2.0, 0.5], [1.0, -1.0]])
+    y = piecewise.y(np.array([-1.0, 1.0, 2.0, 2.5, 3.0, 10.0]))
+    np.testing.assert_allclose(y, (0.0, 0.5, 1.0, 0.5, 0.0, 0.0))
+    with pytest.raises(ValueError, match="'zigzag'.*allowed"):
+        make_motion("zigzag")
+    with pytest.raises(ValueError, match="'speeed'"):
+        make_motion("constant_speed", speeed=1.0)
+
+
+def test_turbulence_is_a_unit_variance_process_scaled_by_intensity():
+    jet = FanJet(FanConfig(turbulence_intensity=0.15, motion="static"))
+    jet.reset(np.random.default_rng(1))
+    point = np.array([[2.3, 0.0, 1.0]])
+    samples = []
+    for _ in range(40000):
+        jet.advance(0.005, point[0])
+        samples.append(jet.velocity_at(point, 0.0)[0])
+    samples = np.array(samples)
+    # time scale b/u_c ≈ 0.17 s: 200 s hold ~600 independent samples, so the sd is good to ~6 %
+    assert np.std(samples[:, 1]) == pytest.approx(0.15 * 6.0, rel=0.2)
+    assert np.mean(samples[:, 0]) == pytest.approx(6.0, rel=0.05)
+
+
+def _loads(env, x: float, y: float) -> tuple[np.ndarray, np.ndarray]:
+    q = quat_from_euler_zyx(0.0, 0.0, math.pi)
+    rest = RigidBodyState(np.array((x, y, 1.0)), q, np.zeros(3), np.zeros(3), rotation_matrix(q))
+    return env._external_loads(rest, mean=True)
+
+
+@pytest.mark.parametrize("spread", [0.2, 0.42])
+def test_fan_loads_have_the_shape_of_paper_000_fig_6(make_env, spread):
+    env = make_env(fan={"motion": "static", "spread": spread}, kf_spread=0.0).unwrapped
+    env.reset(seed=0, options={"offset_y": 0.0})
+    offsets = np.linspace(-1.5, 1.5, 61)
+    loads = [_loads(env, 2.3, y) for y in offsets]
+    fx = np.array([f[0] for f, _ in loads])
+    tau_z = np.array([t[2] for _, t in loads])
+    assert offsets[np.argmax(fx)] == pytest.approx(0.0)
+    assert fx.max() > 0.2 * env.vehicle.mass * 9.81  # "a strong force along +x"
+    np.testing.assert_allclose(tau_z, -tau_z[::-1], atol=1e-12)  # anti-symmetric in the offset
+    assert np.all(tau_z[offsets > 0.05] > 0)  # +y side: the -y side of the body sits in faster air
+    peak = abs(offsets[np.argmax(np.abs(tau_z))])
+    assert 0.3 <= peak <= 0.8
+
+
+def test_fan_loads_decay_with_distance(make_env):
+    env = make_env(fan={"motion": "static"}).unwrapped
+    env.reset(seed=0, options={"offset_y": 0.0})
+    fx = [_loads(env, x, 0.0)[0][0] for x in (3.0, 4.0, 5.0)]
+    assert fx[0] > fx[1] > fx[2] > 0
