@@ -9,8 +9,9 @@ from typing import Any
 
 from agents.admittance import AdmittancePolicy
 from agents.base import Policy
+from agents.hover import PositionHoldPolicy
 
-AGENTS: dict[str, type] = {"admittance": AdmittancePolicy}
+AGENTS: dict[str, type] = {"admittance": AdmittancePolicy, "hold": PositionHoldPolicy}
 
 
 def make_agent(name: str, **params: Any) -> Policy:

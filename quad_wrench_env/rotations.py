@@ -21,12 +21,17 @@ from scipy.spatial.transform import Rotation
 __all__ = [
     "cross",
     "from_pybullet",
+    "mrp_from_quat",
     "quat_conjugate",
+    "quat_exp",
     "quat_from_axis_angle",
     "quat_from_euler_zyx",
     "quat_from_matrix",
+    "quat_from_mrp",
     "quat_multiply",
+    "quat_multiply_rows",
     "quat_normalize",
+    "rotation_matrices",
     "rotation_matrix",
     "skew",
     "tilt_angle",
@@ -114,6 +119,63 @@ def quat_from_matrix(matrix: np.ndarray) -> np.ndarray:
     """Unit quaternion ``[w, x, y, z]`` (w >= 0) of a body -> world rotation matrix."""
     x, y, z, w = Rotation.from_matrix(matrix).as_quat()
     return quat_normalize(np.array((w, x, y, z)))
+
+
+def quat_from_mrp(rho: np.ndarray) -> np.ndarray:
+    """Error quaternion of Modified Rodrigues Parameters ``ρ = tan(θ/4)·e`` (paper 000 eq. 17).
+
+    Works row-wise on (N, 3) arrays too.
+    """
+    n2 = np.einsum("...i,...i->...", rho, rho)
+    w = (1.0 - n2) / (1.0 + n2)
+    return np.concatenate((w[..., None], rho * (1.0 + w)[..., None]), axis=-1)
+
+
+def mrp_from_quat(q: np.ndarray) -> np.ndarray:
+    """MRPs ``ρ = q_v/(1 + q_0)`` of a unit quaternion (paper 000 eq. 16), taking the sign with
+    ``q_0 >= 0`` first so that ``|ρ| <= 1`` (the rotation of at most π). Row-wise on (N, 4)."""
+    sign = np.where(q[..., :1] < 0.0, -1.0, 1.0)
+    q = q * sign
+    return q[..., 1:] / (1.0 + q[..., :1])
+
+
+def quat_exp(rotation_vector: np.ndarray) -> np.ndarray:
+    """Quaternion of the rotation ``θ·e`` given as the vector ``θ e`` (rad); row-wise on (N, 3)."""
+    angle = np.sqrt(np.einsum("...i,...i->...", rotation_vector, rotation_vector))
+    half = 0.5 * angle
+    scale = np.where(angle > 1e-12, np.sin(half) / np.where(angle > 1e-12, angle, 1.0), 0.5)
+    return np.concatenate((np.cos(half)[..., None], rotation_vector * scale[..., None]), axis=-1)
+
+
+def quat_multiply_rows(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Hamilton products ``a ⊗ b`` row-wise for (N, 4) arrays (either may be a single quaternion)."""
+    aw, ax, ay, az = a[..., 0], a[..., 1], a[..., 2], a[..., 3]
+    bw, bx, by, bz = b[..., 0], b[..., 1], b[..., 2], b[..., 3]
+    return np.stack(
+        (
+            aw * bw - ax * bx - ay * by - az * bz,
+            aw * bx + ax * bw + ay * bz - az * by,
+            aw * by - ax * bz + ay * bw + az * bx,
+            aw * bz + ax * by - ay * bx + az * bw,
+        ),
+        axis=-1,
+    )
+
+
+def rotation_matrices(q: np.ndarray) -> np.ndarray:
+    """(N, 3, 3) body -> world matrices of (N, 4) unit quaternions."""
+    w, x, y, z = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
+    out = np.empty((len(q), 3, 3))
+    out[:, 0, 0] = 1.0 - 2.0 * (y * y + z * z)
+    out[:, 0, 1] = 2.0 * (x * y - w * z)
+    out[:, 0, 2] = 2.0 * (x * z + w * y)
+    out[:, 1, 0] = 2.0 * (x * y + w * z)
+    out[:, 1, 1] = 1.0 - 2.0 * (x * x + z * z)
+    out[:, 1, 2] = 2.0 * (y * z - w * x)
+    out[:, 2, 0] = 2.0 * (x * z - w * y)
+    out[:, 2, 1] = 2.0 * (y * z + w * x)
+    out[:, 2, 2] = 1.0 - 2.0 * (x * x + y * y)
+    return out
 
 
 def yaw_of(q: np.ndarray) -> float:

@@ -37,6 +37,26 @@ def markdown_table(results: dict[tuple[str, str], Evaluation]) -> str:
     return "\n".join(lines)
 
 
+def run_all(config: dict, seeds: list[int]) -> dict[tuple[str, str], Evaluation]:
+    """Every agent with every estimator on every case, all on the same seeds."""
+    results = {}
+    for agent_name, params in config["agents"].items():
+        for estimator in config.get("estimators", [None]):
+            label = agent_name if estimator is None else f"{agent_name} + {estimator}"
+            overrides = {} if estimator is None else {"estimator": estimator}
+            for case, options in config["cases"].items():
+                results[label, case] = evaluate(
+                    make_agent(agent_name, **(params or {})),
+                    config["env_id"],
+                    seeds,
+                    options=options,
+                    config=config,
+                    **overrides,
+                )
+                print(f"done: {label} / {case}", flush=True)
+    return results
+
+
 def plot(results: dict[tuple[str, str], Evaluation], path: Path) -> None:
     cases = sorted({case for _, case in results}, key=list(dict.fromkeys(c for _, c in results)).index)
     fig, axes = plt.subplots(2, len(cases), figsize=(5 * len(cases), 6), sharex=True, squeeze=False)
@@ -75,23 +95,10 @@ def main() -> None:
     seeds = args.seeds or config["seeds"]
     out = Path(config.get("output", "results/fan_tracking"))
     out.mkdir(parents=True, exist_ok=True)
-    results = {}
-    for agent_name, params in config["agents"].items():
-        for case, options in config["cases"].items():
-            results[agent_name, case] = evaluate(
-                make_agent(agent_name, **(params or {})),
-                config["env_id"],
-                seeds,
-                options=options,
-                config=config,
-            )
-            print(f"done: {agent_name} / {case}", flush=True)
+    results = run_all(config, seeds)
     table = markdown_table(results)
     env = config.get("env", {})
-    title = (
-        f"FanTracking, config {args.config}: vehicle {env.get('vehicle', 'ardrone2')}, "
-        f"estimator {env.get('estimator', 'oracle')}, seeds {seeds}"
-    )
+    title = f"FanTracking, config {args.config}: vehicle {env.get('vehicle', 'ardrone2')}, seeds {seeds}"
     print(f"\n{title}\n\n{table}\n")
     (out / "metrics.md").write_text(f"{title}\n\n{table}\n")
     plot(results, out / "tracking.png")

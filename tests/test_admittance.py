@@ -13,7 +13,7 @@ from agents.base import Policy
 from agents.evaluate import evaluate
 from tests.conftest import FAN_TRACKING
 
-GAINS = {"k_p": -20.0, "k_x": 1.0, "k_z": 1.0, "k_yaw": 1.0}  # configs/fan_tracking.yaml
+GAINS = {"k_p": -20.0, "k_xy": 1.0, "k_z": 1.0, "k_yaw": 1.0}  # configs/fan_tracking.yaml
 
 
 def test_conforms_to_the_policy_interface():

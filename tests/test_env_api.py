@@ -30,7 +30,7 @@ def test_reachable_by_module_prefix_without_import():
 
 
 def test_spaces_and_step_types(make_env):
-    env = make_env()
+    env = make_env(estimator="oracle")
     obs, info = env.reset(seed=3)
     assert env.action_space == gym.spaces.Box(-1.0, 1.0, (4,), np.float32)
     assert obs.dtype == np.float32 and obs.shape == env.observation_space.shape
@@ -43,6 +43,19 @@ def test_spaces_and_step_types(make_env):
     layout = env.unwrapped.obs_layout
     np.testing.assert_allclose(obs[layout["wrench"]], info["wrench_est"], rtol=1e-6, atol=1e-7)
     np.testing.assert_allclose(obs[layout["position"]], info["position"], rtol=1e-6)
+
+
+def test_default_observation_is_the_ukf_estimate_not_the_truth(make_env):
+    env = make_env()
+    assert env.unwrapped.cfg.estimator == "ukf"
+    obs, _ = env.reset(seed=0, options={"offset_y": 0.4})
+    for _ in range(50):
+        obs, _, _, _, info = env.step(np.zeros(4, dtype=np.float32))
+    layout = env.unwrapped.obs_layout
+    estimated = obs[layout["position"]].astype(float)
+    assert not np.array_equal(estimated, info["position"].astype(np.float32))
+    np.testing.assert_allclose(estimated, info["position"], atol=5e-3)  # mocap noise is 0.5 mm
+    np.testing.assert_allclose(obs[layout["wrench"]], info["wrench_est"], rtol=1e-6, atol=1e-7)
 
 
 def test_oracle_observes_the_true_wrench(make_env):

@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
@@ -63,8 +64,6 @@ def test_skew_is_cross_product():
 
 
 def test_zero_quaternion_is_refused():
-    import pytest
-
     with pytest.raises(ValueError, match="norm"):
         r.quat_normalize(np.zeros(4))
 
@@ -75,3 +74,48 @@ def test_cross_matches_numpy_for_vectors_and_rows():
     np.testing.assert_allclose(r.cross(a, b), np.cross(a, b))
     np.testing.assert_allclose(r.cross(a[0], b), np.cross(a[0], b))
     np.testing.assert_allclose(r.cross(a[0], b[0]), np.cross(a[0], b[0]))
+
+
+small_vectors = st.lists(st.floats(-1.8, 1.8, allow_nan=False), min_size=3, max_size=3).map(np.array)
+
+
+@given(unit_quaternions)
+def test_mrp_round_trip_is_the_same_rotation(q):
+    rho = r.mrp_from_quat(q)
+    assert np.linalg.norm(rho) <= 1.0 + 1e-12
+    back = r.quat_from_mrp(rho)
+    assert min(np.abs(back - q).max(), np.abs(back + q).max()) < 1e-9
+
+
+@given(small_vectors)
+def test_mrp_is_tan_quarter_angle(v):
+    angle = np.linalg.norm(v)
+    rho = r.mrp_from_quat(r.quat_exp(v))
+    assert np.linalg.norm(rho) == pytest.approx(math.tan(angle / 4.0), abs=1e-12)
+    np.testing.assert_allclose(
+        r.quat_exp(v), _scipy_quat(Rotation.from_rotvec(v)), atol=1e-12
+    )  # |v| < π: w > 0
+
+
+@given(unit_quaternions, small_vectors)
+def test_error_quaternion_composition_is_the_identity(q, v):
+    """q_i = q ⊗ δq, δq = q⁻¹ ⊗ q_i, and back through MRPs (PHYSICS.md, Hamilton body error)."""
+    dq = r.quat_from_mrp(r.mrp_from_quat(r.quat_exp(v)))
+    qi = r.quat_multiply(q, dq)
+    recovered = r.quat_multiply(r.quat_conjugate(q), qi)
+    np.testing.assert_allclose(r.mrp_from_quat(recovered), r.mrp_from_quat(dq), atol=1e-9)
+
+
+def test_row_wise_helpers_match_single_ones():
+    rng = np.random.default_rng(0)
+    qs = np.array([r.quat_normalize(x) for x in rng.normal(size=(6, 4))])
+    np.testing.assert_allclose(r.rotation_matrices(qs), [r.rotation_matrix(q) for q in qs], atol=1e-14)
+    np.testing.assert_allclose(
+        r.quat_multiply_rows(qs, qs[::-1]), [r.quat_multiply(a, b) for a, b in zip(qs, qs[::-1], strict=True)]
+    )
+    np.testing.assert_allclose(r.mrp_from_quat(qs), [r.mrp_from_quat(q) for q in qs])
+
+
+def _scipy_quat(rotation: Rotation) -> np.ndarray:
+    x, y, z, w = rotation.as_quat()
+    return r.quat_normalize(np.array((w, x, y, z)))

@@ -25,11 +25,13 @@ from quad_wrench_env.autopilot import Autopilot, attitude_from_thrust
 from quad_wrench_env.config import build, merged, section
 from quad_wrench_env.disturbances.base import WindField, resultant
 from quad_wrench_env.disturbances.drag import QuadraticDrag
+from quad_wrench_env.disturbances.payload import Payload
 from quad_wrench_env.envs.actions import ActionMap
 from quad_wrench_env.envs.config import EnvConfig
-from quad_wrench_env.estimators import StateEstimate, TruthFed, WrenchEstimate, make_estimator
+from quad_wrench_env.estimators import StateEstimate, TruthFed, make_estimator
 from quad_wrench_env.rotations import cross, quat_from_matrix
 from quad_wrench_env.rotors import Rotors
+from quad_wrench_env.sensors import MotionCapture, MotorSpeedSensor
 from quad_wrench_env.vehicle import GRAVITY, make_vehicle
 from quad_wrench_env.world import RigidBodyState, World
 
@@ -78,8 +80,23 @@ class QuadWrenchEnv(gym.Env, EzPickle):
         self.substeps = cfg.physics_hz // cfg.policy_hz
         self.max_steps = round(cfg.episode_seconds * cfg.policy_hz)
         self.metadata = {**self.metadata, "render_fps": cfg.policy_hz}
-        self.estimator = make_estimator(cfg.estimator, self.vehicle, self.dt, **cfg.estimator_params)
+        # The estimator's measurement noise defaults to the motion capture's; a noise-free capture
+        # leaves the estimator's own default (a filter needs G > 0 to stay well conditioned).
+        measurement_noise = {
+            key: value
+            for key, value in (
+                ("position", cfg.sensors.position_noise),
+                ("attitude", cfg.sensors.attitude_noise),
+            )
+            if value > 0
+        }
+        self.estimator = make_estimator(
+            cfg.estimator, self.vehicle, self.dt, **{**measurement_noise, **cfg.estimator_params}
+        )
         self._truth_fed = isinstance(self.estimator, TruthFed)
+        self.mocap = MotionCapture(cfg.sensors)
+        self.motor_sensor = MotorSpeedSensor(self.vehicle.max_rotor_speed, cfg.sensors.motor_speed_bits)
+        self.payload = Payload(cfg.payload)
         self.autopilot = Autopilot(self.vehicle, self.dt)
         self.actions = ActionMap(cfg.action_type, self.autopilot, cfg.action_limits)
         self.rotors = Rotors(self.vehicle, self.dt)
@@ -95,7 +112,6 @@ class QuadWrenchEnv(gym.Env, EzPickle):
         self._state: RigidBodyState | None = None
         self._last_action = np.zeros(4)
         self._wrench_true = np.zeros(6)
-        self._estimate = WrenchEstimate(np.zeros(3), np.zeros(3), np.zeros((6, 6)))
         self._steps = 0
         self.time = 0.0
 
@@ -153,12 +169,12 @@ class QuadWrenchEnv(gym.Env, EzPickle):
         self.autopilot.reset(yaw)
         self.autopilot.trim(rotation, rotor_speeds)
         self.estimator.reset(position, quaternion)
+        self.mocap.reset(rng, position, quaternion)
         self._steps = 0
         self._last_action = np.zeros(4)
         self._state = self.world.state()
-        self._wrench_true = np.zeros(6)
+        self._wrench_true = np.concatenate(self._external_loads(self._state))
         self._feed_truth(self._state)
-        self._estimate = WrenchEstimate(np.zeros(3), np.zeros(3), np.zeros((6, 6)))
         if self._renderer is not None:
             self._renderer.build()
         return self._observation(), self._info(self._state)
@@ -225,13 +241,10 @@ class QuadWrenchEnv(gym.Env, EzPickle):
             wind.advance(self.dt, after.position)
         self._wrench_true = np.concatenate((external_force, external_torque))
         self._feed_truth(after)
-        nominal = self.estimator_inputs()
-        self._estimate = self.estimator.step(nominal[0], nominal[1:], after.position, after.quaternion)
+        nominal = self.autopilot.mixer.wrench(self.motor_sensor.measure(self.rotors.speeds))
+        position, quaternion = self.mocap.measure(after.position, after.quaternion)
+        self.estimator.step(nominal[0], nominal[1:], position, quaternion)
         return after
-
-    def estimator_inputs(self) -> np.ndarray:
-        """``[c_t, tau_x, tau_y, tau_z]`` that the nominal mixer gives for the motor speeds."""
-        return self.autopilot.mixer.wrench(self.rotors.speeds)
 
     def _equilibrium(self, position: np.ndarray, yaw: float) -> tuple[np.ndarray, np.ndarray]:
         """Attitude and true rotor speeds that hold the vehicle at rest at ``position`` with heading
@@ -264,6 +277,10 @@ class QuadWrenchEnv(gym.Env, EzPickle):
         relative_air = wind - point_velocity
         forces = self.drag.forces(relative_air)
         forces[:4] += self.rotors.drag_forces(-relative_air[:4], state.rotation[:, 2])
+        payload = self.payload.point_load(self.time, state.rotation)
+        if payload is not None:
+            offsets = np.vstack((offsets, payload[0]))
+            forces = np.vstack((forces, payload[1]))
         return resultant(offsets, forces)
 
     def _feed_truth(self, state: RigidBodyState) -> None:
@@ -277,6 +294,7 @@ class QuadWrenchEnv(gym.Env, EzPickle):
     # -- observation, info, termination ------------------------------------------------------------
     def _observation(self) -> np.ndarray:
         est = self.estimator.state
+        wrench = self.estimator.estimate
         quaternion = est.quaternion if est.quaternion[0] >= 0 else -est.quaternion
         return np.concatenate(
             (
@@ -284,8 +302,8 @@ class QuadWrenchEnv(gym.Env, EzPickle):
                 est.velocity,
                 quaternion,
                 est.body_rates,
-                self._estimate.force,
-                self._estimate.torque,
+                wrench.force,
+                wrench.torque,
                 self._last_action,
             )
         ).astype(np.float32)
@@ -296,7 +314,8 @@ class QuadWrenchEnv(gym.Env, EzPickle):
             "position": state.position.copy(),
             "velocity": state.velocity.copy(),
             "wrench_true": self._wrench_true.copy(),
-            "wrench_est": np.concatenate((self._estimate.force, self._estimate.torque)),
+            "wrench_est": np.concatenate((self.estimator.estimate.force, self.estimator.estimate.torque)),
+            "estimator_status": self.estimator.status,
         }
         info.update(self._task_info(state))
         return info

@@ -6,7 +6,9 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
+from quad_wrench_env.disturbances.payload import PayloadConfig
 from quad_wrench_env.envs.actions import ActionLimits
+from quad_wrench_env.sensors import SensorConfig
 
 
 @dataclass
@@ -33,7 +35,7 @@ class EnvConfig:
     vehicle: str = "ardrone2"
     vehicle_params: dict[str, Any] = field(default_factory=dict)
     """Fields of the vehicle preset to override, e.g. ``{"mass": 0.45}``."""
-    estimator: str = "oracle"
+    estimator: str = "ukf"
     estimator_params: dict[str, Any] = field(default_factory=dict)
     action_type: str = "velocity"
     action_limits: ActionLimits = field(default_factory=ActionLimits)
@@ -42,6 +44,8 @@ class EnvConfig:
     episode_seconds: float = 30.0
     kf_spread: float = 0.02
     """Standard deviation of the per-rotor thrust-coefficient error ``ε_i`` (PHYSICS.md)."""
+    sensors: SensorConfig = field(default_factory=SensorConfig)
+    payload: PayloadConfig = field(default_factory=PayloadConfig)
     arena: ArenaConfig = field(default_factory=ArenaConfig)
     crash_height: float = 0.1
     flip_tilt_deg: float = 90.0

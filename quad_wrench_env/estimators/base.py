@@ -52,8 +52,16 @@ class Estimator(Protocol):
         """One step of ``dt``: inputs over the step and the pose measured at its end."""
 
     @property
+    def estimate(self) -> WrenchEstimate:
+        """The wrench estimate after the last step (zero wrench after ``reset``)."""
+
+    @property
     def state(self) -> StateEstimate:
         """The estimated motion after the last step."""
+
+    @property
+    def status(self) -> str:
+        """``"ok"``, or what the estimator had to do to stay sound (e.g. ``"reinitialised"``)."""
 
 
 @runtime_checkable

@@ -18,6 +18,7 @@ class OracleEstimator:
     """Returns the truth; use it as an upper bound, never as a claim about a real vehicle."""
 
     name = "oracle"
+    status = "ok"
 
     def __init__(self) -> None:
         self._state = StateEstimate(np.zeros(3), np.zeros(3), np.array((1.0, 0.0, 0.0, 0.0)), np.zeros(3))
@@ -40,6 +41,10 @@ class OracleEstimator:
         position: np.ndarray,
         quaternion_wxyz: np.ndarray,
     ) -> WrenchEstimate:
+        return self._estimate
+
+    @property
+    def estimate(self) -> WrenchEstimate:
         return self._estimate
 
     @property

@@ -1,0 +1,71 @@
+"""Hold a pose with proportional feedback on the estimated position and heading (velocity action).
+
+The vehicle's autopilot flies velocity; this policy closes the position loop around it, as the
+ground station of paper 000 did for its hover experiments (Figs. 3, 4 and 6). The pose held is the
+one at the start of the episode unless references are given.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import gymnasium as gym
+import numpy as np
+
+from quad_wrench_env.config import build
+from quad_wrench_env.rotations import yaw_of
+
+
+@dataclass
+class HoldGains:
+    k_xy: float = 1.0
+    k_z: float = 1.0
+    k_yaw: float = 1.0
+    """Position and heading feedback gains (1/s)."""
+    reference: tuple[float, float, float, float] | None = None
+    """``(x, y, z, yaw)`` to hold; None holds the pose at the start of the episode."""
+
+
+class PositionHoldPolicy:
+    """``v_cmd = k·(p_ref - p̂)``, ``yaw_rate_cmd = k_yaw·wrap(ψ_ref - ψ̂)`` through the velocity action."""
+
+    gains_class: type = HoldGains
+
+    def __init__(self, gains: HoldGains | None = None, **kwargs: float) -> None:
+        if gains is not None and kwargs:
+            raise ValueError("pass either gains or keyword gains, not both")
+        name = type(self).__name__.removesuffix("Policy").lower()
+        self.gains = gains or build(self.gains_class, kwargs, prefix=f"{name}.")
+        self._layout: dict[str, slice] = {}
+        self._scale = np.ones(4)
+        self._reference: np.ndarray | None = None
+
+    def reset(self, env: gym.Env) -> None:
+        base = env.unwrapped
+        if base.cfg.action_type != "velocity":
+            raise ValueError(
+                f"{type(self).__name__} needs action_type='velocity', the env has {base.cfg.action_type!r}"
+            )
+        limits = base.cfg.action_limits
+        self._layout = base.obs_layout
+        self._scale = np.array(
+            (limits.max_speed_xy, limits.max_speed_xy, limits.max_speed_z, limits.max_yaw_rate)
+        )
+        reference = self.gains.reference
+        self._reference = None if reference is None else np.array(reference, dtype=float)
+
+    def velocity_command(self, observation: np.ndarray) -> np.ndarray:
+        """``(v_x, v_y, v_z, yaw rate)`` in SI units that pull the estimated pose to the reference."""
+        g = self.gains
+        position = observation[self._layout["position"]].astype(float)
+        yaw = yaw_of(observation[self._layout["quaternion"]].astype(float))
+        if self._reference is None:
+            self._reference = np.array((*position, yaw))
+        error = self._reference[:3] - position
+        yaw_error = (self._reference[3] - yaw + math.pi) % (2.0 * math.pi) - math.pi
+        return np.array((g.k_xy * error[0], g.k_xy * error[1], g.k_z * error[2], g.k_yaw * yaw_error))
+
+    def act(self, observation: np.ndarray) -> np.ndarray:
+        command = self.velocity_command(observation)
+        return np.clip(command / self._scale, -1.0, 1.0).astype(np.float32)

@@ -1,0 +1,57 @@
+"""A mass hung from a point of the body, attached or released at given times.
+
+Paper 000 Sec. III hangs a 53 g test mass below the centre of mass and under one rotor (Figs. 3-4);
+paper 003 cuts a 0.1 kg weight in flight. The mass hangs on a short string, quasi-statically: its
+weight ``m_p·g`` pulls straight down at the attachment point, and the torque about the centre of
+mass comes out of ``r × F`` like every other point load.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from quad_wrench_env.vehicle import GRAVITY
+
+
+@dataclass
+class PayloadConfig:
+    mass: float = 0.0
+    """kg; 0 disables the payload."""
+    point: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    """Attachment point in the body frame (m)."""
+    attach_time: float = 0.0
+    """s; the mass hangs from this time on ..."""
+    release_time: float = math.inf
+    """... until this time (s)."""
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.mass) and self.mass >= 0):
+            raise ValueError(f"payload.mass={self.mass!r} must be a finite number >= 0 (kg)")
+        if len(self.point) != 3 or not all(math.isfinite(c) for c in self.point):
+            raise ValueError(f"payload.point={self.point!r} must be 3 finite numbers (m, body frame)")
+        if not self.attach_time <= self.release_time:
+            raise ValueError(
+                f"payload.attach_time={self.attach_time} must not be after release_time={self.release_time}"
+            )
+
+
+class Payload:
+    """Point load of a hanging mass (world frame), present between attach and release."""
+
+    def __init__(self, config: PayloadConfig) -> None:
+        self.config = config
+        self._point = np.array(config.point, dtype=float)
+        self._weight = np.array((0.0, 0.0, -config.mass * GRAVITY))
+
+    def attached(self, t: float) -> bool:
+        c = self.config
+        return c.mass > 0 and c.attach_time <= t < c.release_time
+
+    def point_load(self, t: float, rotation: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+        """``(offset from the centre of mass, force)``, both world frame, or None when not hanging."""
+        if not self.attached(t):
+            return None
+        return rotation @ self._point, self._weight
