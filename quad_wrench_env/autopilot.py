@@ -12,7 +12,8 @@ What PX4 is to paper 003's vehicle and the AR.Drone firmware to paper 000's: a c
   yaw torque before thrust, roll and pitch, then clips speeds to the motors' range.
 
 Gains follow from the vehicle: the rate-loop bandwidth is set by the motor time constant ``τ_m``
-(``k_rate = 0.5/τ_m`` gives a damping ratio of ~0.7 for the loop ``k/(s(τ_m s + 1))``), and each outer
+(``k_rate = 0.7/τ_m`` gives a damping ratio of 0.6 for the loop ``k/(s(τ_m s + 1))``; the integrator,
+``0.6·k²``, holds a constant torque disturbance such as a mass hung under one rotor), and each outer
 loop is slower than the one inside it. The autopilot reads the vehicle's true state, as the onboard
 state estimate of a real vehicle under motion capture would give it to within sensor noise.
 """
@@ -54,8 +55,8 @@ class AutopilotGains:
     def for_vehicle(cls, vehicle: VehicleParams) -> AutopilotGains:
         """Gains derived from the motor time constant (see the module docstring)."""
         tau_m = 0.5 * (vehicle.motor_time_constant_up + vehicle.motor_time_constant_down)
-        rate_p = 0.5 / tau_m
-        attitude_p = rate_p / 3.0
+        rate_p = 0.7 / tau_m
+        attitude_p = rate_p / 2.5
         velocity_p = attitude_p / 3.0
         climb_p = rate_p / 3.0
         # Rotor drag adds its own damping to the horizontal loop: v' = a - d·v. Size the integrator
@@ -63,7 +64,7 @@ class AutopilotGains:
         k = velocity_p + vehicle.rotor_drag_decel
         return cls(
             rate_p=rate_p,
-            rate_i=0.25 * rate_p**2,
+            rate_i=0.6 * rate_p**2,
             attitude_p=attitude_p,
             yaw_p=0.5 * attitude_p,
             velocity_p=velocity_p,

@@ -54,8 +54,9 @@ def test_velocity_steps_settle_without_oscillation(make_env, vehicle, axis):
     assert v[rise] >= 0.9 and rise < 150  # within 90 % in 3 s
     assert v.max() < 1.15  # a well-damped loop: ζ ≈ 0.7 overshoots ~5 %, 15 % would mean ringing
     assert np.all(np.abs(v[-25:] - 1.0) < 0.03)  # settled after 6 s
-    crossings = np.count_nonzero(np.diff(np.sign(v[rise:] - 1.0)) != 0)
-    assert crossings <= 2
+    outside = v[rise:][np.abs(v[rise:] - 1.0) > 0.02]  # ignore ripple within ±2 %
+    assert np.count_nonzero(np.diff(np.sign(outside - 1.0))) <= 2  # at most one overshoot and back
+    assert np.std(v[-100:]) < 0.01  # no sustained oscillation over the last 2 s
 
 
 def test_yaw_rate_command_turns_and_holds(make_env):

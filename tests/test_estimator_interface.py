@@ -1,0 +1,44 @@
+"""Every estimator honours the interface of ARCHITECTURE.md (one conformance test for all)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from quad_wrench_env.estimators import ESTIMATORS, Estimator, TruthFed, make_estimator
+from quad_wrench_env.vehicle import GRAVITY, make_vehicle
+
+
+@pytest.mark.parametrize("name", ESTIMATORS)
+def test_estimator_conforms(name):
+    vehicle = make_vehicle("ardrone2")
+    est = make_estimator(name, vehicle, 0.005)
+    assert isinstance(est, Estimator) and est.name == name
+    position, q = np.array((0.0, 0.0, 1.0)), np.array((1.0, 0.0, 0.0, 0.0))
+    est.reset(position, q)
+    assert np.array_equal(est.estimate.force, np.zeros(3)) and np.array_equal(
+        est.estimate.torque, np.zeros(3)
+    )
+    if isinstance(est, TruthFed):
+        est.observe_truth(est.state, np.zeros(3), np.zeros(3))
+    for _ in range(20):
+        out = est.step(vehicle.mass * GRAVITY, np.zeros(3), position, q)
+    assert out.force.shape == (3,) and out.torque.shape == (3,) and out.covariance.shape == (6, 6)
+    np.testing.assert_allclose(out.covariance, out.covariance.T)
+    assert np.all(np.linalg.eigvalsh(out.covariance) >= -1e-15)
+    state = est.state
+    assert state.position.shape == state.velocity.shape == state.body_rates.shape == (3,)
+    assert np.linalg.norm(state.quaternion) == pytest.approx(1.0)
+    assert est.status == "ok"
+    np.testing.assert_allclose(state.position, position, atol=1e-3)
+    assert np.abs(out.force).max() < 0.05 and np.abs(out.torque).max() < 0.01
+
+
+def test_unknown_estimator_and_settings_are_named():
+    vehicle = make_vehicle("ardrone2")
+    with pytest.raises(ValueError, match="'kalman'"):
+        make_estimator("kalman", vehicle, 0.005)
+    with pytest.raises(ValueError, match="'estimator_params.sigma'"):
+        make_estimator("ukf", vehicle, 0.005, sigma=1.0)
+    with pytest.raises(ValueError, match="dt=0"):
+        make_estimator("ukf", vehicle, 0.0)
