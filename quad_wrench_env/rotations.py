@@ -147,35 +147,36 @@ def quat_exp(rotation_vector: np.ndarray) -> np.ndarray:
     return np.concatenate((np.cos(half)[..., None], rotation_vector * scale[..., None]), axis=-1)
 
 
-def quat_multiply_rows(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Hamilton products ``a ⊗ b`` row-wise for (N, 4) arrays (either may be a single quaternion)."""
-    aw, ax, ay, az = a[..., 0], a[..., 1], a[..., 2], a[..., 3]
-    bw, bx, by, bz = b[..., 0], b[..., 1], b[..., 2], b[..., 3]
-    return np.stack(
-        (
-            aw * bw - ax * bx - ay * by - az * bz,
-            aw * bx + ax * bw + ay * bz - az * by,
-            aw * by - ax * bz + ay * bw + az * bx,
-            aw * bz + ax * by - ay * bx + az * bw,
-        ),
-        axis=-1,
+def _bilinear_tensor(function, size_a: int, size_b: int) -> np.ndarray:
+    """``T`` with ``function(a, b) == (a ⊗ b).reshape(-1) @ T`` for a function bilinear in (a, b),
+    read off the function on the basis vectors."""
+    basis_a, basis_b = np.eye(size_a), np.eye(size_b)
+    return np.array([np.ravel(function(ea, eb)) for ea in basis_a for eb in basis_b])
+
+
+def _homogeneous_rotation(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Symmetric bilinear form whose value at (q, q) is the rotation matrix of q (|q| = 1)."""
+    va, vb = a[1:], b[1:]
+    return (
+        (a[0] * b[0] - va @ vb) * np.eye(3)
+        + np.outer(va, vb)
+        + np.outer(vb, va)
+        + a[0] * skew(vb)
+        + b[0] * skew(va)
     )
 
 
+def quat_multiply_rows(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Hamilton products ``a ⊗ b`` row-wise for (N, 4) arrays (either may be a single quaternion),
+    as one matrix product with the bilinear tensor of ``⊗``."""
+    a2, b2 = np.atleast_2d(a), np.atleast_2d(b)
+    outer = (a2[:, :, None] * b2[:, None, :]).reshape(-1, 16)
+    return outer @ _PRODUCT
+
+
 def rotation_matrices(q: np.ndarray) -> np.ndarray:
-    """(N, 3, 3) body -> world matrices of (N, 4) unit quaternions."""
-    w, x, y, z = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
-    out = np.empty((len(q), 3, 3))
-    out[:, 0, 0] = 1.0 - 2.0 * (y * y + z * z)
-    out[:, 0, 1] = 2.0 * (x * y - w * z)
-    out[:, 0, 2] = 2.0 * (x * z + w * y)
-    out[:, 1, 0] = 2.0 * (x * y + w * z)
-    out[:, 1, 1] = 1.0 - 2.0 * (x * x + z * z)
-    out[:, 1, 2] = 2.0 * (y * z - w * x)
-    out[:, 2, 0] = 2.0 * (x * z - w * y)
-    out[:, 2, 1] = 2.0 * (y * z + w * x)
-    out[:, 2, 2] = 1.0 - 2.0 * (x * x + y * y)
-    return out
+    """(N, 3, 3) body -> world matrices of (N, 4) unit quaternions (one matrix product)."""
+    return ((q[:, :, None] * q[:, None, :]).reshape(-1, 16) @ _ROTATION).reshape(-1, 3, 3)
 
 
 def yaw_of(q: np.ndarray) -> float:
@@ -201,3 +202,8 @@ def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 def skew(v: np.ndarray) -> np.ndarray:
     """Cross-product matrix: ``skew(a) @ b == np.cross(a, b)``."""
     return np.array(((0.0, -v[2], v[1]), (v[2], 0.0, -v[0]), (-v[1], v[0], 0.0)))
+
+
+# Bilinear tensors of the row-wise helpers, read off the single-quaternion functions above.
+_PRODUCT = _bilinear_tensor(quat_multiply, 4, 4)
+_ROTATION = _bilinear_tensor(_homogeneous_rotation, 4, 4)

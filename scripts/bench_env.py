@@ -14,29 +14,10 @@ import time
 
 import gymnasium as gym
 import numpy as np
-import pybullet as p
 
 import quad_wrench_env  # noqa: F401  (registers the env ids)
+from quad_wrench_env.bench import bare_pybullet_step_seconds
 from quad_wrench_env.estimators import ESTIMATORS
-
-
-def bare_pybullet_step_seconds(steps: int) -> float:
-    cid = p.connect(p.DIRECT)
-    try:
-        p.setGravity(0, 0, -9.81, physicsClientId=cid)
-        p.setTimeStep(1 / 200, physicsClientId=cid)
-        shape = p.createCollisionShape(p.GEOM_BOX, halfExtents=(0.2, 0.2, 0.05), physicsClientId=cid)
-        body = p.createMultiBody(0.42, shape, basePosition=(0, 0, 1), physicsClientId=cid)
-        start = time.perf_counter()
-        for _ in range(steps):
-            position, _ = p.getBasePositionAndOrientation(body, physicsClientId=cid)
-            p.getBaseVelocity(body, physicsClientId=cid)
-            p.applyExternalForce(body, -1, (0, 0, 4.12), position, p.WORLD_FRAME, physicsClientId=cid)
-            p.applyExternalTorque(body, -1, (0, 0, 0), p.WORLD_FRAME, physicsClientId=cid)
-            p.stepSimulation(physicsClientId=cid)
-        return (time.perf_counter() - start) / steps
-    finally:
-        p.disconnect(physicsClientId=cid)
 
 
 def env_step_seconds(steps: int, **kwargs) -> tuple[float, float]:

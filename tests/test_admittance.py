@@ -1,4 +1,4 @@
-"""Paper 000's admittance fan tracker with the oracle estimate (Sec. V, Fig. 7)."""
+"""Paper 000's admittance fan tracker with the true and the UKF-estimated wrench (Sec. V, Fig. 7)."""
 
 from __future__ import annotations
 
@@ -20,13 +20,14 @@ def test_conforms_to_the_policy_interface():
     assert isinstance(AdmittancePolicy(), Policy)
 
 
-def test_reaches_the_axis_of_a_static_fan_from_0_8_m_within_15_s():
+@pytest.mark.parametrize("estimator", ["oracle", "ukf"])
+def test_reaches_the_axis_of_a_static_fan_from_0_8_m_within_15_s(estimator):
     result = evaluate(
         make_agent("admittance", **GAINS),
         FAN_TRACKING,
         seeds=[0, 1, 2],
         options={"fan_motion": "static", "offset_y": 0.8},
-        estimator="oracle",
+        estimator=estimator,
         episode_seconds=15.0,
     )
     for metrics in result.per_seed:
@@ -34,14 +35,14 @@ def test_reaches_the_axis_of_a_static_fan_from_0_8_m_within_15_s():
         assert metrics["terminated_early"] == 0.0
 
 
-@pytest.mark.parametrize("offset_y", [0.8, -0.8])
-def test_follows_a_fan_moving_at_0_1_m_per_s(offset_y):
+@pytest.mark.parametrize(("estimator", "offset_y"), [("oracle", 0.8), ("ukf", 0.8), ("ukf", -0.8)])
+def test_follows_a_fan_moving_at_0_1_m_per_s(estimator, offset_y):
     result = evaluate(
         make_agent("admittance", **GAINS),
         FAN_TRACKING,
         seeds=[0, 1],
         options={"fan_motion": {"name": "constant_speed", "speed": 0.1, "y0": -1.5}, "offset_y": offset_y},
-        estimator="oracle",
+        estimator=estimator,
     )
     for metrics in result.per_seed:
         assert metrics["terminated_early"] == 0.0

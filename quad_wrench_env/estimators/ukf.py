@@ -64,8 +64,10 @@ from quad_wrench_env.vehicle import GRAVITY, VehicleParams
 STATE_DIM = 18
 NOISE_DIM = 12
 ATT, RATE, POS, VEL, TORQUE, FORCE = (slice(i, i + 3) for i in range(0, 18, 3))
-_WRENCH = np.r_[15:18, 12:15]
-"""Error-state indices of ``[f_e, τ_e]`` (the order of :class:`WrenchEstimate`'s covariance)."""
+_MEASURED = np.r_[6:9, 0:3]
+"""Error-state indices of the measurement ``(x, δρ)`` (``H`` selects them)."""
+_WRENCH_BLOCK = np.ix_(np.r_[15:18, 12:15], np.r_[15:18, 12:15])
+"""Error-state block of ``[f_e, τ_e]`` (the order of :class:`WrenchEstimate`'s covariance)."""
 
 
 @dataclass
@@ -145,9 +147,12 @@ class UnscentedWrenchEstimator:
             )
             ** 2
         )
-        self._H = np.zeros((6, STATE_DIM))
-        self._H[0:3, POS] = np.eye(3)
-        self._H[3:6, ATT] = np.eye(3)
+        self._prior_rotation = np.eye(3)
+        self._B = np.zeros((STATE_DIM, NOISE_DIM))
+        self._B[RATE, 0:3] = np.diag(dt / self.inertia)
+        self._B[TORQUE, 3:6] = np.eye(3)
+        self._B[FORCE, 9:12] = np.eye(3)
+        self._q_diagonal = np.diag(self.Q).copy()
         self.quaternion = np.array((1.0, 0.0, 0.0, 0.0))
         self.rest = np.zeros(STATE_DIM - 3)
         """(ω, x, ẋ, τ_e, f_e): the error-state components other than the attitude, at their mean."""
@@ -186,7 +191,7 @@ class UnscentedWrenchEstimator:
     @property
     def estimate(self) -> WrenchEstimate:
         r = self.rest
-        return WrenchEstimate(r[12:15].copy(), r[9:12].copy(), self.P[np.ix_(_WRENCH, _WRENCH)])
+        return WrenchEstimate(r[12:15].copy(), r[9:12].copy(), self.P[_WRENCH_BLOCK])
 
     @property
     def state(self) -> StateEstimate:
@@ -215,37 +220,35 @@ class UnscentedWrenchEstimator:
         T, m = self.dt, self.mass
         q = quat_multiply_rows(self.quaternion, quat_from_mrp(errors[:, ATT]))
         rest = self.rest + errors[:, 3:]
-        omega, x, v, tau_e, f_e = rest[:, 0:3], rest[:, 3:6], rest[:, 6:9], rest[:, 9:12], rest[:, 12:15]
+        omega, v, tau_e, f_e = rest[:, 0:3], rest[:, 6:9], rest[:, 9:12], rest[:, 12:15]
         R = rotation_matrices(q)
-        body_force = np.zeros((len(q), 3))
-        body_force[:, 2] = thrust
-        motor_torque = np.broadcast_to(body_torque, omega.shape)
-        if noise is not None:
-            motor_torque = motor_torque + noise[:, 0:3]
-            tau_e_next = tau_e + noise[:, 3:6]
-            body_force = body_force + noise[:, 6:9]
-            f_e_next = f_e + noise[:, 9:12]
+        self._prior_rotation = R[0]
+        if noise is None:
+            accel = (thrust / m) * R[:, :, 2] + f_e / m
+            motor_torque = body_torque
         else:
-            tau_e_next, f_e_next = tau_e, f_e
-        accel = np.einsum("nij,nj->ni", R, body_force) / m + f_e / m
+            body_force = noise[:, 6:9].copy()
+            body_force[:, 2] += thrust
+            accel = np.einsum("nij,nj->ni", R, body_force) / m + f_e / m
+            motor_torque = body_torque + noise[:, 0:3]
         accel[:, 2] -= GRAVITY
-        x_next = x + T * v + 0.5 * T * T * accel
-        v_next = v + T * accel
-        q_next = quat_multiply_rows(q, quat_exp(omega * T))
         torque = np.einsum("nji,nj->ni", R, tau_e) + motor_torque - cross(omega, omega * self.inertia)
-        omega_next = omega + T * torque / self.inertia
-        return q_next, np.hstack((omega_next, x_next, v_next, tau_e_next, f_e_next))
+        out = rest.copy()  # ω, x, ẋ, τ_e, f_e
+        out[:, 0:3] += (T / self.inertia) * torque
+        out[:, 3:6] += T * v + (0.5 * T * T) * accel
+        out[:, 6:9] += T * accel
+        if noise is not None:
+            out[:, 9:12] += noise[:, 3:6]
+            out[:, 12:15] += noise[:, 9:12]
+        return quat_multiply_rows(q, quat_exp(omega * T)), out
 
-    def noise_jacobian(self) -> np.ndarray:
-        """``B`` (18, 12): how the process noise enters the error state over one step, at the mean."""
+    def noise_jacobian(self, R: np.ndarray) -> np.ndarray:
+        """``B`` (18, 12): how the process noise enters the error state over one step, for the mean
+        attitude ``R`` before the step."""
         T, m = self.dt, self.mass
-        R = rotation_matrices(self.quaternion[None, :])[0]
-        B = np.zeros((STATE_DIM, NOISE_DIM))
-        B[RATE, 0:3] = np.diag(T / self.inertia)
-        B[TORQUE, 3:6] = np.eye(3)
-        B[POS, 6:9] = 0.5 * T * T * R / m
-        B[VEL, 6:9] = T * R / m
-        B[FORCE, 9:12] = np.eye(3)
+        B = self._B
+        B[POS, 6:9] = (0.5 * T * T / m) * R
+        B[VEL, 6:9] = (T / m) * R
         return B
 
     def recombine(self, q_points: np.ndarray, rest_points: np.ndarray, weights: np.ndarray):
@@ -259,10 +262,10 @@ class UnscentedWrenchEstimator:
         return quat_multiply(q0, quat_from_mrp(mean[ATT])), mean[3:], covariance
 
     def predict(self, thrust: float, body_torque: np.ndarray) -> None:
-        B = self.noise_jacobian()
         q_points, rest_points = self.propagate(self.state_sigma_points(), thrust, body_torque)
+        B = self.noise_jacobian(self._prior_rotation)  # the central point is the prior mean
         self.quaternion, self.rest, P = self.recombine(q_points, rest_points, self._mean_weights)
-        self.P = P + B @ self.Q @ B.T
+        self.P = P + (B * self._q_diagonal) @ B.T  # B Q Bᵀ, Q diagonal
 
     # -- correction (eqs. 29-37) -------------------------------------------------------------------
     def innovation(self, position: np.ndarray, quaternion: np.ndarray) -> np.ndarray:
@@ -271,12 +274,12 @@ class UnscentedWrenchEstimator:
         return np.concatenate((position - self.rest[3:6], attitude))
 
     def correct(self, position: np.ndarray, quaternion: np.ndarray) -> None:
-        H, P = self._H, self.P
-        PHt = P @ H.T  # Σ_xy
-        S = H @ PHt + self.G  # Σ_yy
+        P = self.P
+        PHt = P[:, _MEASURED]  # Σ_xy = P Hᵀ: H only picks the position and attitude components
+        S = PHt[_MEASURED] + self.G  # Σ_yy
         K = np.linalg.solve(S, PHt.T).T  # (29)
         delta = K @ self.innovation(position, quaternion)  # (31), (36)
-        P = P - K @ S @ K.T  # (30)
+        P = P - K @ PHt.T  # (30)
         self.P = 0.5 * (P + P.T)
         q = quat_multiply(self.quaternion, quat_from_mrp(delta[ATT]))  # (37)
         self.quaternion = q / math.sqrt(float(q @ q))

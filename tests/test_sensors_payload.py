@@ -1,0 +1,65 @@
+"""Motion capture, motor-speed quantization and the hanging payload."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from quad_wrench_env.disturbances.payload import Payload, PayloadConfig
+from quad_wrench_env.rotations import quat_conjugate, quat_from_euler_zyx, quat_multiply, rotation_matrix
+from quad_wrench_env.sensors import MotionCapture, MotorSpeedSensor, SensorConfig
+from quad_wrench_env.vehicle import GRAVITY
+
+
+def test_motion_capture_noise_has_the_configured_spread():
+    mocap = MotionCapture(SensorConfig(position_noise=0.01, attitude_noise=0.05))
+    q = quat_from_euler_zyx(0.1, 0.2, 0.3)
+    mocap.reset(np.random.default_rng(0), np.zeros(3), q)
+    positions, angles = [], []
+    for _ in range(4000):
+        p, qm = mocap.measure(np.array((1.0, 2.0, 3.0)), q)
+        positions.append(p)
+        error = quat_multiply(quat_conjugate(q), qm)
+        angles.append(2.0 * error[1:] * np.sign(error[0]))
+    # 4000 samples: sample sds within ~3 % of the true ones
+    np.testing.assert_allclose(np.std(positions, axis=0), 0.01, rtol=0.06)
+    np.testing.assert_allclose(np.mean(positions, axis=0), (1.0, 2.0, 3.0), atol=0.001)
+    np.testing.assert_allclose(np.std(angles, axis=0), 0.05, rtol=0.06)
+
+
+def test_motion_capture_latency_delays_by_whole_steps():
+    mocap = MotionCapture(SensorConfig(position_noise=0.0, attitude_noise=0.0, latency_steps=2))
+    q = np.array((1.0, 0.0, 0.0, 0.0))
+    mocap.reset(np.random.default_rng(0), np.zeros(3), q)
+    seen = [mocap.measure(np.array((float(k), 0.0, 0.0)), q)[0][0] for k in range(1, 6)]
+    assert seen == [0.0, 0.0, 1.0, 2.0, 3.0]
+
+
+def test_motor_speeds_are_quantized_to_8_bits():
+    sensor = MotorSpeedSensor(550.0, 8)
+    levels = sensor.measure(np.linspace(0.0, 550.0, 10001))
+    assert len(np.unique(levels)) == 256
+    assert np.abs(levels - np.linspace(0.0, 550.0, 10001)).max() <= 550.0 / 255 / 2 + 1e-12
+
+
+def test_payload_under_a_rotor_gives_paper_000s_torque():
+    payload = Payload(PayloadConfig(mass=0.053, point=(0.129, 0.129, 0.0), attach_time=7.0, release_time=9.0))
+    assert payload.point_load(6.9, np.eye(3)) is None and payload.point_load(9.0, np.eye(3)) is None
+    offset, force = payload.point_load(7.0, np.eye(3))
+    torque = np.cross(offset, force)
+    assert force[2] == pytest.approx(-0.053 * GRAVITY)
+    np.testing.assert_allclose(np.abs(torque[:2]), 0.053 * GRAVITY * 0.129)  # 0.067 N·m, Sec. III
+    tilted = rotation_matrix(quat_from_euler_zyx(0.0, 0.0, np.pi / 2))
+    offset, _ = payload.point_load(8.0, tilted)
+    np.testing.assert_allclose(offset, tilted @ (0.129, 0.129, 0.0))
+
+
+def test_bad_sensor_and_payload_settings_are_named():
+    with pytest.raises(ValueError, match="position_noise=-1"):
+        SensorConfig(position_noise=-1.0)
+    with pytest.raises(ValueError, match="latency_steps=0.5"):
+        SensorConfig(latency_steps=0.5)
+    with pytest.raises(ValueError, match="payload.mass=-0.1"):
+        PayloadConfig(mass=-0.1)
+    with pytest.raises(ValueError, match="attach_time=5"):
+        PayloadConfig(attach_time=5.0, release_time=1.0)
