@@ -20,6 +20,7 @@ from scipy.spatial.transform import Rotation
 
 __all__ = [
     "cross",
+    "euler_zyx_from_quat",
     "from_pybullet",
     "mrp_from_quat",
     "quat_conjugate",
@@ -36,6 +37,7 @@ __all__ = [
     "skew",
     "tilt_angle",
     "to_pybullet",
+    "wrap_angle",
     "yaw_of",
 ]
 
@@ -177,6 +179,21 @@ def quat_multiply_rows(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 def rotation_matrices(q: np.ndarray) -> np.ndarray:
     """(N, 3, 3) body -> world matrices of (N, 4) unit quaternions (one matrix product)."""
     return ((q[:, :, None] * q[:, None, :]).reshape(-1, 16) @ _ROTATION).reshape(-1, 3, 3)
+
+
+def euler_zyx_from_quat(q: np.ndarray) -> np.ndarray:
+    """``(roll, pitch, yaw)`` of ``R = Rz(yaw) Ry(pitch) Rx(roll)``; the inverse of
+    :func:`quat_from_euler_zyx` for pitch in (-π/2, π/2)."""
+    w, x, y, z = q
+    roll = math.atan2(2.0 * (w * x + y * z), 1.0 - 2.0 * (x * x + y * y))
+    pitch = math.asin(max(-1.0, min(1.0, 2.0 * (w * y - z * x))))
+    yaw = math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+    return np.array((roll, pitch, yaw))
+
+
+def wrap_angle(angle):
+    """Angle(s) wrapped to [-π, π)."""
+    return (angle + math.pi) % (2.0 * math.pi) - math.pi
 
 
 def yaw_of(q: np.ndarray) -> float:

@@ -4,6 +4,8 @@
   with additive zero-mean Gaussian noise on the position (``position_noise``, m) and a small random
   rotation on the attitude (rotation vector with ``attitude_noise`` rad per axis, applied in the
   body frame), optionally ``latency_steps`` physics steps old.
+* Optionally (``state_estimator: true``) an onboard state estimator's velocity and body rates with
+  Gaussian noise, as paper 003's vehicle has (its EKF measures them; paper 000's UKF does not).
 * Motor speeds (paper 000 Sec. II-A): quantized to ``motor_speed_bits`` bits over [0, max speed], as
   the AR.Drone reports them; the estimators get thrust and torque from these through the *nominal*
   mixer, while the world uses the true per-rotor coefficients.
@@ -30,9 +32,14 @@ class SensorConfig:
     attitude_noise: float = 2e-3
     latency_steps: int = 0
     motor_speed_bits: int = 8
+    state_estimator: bool = False
+    velocity_noise: float = 0.01
+    """m/s, with ``state_estimator``"""
+    body_rate_noise: float = 0.01
+    """rad/s, with ``state_estimator``"""
 
     def __post_init__(self) -> None:
-        for name in ("position_noise", "attitude_noise"):
+        for name in ("position_noise", "attitude_noise", "velocity_noise", "body_rate_noise"):
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
                 raise ValueError(f"sensors.{name}={value!r} must be a finite number >= 0")
@@ -68,6 +75,19 @@ class MotionCapture:
         measured_position = position + cfg.position_noise * rng.standard_normal(3)
         rotation_error = quat_exp(cfg.attitude_noise * rng.standard_normal(3))
         return measured_position, quaternion_normalised(quat_multiply(quaternion, rotation_error))
+
+    def measure_motion(
+        self, velocity: np.ndarray, body_rates: np.ndarray
+    ) -> tuple[np.ndarray | None, np.ndarray | None]:
+        """Velocity and body rates from the onboard state estimator, or ``(None, None)`` without one."""
+        cfg = self.config
+        if not cfg.state_estimator:
+            return None, None
+        rng = self._rng
+        return (
+            velocity + cfg.velocity_noise * rng.standard_normal(3),
+            body_rates + cfg.body_rate_noise * rng.standard_normal(3),
+        )
 
 
 def quaternion_normalised(q: np.ndarray) -> np.ndarray:

@@ -119,3 +119,9 @@ def test_row_wise_helpers_match_single_ones():
 def _scipy_quat(rotation: Rotation) -> np.ndarray:
     x, y, z, w = rotation.as_quat()
     return r.quat_normalize(np.array((w, x, y, z)))
+
+
+@given(angles, st.floats(-1.5, 1.5), angles)
+def test_euler_round_trip(roll, pitch, yaw):
+    euler = r.euler_zyx_from_quat(r.quat_from_euler_zyx(roll, pitch, yaw))
+    np.testing.assert_allclose(r.wrap_angle(euler - (roll, pitch, yaw)), 0.0, atol=1e-9)

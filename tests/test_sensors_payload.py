@@ -5,7 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from quad_wrench_env.disturbances.base import resultant
 from quad_wrench_env.disturbances.payload import Payload, PayloadConfig
+from quad_wrench_env.disturbances.wrench_profile import WrenchProfile
 from quad_wrench_env.rotations import quat_conjugate, quat_from_euler_zyx, quat_multiply, rotation_matrix
 from quad_wrench_env.sensors import MotionCapture, MotorSpeedSensor, SensorConfig
 from quad_wrench_env.vehicle import GRAVITY
@@ -45,13 +47,14 @@ def test_motor_speeds_are_quantized_to_8_bits():
 def test_payload_under_a_rotor_gives_paper_000s_torque():
     payload = Payload(PayloadConfig(mass=0.053, point=(0.129, 0.129, 0.0), attach_time=7.0, release_time=9.0))
     assert payload.point_load(6.9, np.eye(3)) is None and payload.point_load(9.0, np.eye(3)) is None
-    offset, force = payload.point_load(7.0, np.eye(3))
+    offsets, forces = payload.point_load(7.0, np.eye(3))
+    offset, force = offsets[0], forces[0]
     torque = np.cross(offset, force)
     assert force[2] == pytest.approx(-0.053 * GRAVITY)
     np.testing.assert_allclose(np.abs(torque[:2]), 0.053 * GRAVITY * 0.129)  # 0.067 N·m, Sec. III
     tilted = rotation_matrix(quat_from_euler_zyx(0.0, 0.0, np.pi / 2))
-    offset, _ = payload.point_load(8.0, tilted)
-    np.testing.assert_allclose(offset, tilted @ (0.129, 0.129, 0.0))
+    offsets, _ = payload.point_load(8.0, tilted)
+    np.testing.assert_allclose(offsets[0], tilted @ (0.129, 0.129, 0.0))
 
 
 def test_bad_sensor_and_payload_settings_are_named():
@@ -63,3 +66,20 @@ def test_bad_sensor_and_payload_settings_are_named():
         PayloadConfig(mass=-0.1)
     with pytest.raises(ValueError, match="attach_time=5"):
         PayloadConfig(attach_time=5.0, release_time=1.0)
+
+
+def test_wrench_profile_applies_its_wrench_through_point_forces():
+    profile = WrenchProfile(
+        [[5, 10, 1, 0, 0, 0, 0, 0], [25, 30, 0, 0, 0, 1, 0, 0], [8, 9, 0, 0, -1, 0, 0.2, 0.3]]
+    )
+    assert profile.point_load(4.9, np.eye(3)) is None
+    for t, expected in (
+        (6.0, (1, 0, 0, 0, 0, 0)),
+        (8.5, (1, 0, -1, 0, 0.2, 0.3)),
+        (26.0, (0, 0, 0, 1, 0, 0)),
+    ):
+        offsets, forces = profile.point_load(t, np.eye(3))
+        force, torque = resultant(offsets, forces)
+        np.testing.assert_allclose(np.concatenate((force, torque)), expected, atol=1e-12)
+    with pytest.raises(ValueError, match="segment"):
+        WrenchProfile([[3, 1, 0, 0, 0, 0, 0, 0]])

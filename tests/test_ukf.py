@@ -5,11 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from quad_wrench_env.estimators.noise import FilterNoise
 from quad_wrench_env.estimators.ukf import (
     ATT,
     POS,
     STATE_DIM,
-    UKFNoise,
     UnscentedWrenchEstimator,
 )
 from quad_wrench_env.rotations import mrp_from_quat, quat_conjugate, quat_from_euler_zyx, quat_multiply
@@ -115,7 +115,7 @@ def test_a_broken_covariance_is_reinitialised_and_reported():
 
 def test_noise_settings_are_validated():
     with pytest.raises(ValueError, match="force_walk=-1"):
-        UKFNoise(force_walk=-1.0)
+        FilterNoise(force_walk=-1.0)
 
 
 def _hover_measurements(ukf: UnscentedWrenchEstimator, seconds: float, seed: int) -> list[np.ndarray]:

@@ -51,7 +51,8 @@ class Payload:
         return c.mass > 0 and c.attach_time <= t < c.release_time
 
     def point_load(self, t: float, rotation: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
-        """``(offset from the centre of mass, force)``, both world frame, or None when not hanging."""
+        """``(offsets (1, 3) from the centre of mass, forces (1, 3))``, world frame, or None when not
+        hanging."""
         if not self.attached(t):
             return None
-        return rotation @ self._point, self._weight
+        return (rotation @ self._point)[None, :], self._weight[None, :]

@@ -26,6 +26,7 @@ from quad_wrench_env.config import build, merged, section
 from quad_wrench_env.disturbances.base import WindField, resultant
 from quad_wrench_env.disturbances.drag import QuadraticDrag
 from quad_wrench_env.disturbances.payload import Payload
+from quad_wrench_env.disturbances.wrench_profile import WrenchProfile
 from quad_wrench_env.envs.actions import ActionMap
 from quad_wrench_env.envs.config import EnvConfig
 from quad_wrench_env.estimators import StateEstimate, TruthFed, make_estimator
@@ -82,21 +83,18 @@ class QuadWrenchEnv(gym.Env, EzPickle):
         self.metadata = {**self.metadata, "render_fps": cfg.policy_hz}
         # The estimator's measurement noise defaults to the motion capture's; a noise-free capture
         # leaves the estimator's own default (a filter needs G > 0 to stay well conditioned).
-        measurement_noise = {
-            key: value
-            for key, value in (
-                ("position", cfg.sensors.position_noise),
-                ("attitude", cfg.sensors.attitude_noise),
-            )
-            if value > 0
-        }
+        sensors = cfg.sensors
+        measured = [("position", sensors.position_noise), ("attitude", sensors.attitude_noise)]
+        if sensors.state_estimator:
+            measured += [("velocity", sensors.velocity_noise), ("body_rate", sensors.body_rate_noise)]
+        measurement_noise = {key: value for key, value in measured if value > 0}
         self.estimator = make_estimator(
             cfg.estimator, self.vehicle, self.dt, **{**measurement_noise, **cfg.estimator_params}
         )
         self._truth_fed = isinstance(self.estimator, TruthFed)
         self.mocap = MotionCapture(cfg.sensors)
         self.motor_sensor = MotorSpeedSensor(self.vehicle.max_rotor_speed, cfg.sensors.motor_speed_bits)
-        self.payload = Payload(cfg.payload)
+        self.point_loads = [Payload(cfg.payload), WrenchProfile(cfg.external_wrench)]
         self.autopilot = Autopilot(self.vehicle, self.dt)
         self.actions = ActionMap(cfg.action_type, self.autopilot, cfg.action_limits)
         self.rotors = Rotors(self.vehicle, self.dt)
@@ -243,7 +241,8 @@ class QuadWrenchEnv(gym.Env, EzPickle):
         self._feed_truth(after)
         nominal = self.autopilot.mixer.wrench(self.motor_sensor.measure(self.rotors.speeds))
         position, quaternion = self.mocap.measure(after.position, after.quaternion)
-        self.estimator.step(nominal[0], nominal[1:], position, quaternion)
+        velocity, body_rates = self.mocap.measure_motion(after.velocity, after.body_rates)
+        self.estimator.step(nominal[0], nominal[1:], position, quaternion, velocity, body_rates)
         return after
 
     def _equilibrium(self, position: np.ndarray, yaw: float) -> tuple[np.ndarray, np.ndarray]:
@@ -277,10 +276,11 @@ class QuadWrenchEnv(gym.Env, EzPickle):
         relative_air = wind - point_velocity
         forces = self.drag.forces(relative_air)
         forces[:4] += self.rotors.drag_forces(-relative_air[:4], state.rotation[:, 2])
-        payload = self.payload.point_load(self.time, state.rotation)
-        if payload is not None:
-            offsets = np.vstack((offsets, payload[0]))
-            forces = np.vstack((forces, payload[1]))
+        for load in self.point_loads:
+            extra = load.point_load(self.time, state.rotation)
+            if extra is not None:
+                offsets = np.vstack((offsets, extra[0]))
+                forces = np.vstack((forces, extra[1]))
         return resultant(offsets, forces)
 
     def _feed_truth(self, state: RigidBodyState) -> None:

@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from quad_wrench_env.disturbances.payload import PayloadConfig
+from quad_wrench_env.disturbances.wrench_profile import validate_segments
 from quad_wrench_env.envs.actions import ActionLimits
 from quad_wrench_env.sensors import SensorConfig
 
@@ -46,6 +47,8 @@ class EnvConfig:
     """Standard deviation of the per-rotor thrust-coefficient error ``ε_i`` (PHYSICS.md)."""
     sensors: SensorConfig = field(default_factory=SensorConfig)
     payload: PayloadConfig = field(default_factory=PayloadConfig)
+    external_wrench: list[list[float]] = field(default_factory=list)
+    """Scheduled wrench segments ``[start, end, fx, fy, fz, tx, ty, tz]`` (world frame)."""
     arena: ArenaConfig = field(default_factory=ArenaConfig)
     crash_height: float = 0.1
     flip_tilt_deg: float = 90.0
@@ -61,5 +64,6 @@ class EnvConfig:
             raise ValueError(f"episode_seconds={self.episode_seconds!r} must be a finite number > 0")
         if not (0.0 <= self.kf_spread < 0.5):
             raise ValueError(f"kf_spread={self.kf_spread!r} must be in [0, 0.5)")
+        validate_segments(self.external_wrench)
         if not (0.0 < self.flip_tilt_deg <= 180.0):
             raise ValueError(f"flip_tilt_deg={self.flip_tilt_deg!r} must be in (0, 180]")

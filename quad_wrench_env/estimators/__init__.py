@@ -8,12 +8,15 @@ from typing import Any
 
 from quad_wrench_env.config import build
 from quad_wrench_env.estimators.base import Estimator, StateEstimate, TruthFed, WrenchEstimate
+from quad_wrench_env.estimators.ekf import ExtendedWrenchEstimator
+from quad_wrench_env.estimators.noise import EKFNoise, FilterNoise
+from quad_wrench_env.estimators.observer import NonlinearWrenchObserver, ObserverGains
 from quad_wrench_env.estimators.oracle import OracleEstimator
-from quad_wrench_env.estimators.ukf import UKFNoise, UnscentedWrenchEstimator
+from quad_wrench_env.estimators.ukf import UnscentedWrenchEstimator
 from quad_wrench_env.vehicle import VehicleParams
 
-MEASUREMENT_NOISE_KEYS = ("position", "attitude")
-"""Noise settings the env fills from its motion-capture config unless they are given."""
+MEASUREMENT_NOISE_KEYS = ("position", "attitude", "velocity", "body_rate")
+"""Noise settings the env fills from its sensor config; an estimator drops those it does not use."""
 
 
 def _oracle(vehicle: VehicleParams, dt: float, **noise: Any) -> Estimator:
@@ -21,19 +24,35 @@ def _oracle(vehicle: VehicleParams, dt: float, **noise: Any) -> Estimator:
 
 
 def _ukf(vehicle: VehicleParams, dt: float, **noise: Any) -> Estimator:
-    return UnscentedWrenchEstimator(vehicle, dt, build(UKFNoise, noise, prefix="estimator_params."))
+    noise = {k: v for k, v in noise.items() if k not in ("velocity", "body_rate")}  # pose only
+    return UnscentedWrenchEstimator(vehicle, dt, build(FilterNoise, noise, prefix="estimator_params."))
 
 
-FACTORIES: dict[str, Callable[..., Estimator]] = {"ukf": _ukf, "oracle": _oracle}
+def _ekf(vehicle: VehicleParams, dt: float, **noise: Any) -> Estimator:
+    return ExtendedWrenchEstimator(vehicle, dt, build(EKFNoise, noise, prefix="estimator_params."))
+
+
+def _observer(vehicle: VehicleParams, dt: float, **settings: Any) -> Estimator:
+    gains = {k: v for k, v in settings.items() if k not in MEASUREMENT_NOISE_KEYS}
+    return NonlinearWrenchObserver(vehicle, dt, build(ObserverGains, gains, prefix="estimator_params."))
+
+
+FACTORIES: dict[str, Callable[..., Estimator]] = {
+    "ukf": _ukf,
+    "ekf": _ekf,
+    "observer": _observer,
+    "oracle": _oracle,
+}
 ESTIMATORS = tuple(FACTORIES)
-"""Names accepted by :func:`make_estimator` (EKF and observer follow in a later issue)."""
+"""Names accepted by :func:`make_estimator`."""
 
 
 def make_estimator(name: str, vehicle: VehicleParams, dt: float, **noise: Any) -> Estimator:
     """Build the estimator called ``name`` for ``vehicle``, stepped every ``dt`` seconds.
 
-    ``noise`` holds the estimator's noise settings (for the UKF the fields of :class:`UKFNoise`);
-    the oracle ignores the measurement-noise keys and takes no others.
+    ``noise`` holds the estimator's settings: for the UKF the fields of :class:`FilterNoise`, for the
+    EKF those of :class:`EKFNoise`, for the observer those of :class:`ObserverGains`; the observer
+    and the oracle ignore the measurement-noise keys, which the env always passes.
     """
     if name not in FACTORIES:
         raise ValueError(f"unknown estimator {name!r}; allowed: {list(ESTIMATORS)}")
@@ -49,11 +68,15 @@ def make_estimator(name: str, vehicle: VehicleParams, dt: float, **noise: Any) -
 __all__ = [
     "ESTIMATORS",
     "MEASUREMENT_NOISE_KEYS",
+    "EKFNoise",
     "Estimator",
+    "ExtendedWrenchEstimator",
+    "FilterNoise",
+    "NonlinearWrenchObserver",
+    "ObserverGains",
     "OracleEstimator",
     "StateEstimate",
     "TruthFed",
-    "UKFNoise",
     "UnscentedWrenchEstimator",
     "WrenchEstimate",
     "make_estimator",

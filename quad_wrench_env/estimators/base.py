@@ -48,8 +48,11 @@ class Estimator(Protocol):
         body_torque: np.ndarray,
         position: np.ndarray,
         quaternion_wxyz: np.ndarray,
+        velocity: np.ndarray | None = None,
+        body_rates: np.ndarray | None = None,
     ) -> WrenchEstimate:
-        """One step of ``dt``: inputs over the step and the pose measured at its end."""
+        """One step of ``dt``: inputs over the step and the pose measured at its end; velocity and
+        body rates when an onboard state estimator measures them (estimators may ignore them)."""
 
     @property
     def estimate(self) -> WrenchEstimate:

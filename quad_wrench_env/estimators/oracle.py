@@ -40,6 +40,8 @@ class OracleEstimator:
         body_torque: np.ndarray,
         position: np.ndarray,
         quaternion_wxyz: np.ndarray,
+        velocity: np.ndarray | None = None,
+        body_rates: np.ndarray | None = None,
     ) -> WrenchEstimate:
         return self._estimate
 

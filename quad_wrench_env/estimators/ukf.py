@@ -44,11 +44,11 @@ pose at rest. Either way it reports ``status = "reinitialised"`` from then on (t
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import numpy as np
 
 from quad_wrench_env.estimators.base import StateEstimate, WrenchEstimate
+from quad_wrench_env.estimators.noise import FilterNoise, mrp_std
 from quad_wrench_env.rotations import (
     cross,
     mrp_from_quat,
@@ -70,55 +70,15 @@ _WRENCH_BLOCK = np.ix_(np.r_[15:18, 12:15], np.r_[15:18, 12:15])
 """Error-state block of ``[f_e, τ_e]`` (the order of :class:`WrenchEstimate`'s covariance)."""
 
 
-@dataclass
-class UKFNoise:
-    """Standard deviations of the filter's noise models: its only tuning knobs.
-
-    Process noise is per step of ``dt`` (paper 000 eqs. 4, 5, 12, 14); measurement noise ``G``
-    (Sec. II-B) is that of the motion capture, and the env sets it from its sensor config unless
-    given here. Initial standard deviations describe the belief at ``reset``.
-    """
-
-    thrust: float = 0.05
-    """η_ct (N): thrust model error and 8-bit speed quantization, per body axis."""
-    motor_torque: float = 3e-3
-    """η_τm (N·m): motor torque model error, per body axis."""
-    force_walk: float = 4e-3
-    """η_fe (N per step): random walk of the external force."""
-    torque_walk: float = 2e-4
-    """η_τe (N·m per step): random walk of the external torque."""
-    position: float = 5e-4
-    """Motion-capture position noise (m)."""
-    attitude: float = 2e-3
-    """Motion-capture attitude noise (rad)."""
-    initial_attitude: float = 0.01
-    initial_rates: float = 0.05
-    initial_position: float = 0.01
-    initial_velocity: float = 0.05
-    initial_torque: float = 0.02
-    initial_force: float = 0.2
-    kappa: float = 2.0
-
-    def __post_init__(self) -> None:
-        for name, value in vars(self).items():
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
-                raise ValueError(f"UKF noise {name}={value!r} must be a finite number > 0")
-
-
-def mrp_std(angle_std: float) -> float:
-    """Standard deviation in MRP units (``ρ = tan(θ/4)``) of a small rotation of ``angle_std`` rad."""
-    return math.tan(angle_std / 4.0)
-
-
 class UnscentedWrenchEstimator:
     """USQUE-based external wrench estimator (paper 000); see the module docstring."""
 
     name = "ukf"
 
-    def __init__(self, vehicle: VehicleParams, dt: float, noise: UKFNoise | None = None) -> None:
+    def __init__(self, vehicle: VehicleParams, dt: float, noise: FilterNoise | None = None) -> None:
         self.vehicle = vehicle
         self.dt = dt
-        self.noise = noise or UKFNoise()
+        self.noise = noise or FilterNoise()
         n = self.noise
         self.mass = vehicle.mass
         self.inertia = np.array(vehicle.inertia)
@@ -170,8 +130,16 @@ class UnscentedWrenchEstimator:
         self.reinitialisations = 0
 
     def step(
-        self, thrust: float, body_torque: np.ndarray, position: np.ndarray, quaternion_wxyz: np.ndarray
+        self,
+        thrust: float,
+        body_torque: np.ndarray,
+        position: np.ndarray,
+        quaternion_wxyz: np.ndarray,
+        velocity: np.ndarray | None = None,
+        body_rates: np.ndarray | None = None,
     ) -> WrenchEstimate:
+        """Predict and correct with the measured pose; paper 000's filter measures nothing else, so
+        ``velocity`` and ``body_rates`` are not used."""
         inputs = np.concatenate(((thrust,), body_torque, position, quaternion_wxyz))
         if not np.all(np.isfinite(inputs)):
             raise ValueError(

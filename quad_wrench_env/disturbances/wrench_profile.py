@@ -1,0 +1,68 @@
+"""A scheduled external wrench, as in paper 001's Fig. 4 and paper 000's Fig. 5 simulations.
+
+Each segment ``[start, end, f_x, f_y, f_z, τ_x, τ_y, τ_z]`` (s, N, N·m, world frame) adds its force
+at the centre of mass and its torque as a couple: opposite forces ``±(τ × u)/(2a)`` at the points
+``±a·u`` (``u`` a unit vector ⟂ τ), so that like every other load it acts through forces at points.
+Overlapping segments add up.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from quad_wrench_env.rotations import cross
+
+_COUPLE_ARM = 0.1
+"""m: half the distance between the two forces of a torque couple."""
+
+
+def validate_segments(segments: list) -> np.ndarray:
+    """(K, 8) array of segments, or ``ValueError`` naming the bad one."""
+    rows = []
+    for segment in segments:
+        values = list(segment) if isinstance(segment, (list, tuple)) else None
+        if (
+            values is None
+            or len(values) != 8
+            or not all(isinstance(v, (int, float)) and math.isfinite(v) for v in values)
+            or not values[0] < values[1]
+        ):
+            raise ValueError(
+                f"external_wrench segment {segment!r} must be [start, end, fx, fy, fz, tx, ty, tz] "
+                "with finite numbers and start < end"
+            )
+        rows.append(values)
+    return np.array(rows, dtype=float).reshape(-1, 8)
+
+
+class WrenchProfile:
+    """Piecewise-constant external force and torque, applied as point forces."""
+
+    def __init__(self, segments: list) -> None:
+        self.segments = validate_segments(segments)
+
+    def wrench(self, t: float) -> np.ndarray:
+        """``[f, τ]`` (world) acting at time ``t``."""
+        active = (self.segments[:, 0] <= t) & (t < self.segments[:, 1])
+        return self.segments[active, 2:].sum(axis=0) if np.any(active) else np.zeros(6)
+
+    def point_load(self, t: float, rotation: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+        """(offsets, forces) of the force at the centre of mass and the torque couple, or None."""
+        if not self.segments.size:
+            return None
+        w = self.wrench(t)
+        if not np.any(w):
+            return None
+        force, torque = w[:3], w[3:]
+        norm = np.linalg.norm(torque)
+        if norm == 0.0:
+            return np.zeros((1, 3)), force[None, :]
+        # a unit vector u ⟂ τ; forces ±F at ±a·u with 2a·(u × F) = τ  =>  F = (τ × u)/(2a)
+        helper = np.array((1.0, 0.0, 0.0)) if abs(torque[0]) < 0.9 * norm else np.array((0.0, 1.0, 0.0))
+        u = cross(torque, helper)
+        u /= np.linalg.norm(u)
+        couple = cross(torque, u) / (2.0 * _COUPLE_ARM)
+        offsets = np.array((np.zeros(3), _COUPLE_ARM * u, -_COUPLE_ARM * u))
+        return offsets, np.array((force, couple, -couple))
