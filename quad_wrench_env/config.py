@@ -7,6 +7,7 @@ misspelt setting never silently falls back to a default.
 from __future__ import annotations
 
 import dataclasses
+import math
 import typing
 from collections.abc import Mapping
 from pathlib import Path
@@ -67,3 +68,15 @@ def merged(base: Mapping[str, Any], update: Mapping[str, Any]) -> dict[str, Any]
         else:
             out[key] = value
     return out
+
+
+def check_numbers(owner: str, obj: Any, names: tuple[str, ...], *, positive: bool = True) -> None:
+    """Raise ``ValueError`` naming ``owner.name=value`` unless each attribute is a finite number
+    that is > 0 (``positive``) or >= 0."""
+    for name in names:
+        value = getattr(obj, name)
+        ok = isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+        if not (ok and (value > 0 if positive else value >= 0)):
+            raise ValueError(
+                f"{owner}.{name}={value!r} must be a finite number {'> 0' if positive else '>= 0'}"
+            )

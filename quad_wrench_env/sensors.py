@@ -21,6 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from quad_wrench_env.config import check_numbers
 from quad_wrench_env.rotations import quat_exp, quat_multiply
 
 
@@ -39,10 +40,8 @@ class SensorConfig:
     """rad/s, with ``state_estimator``"""
 
     def __post_init__(self) -> None:
-        for name in ("position_noise", "attitude_noise", "velocity_noise", "body_rate_noise"):
-            value = getattr(self, name)
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
-                raise ValueError(f"sensors.{name}={value!r} must be a finite number >= 0")
+        noise = ("position_noise", "attitude_noise", "velocity_noise", "body_rate_noise")
+        check_numbers("sensors", self, noise, positive=False)
         if not (isinstance(self.latency_steps, int) and self.latency_steps >= 0):
             raise ValueError(f"sensors.latency_steps={self.latency_steps!r} must be an integer >= 0")
         if not (isinstance(self.motor_speed_bits, int) and 1 <= self.motor_speed_bits <= 32):

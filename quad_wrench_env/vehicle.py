@@ -25,6 +25,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from quad_wrench_env.config import check_numbers
+
 GRAVITY = 9.81
 """Standard gravity used everywhere in the project (m/s², paper 000's ``g``)."""
 
@@ -61,25 +63,21 @@ class VehicleParams:
     """Hover deceleration per unit airspeed from linear rotor drag (1/s), PHYSICS.md."""
 
     def __post_init__(self) -> None:
-        for name in (
+        owner = f"vehicle '{self.name}'"
+        positive = (
             "mass",
             "arm",
             "kf",
             "km_over_kf",
             "max_rotor_speed",
             "rotor_radius",
+            "hull_radius",
             "motor_time_constant_up",
             "motor_time_constant_down",
-            "hull_radius",
             "hull_height",
-        ):
-            value = getattr(self, name)
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
-                raise ValueError(f"vehicle '{self.name}': {name}={value!r} must be a finite number > 0")
-        for name in ("drag_area", "min_rotor_speed", "rotor_drag_decel"):
-            value = getattr(self, name)
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
-                raise ValueError(f"vehicle '{self.name}': {name}={value!r} must be a finite number >= 0")
+        )
+        check_numbers(owner, self, positive)
+        check_numbers(owner, self, ("drag_area", "min_rotor_speed", "rotor_drag_decel"), positive=False)
         if len(self.inertia) != 3 or not all(math.isfinite(j) and j > 0 for j in self.inertia):
             raise ValueError(f"vehicle '{self.name}': inertia={self.inertia!r} must be 3 numbers > 0")
         if self.min_rotor_speed >= self.max_rotor_speed:

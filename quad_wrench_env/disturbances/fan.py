@@ -17,6 +17,8 @@ from typing import Protocol
 
 import numpy as np
 
+from quad_wrench_env.config import check_numbers
+
 
 class FanMotion(Protocol):
     """Lateral position of the fan over time."""
@@ -132,10 +134,7 @@ class FanConfig:
     """Parameters of each motion, by name; ``motion`` picks the one used."""
 
     def __post_init__(self) -> None:
-        for name in ("outlet_diameter", "outlet_speed", "spread", "centreline_constant"):
-            value = getattr(self, name)
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
-                raise ValueError(f"fan.{name}={value!r} must be a finite number > 0")
+        check_numbers("fan", self, ("outlet_diameter", "outlet_speed", "spread", "centreline_constant"))
         if not (0.0 <= self.turbulence_intensity < 1.0):
             raise ValueError(f"fan.turbulence_intensity={self.turbulence_intensity!r} must be in [0, 1)")
         unknown = sorted(set(self.motions) - set(MOTIONS))

@@ -21,6 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from quad_wrench_env.autopilot import Autopilot
+from quad_wrench_env.config import check_numbers
 from quad_wrench_env.vehicle import GRAVITY
 from quad_wrench_env.world import RigidBodyState
 
@@ -37,10 +38,7 @@ class ActionLimits:
     max_tilt_deg: float = 30.0
 
     def __post_init__(self) -> None:
-        for name in ("max_speed_xy", "max_speed_z", "max_yaw_rate", "max_tilt_deg"):
-            value = getattr(self, name)
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
-                raise ValueError(f"action_limits.{name}={value!r} must be a finite number > 0")
+        check_numbers("action_limits", self, ("max_speed_xy", "max_speed_z", "max_yaw_rate", "max_tilt_deg"))
         if self.max_tilt_deg >= 90.0:
             raise ValueError(f"action_limits.max_tilt_deg={self.max_tilt_deg} must be below 90")
 

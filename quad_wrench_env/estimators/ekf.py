@@ -29,7 +29,7 @@ import math
 
 import numpy as np
 
-from quad_wrench_env.estimators.base import StateEstimate, WrenchEstimate
+from quad_wrench_env.estimators.base import StateEstimate, WrenchEstimate, check_finite_inputs
 from quad_wrench_env.estimators.noise import EKFNoise
 from quad_wrench_env.rotations import (
     cross,
@@ -111,14 +111,15 @@ class ExtendedWrenchEstimator:
         velocity: np.ndarray | None = None,
         body_rates: np.ndarray | None = None,
     ) -> WrenchEstimate:
-        parts = [np.atleast_1d(thrust), body_torque, position, quaternion_wxyz]
-        parts += [a for a in (velocity, body_rates) if a is not None]
-        if not np.all(np.isfinite(np.concatenate(parts))):
-            raise ValueError(
-                f"EKF step got a non-finite input (thrust={thrust!r}, body_torque={body_torque!r}, "
-                f"position={position!r}, quaternion={quaternion_wxyz!r}, velocity={velocity!r}, "
-                f"body_rates={body_rates!r}); allowed: finite numbers"
-            )
+        check_finite_inputs(
+            self.name,
+            thrust=thrust,
+            body_torque=body_torque,
+            position=position,
+            quaternion=quaternion_wxyz,
+            velocity=velocity,
+            body_rates=body_rates,
+        )
         u = np.concatenate(((thrust,), body_torque))
         self.predict(u)
         self.correct(

@@ -5,6 +5,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from quad_wrench_env.config import check_numbers
+
 
 @dataclass
 class FilterNoise:
@@ -38,9 +40,7 @@ class FilterNoise:
     kappa: float = 2.0
 
     def __post_init__(self) -> None:
-        for name, value in vars(self).items():
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
-                raise ValueError(f"filter noise {name}={value!r} must be a finite number > 0")
+        check_numbers("estimator_params", self, tuple(vars(self)))
 
 
 def mrp_std(angle_std: float) -> float:

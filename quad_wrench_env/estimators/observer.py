@@ -30,7 +30,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from quad_wrench_env.estimators.base import StateEstimate, WrenchEstimate
+from quad_wrench_env.config import check_numbers
+from quad_wrench_env.estimators.base import StateEstimate, WrenchEstimate, check_finite_inputs
 from quad_wrench_env.rotations import (
     cross,
     euler_zyx_from_quat,
@@ -56,14 +57,10 @@ class ObserverGains:
     """s; first-order low-pass on the finite-difference Euler-angle rates (0 = none)."""
 
     def __post_init__(self) -> None:
-        for name in ("c_force", "c_torque"):
-            value = getattr(self, name)
-            if not (math.isfinite(value) and value > 0):
-                raise ValueError(f"observer {name}={value!r} must be a finite number > 0")
-        for name in ("velocity_time_constant", "rate_time_constant"):
-            value = getattr(self, name)
-            if not (math.isfinite(value) and value >= 0):
-                raise ValueError(f"observer {name}={value!r} must be a finite number >= 0 (s)")
+        check_numbers("estimator_params", self, ("c_force", "c_torque"))
+        check_numbers(
+            "estimator_params", self, ("velocity_time_constant", "rate_time_constant"), positive=False
+        )
 
 
 def euler_kinematics(roll: float, pitch: float) -> np.ndarray:
@@ -124,13 +121,15 @@ class NonlinearWrenchObserver:
         velocity: np.ndarray | None = None,
         body_rates: np.ndarray | None = None,
     ) -> WrenchEstimate:
-        parts = [np.atleast_1d(thrust), body_torque, position, quaternion_wxyz]
-        parts += [a for a in (velocity, body_rates) if a is not None]
-        if not np.all(np.isfinite(np.concatenate(parts))):
-            raise ValueError(
-                f"observer step got a non-finite input (thrust={thrust!r}, body_torque={body_torque!r}, "
-                f"position={position!r}, quaternion={quaternion_wxyz!r}); allowed: finite numbers"
-            )
+        check_finite_inputs(
+            self.name,
+            thrust=thrust,
+            body_torque=body_torque,
+            position=position,
+            quaternion=quaternion_wxyz,
+            velocity=velocity,
+            body_rates=body_rates,
+        )
         self._measure(
             np.asarray(position, dtype=float), np.asarray(quaternion_wxyz, dtype=float), velocity, body_rates
         )

@@ -47,7 +47,7 @@ import math
 
 import numpy as np
 
-from quad_wrench_env.estimators.base import StateEstimate, WrenchEstimate
+from quad_wrench_env.estimators.base import StateEstimate, WrenchEstimate, check_finite_inputs
 from quad_wrench_env.estimators.noise import FilterNoise, mrp_std
 from quad_wrench_env.rotations import (
     cross,
@@ -140,12 +140,9 @@ class UnscentedWrenchEstimator:
     ) -> WrenchEstimate:
         """Predict and correct with the measured pose; paper 000's filter measures nothing else, so
         ``velocity`` and ``body_rates`` are not used."""
-        inputs = np.concatenate(((thrust,), body_torque, position, quaternion_wxyz))
-        if not np.all(np.isfinite(inputs)):
-            raise ValueError(
-                f"UKF step got a non-finite input (thrust={thrust!r}, body_torque={body_torque!r}, "
-                f"position={position!r}, quaternion={quaternion_wxyz!r}); allowed: finite numbers"
-            )
+        check_finite_inputs(
+            self.name, thrust=thrust, body_torque=body_torque, position=position, quaternion=quaternion_wxyz
+        )
         position = np.asarray(position, dtype=float)
         quaternion = np.asarray(quaternion_wxyz, dtype=float)
         self.predict(float(thrust), np.asarray(body_torque, dtype=float))
