@@ -20,19 +20,26 @@ from quad_wrench_env.bench import bare_pybullet_step_seconds
 from quad_wrench_env.estimators import ESTIMATORS
 
 
-def env_step_seconds(steps: int, **kwargs) -> tuple[float, float]:
+def env_step_seconds(steps: int, resets: int = 20, **kwargs) -> tuple[float, float]:
+    """Seconds per policy step (resets excluded) and per reset (mean of ``resets`` after the first)."""
     env = gym.make("QuadWrench/FanTracking-v0", **kwargs)
     try:
-        start = time.perf_counter()
         env.reset(seed=0)
-        reset = time.perf_counter() - start
+        start = time.perf_counter()
+        for seed in range(1, resets + 1):
+            env.reset(seed=seed)
+        reset = (time.perf_counter() - start) / resets
         action = np.zeros(4, dtype=np.float32)
+        elapsed = 0.0
         start = time.perf_counter()
         for _ in range(steps):
             _, _, terminated, truncated, _ = env.step(action)
             if terminated or truncated:
+                elapsed += time.perf_counter() - start
                 env.reset()
-        return (time.perf_counter() - start) / steps, reset
+                start = time.perf_counter()
+        elapsed += time.perf_counter() - start
+        return elapsed / steps, reset
     finally:
         env.close()
 
