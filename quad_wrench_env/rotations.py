@@ -128,25 +128,24 @@ def quat_from_mrp(rho: np.ndarray) -> np.ndarray:
 
     Works row-wise on (N, 3) arrays too.
     """
-    n2 = np.einsum("...i,...i->...", rho, rho)
+    n2 = (rho * rho).sum(axis=-1, keepdims=True)
     w = (1.0 - n2) / (1.0 + n2)
-    return np.concatenate((w[..., None], rho * (1.0 + w)[..., None]), axis=-1)
+    return np.concatenate((w, rho * (1.0 + w)), axis=-1)
 
 
 def mrp_from_quat(q: np.ndarray) -> np.ndarray:
     """MRPs ``ρ = q_v/(1 + q_0)`` of a unit quaternion (paper 000 eq. 16), taking the sign with
     ``q_0 >= 0`` first so that ``|ρ| <= 1`` (the rotation of at most π). Row-wise on (N, 4)."""
-    sign = np.where(q[..., :1] < 0.0, -1.0, 1.0)
-    q = q * sign
-    return q[..., 1:] / (1.0 + q[..., :1])
+    w = q[..., :1]
+    return q[..., 1:] * (np.copysign(1.0, w) / (1.0 + np.abs(w)))
 
 
 def quat_exp(rotation_vector: np.ndarray) -> np.ndarray:
     """Quaternion of the rotation ``θ·e`` given as the vector ``θ e`` (rad); row-wise on (N, 3)."""
-    angle = np.sqrt(np.einsum("...i,...i->...", rotation_vector, rotation_vector))
+    angle = np.sqrt((rotation_vector * rotation_vector).sum(axis=-1, keepdims=True))
     half = 0.5 * angle
-    scale = np.where(angle > 1e-12, np.sin(half) / np.where(angle > 1e-12, angle, 1.0), 0.5)
-    return np.concatenate((np.cos(half)[..., None], rotation_vector * scale[..., None]), axis=-1)
+    scale = 0.5 * np.sinc(half / np.pi)  # sin(θ/2)/θ, finite at θ = 0
+    return np.concatenate((np.cos(half), rotation_vector * scale), axis=-1)
 
 
 def _bilinear_tensor(function, size_a: int, size_b: int) -> np.ndarray:
@@ -169,10 +168,13 @@ def _homogeneous_rotation(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 def quat_multiply_rows(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Hamilton products ``a ⊗ b`` row-wise for (N, 4) arrays (either may be a single quaternion),
-    as one matrix product with the bilinear tensor of ``⊗``."""
-    a2, b2 = np.atleast_2d(a), np.atleast_2d(b)
-    outer = (a2[:, :, None] * b2[:, None, :]).reshape(-1, 16)
+    """Hamilton products ``a ⊗ b`` row-wise for (N, 4) arrays, as one matrix product with the
+    bilinear tensor of ``⊗``; a single quaternion on either side multiplies every row."""
+    if a.ndim == 1:
+        return b @ (a @ _PRODUCT.reshape(4, 4, 4))  # a ⊗ b = b @ M(a)
+    if b.ndim == 1:
+        return a @ np.einsum("ijk,j->ik", _PRODUCT.reshape(4, 4, 4), b)
+    outer = (a[:, :, None] * b[:, None, :]).reshape(-1, 16)
     return outer @ _PRODUCT
 
 
