@@ -171,9 +171,9 @@ def quat_multiply_rows(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Hamilton products ``a ⊗ b`` row-wise for (N, 4) arrays, as one matrix product with the
     bilinear tensor of ``⊗``; a single quaternion on either side multiplies every row."""
     if a.ndim == 1:
-        return b @ (a @ _PRODUCT.reshape(4, 4, 4))  # a ⊗ b = b @ M(a)
+        return b @ np.tensordot(a, _PRODUCT.reshape(4, 4, 4), axes=(0, 0))  # a ⊗ b = b @ M(a)
     if b.ndim == 1:
-        return a @ np.einsum("ijk,j->ik", _PRODUCT.reshape(4, 4, 4), b)
+        return a @ np.tensordot(_PRODUCT.reshape(4, 4, 4), b, axes=(1, 0))  # a ⊗ b = a @ N(b)
     outer = (a[:, :, None] * b[:, None, :]).reshape(-1, 16)
     return outer @ _PRODUCT
 

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from quad_wrench_env.estimators import ESTIMATORS, Estimator, TruthFed, make_estimator
+from quad_wrench_env.rotations import quat_from_euler_zyx, rotation_matrix
 from quad_wrench_env.vehicle import GRAVITY, make_vehicle
 
 
@@ -42,3 +43,22 @@ def test_unknown_estimator_and_settings_are_named():
         make_estimator("ukf", vehicle, 0.005, sigma=1.0)
     with pytest.raises(ValueError, match="dt=0"):
         make_estimator("ukf", vehicle, 0.0)
+
+
+@pytest.mark.parametrize("name", [n for n in ESTIMATORS if n != "oracle"])
+@pytest.mark.parametrize("euler", [(0.0, 0.0, np.pi), (0.1, -0.2, 2.0), (0.0, 0.24, np.pi)])
+def test_a_vehicle_held_still_gives_the_wrench_that_balances_its_inputs(name, euler):
+    """At rest at any attitude, the external wrench must cancel gravity, thrust and motor torque:
+    f = m g e_z - R c_t e_z and tau = -R tau_m (zero accelerations in paper 000 eqs. 4 and 12)."""
+    vehicle = make_vehicle("ardrone2")
+    est = make_estimator(name, vehicle, 0.005)
+    q = quat_from_euler_zyx(*euler)
+    R = rotation_matrix(q)
+    position, thrust, torque = np.array((2.3, 0.4, 1.0)), 4.2, np.array((0.008, 0.001, -0.03))
+    est.reset(position, q)
+    for _ in range(1000):
+        estimate = est.step(thrust, torque, position, q)
+    assert est.status == "ok"
+    expected_force = vehicle.mass * GRAVITY * np.array((0.0, 0.0, 1.0)) - thrust * R[:, 2]
+    np.testing.assert_allclose(estimate.force, expected_force, atol=1e-3)
+    np.testing.assert_allclose(estimate.torque, -R @ torque, atol=1e-4)

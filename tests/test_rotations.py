@@ -113,6 +113,10 @@ def test_row_wise_helpers_match_single_ones():
     np.testing.assert_allclose(
         r.quat_multiply_rows(qs, qs[::-1]), [r.quat_multiply(a, b) for a, b in zip(qs, qs[::-1], strict=True)]
     )
+    single = qs[0]
+    np.testing.assert_allclose(r.quat_multiply_rows(single, qs), [r.quat_multiply(single, b) for b in qs])
+    np.testing.assert_allclose(r.quat_multiply_rows(qs, single), [r.quat_multiply(a, single) for a in qs])
+    np.testing.assert_allclose(r.quat_multiply_rows(single, qs[1]), r.quat_multiply(single, qs[1]))
     np.testing.assert_allclose(r.mrp_from_quat(qs), [r.mrp_from_quat(q) for q in qs])
 
 
