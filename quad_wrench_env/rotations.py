@@ -171,9 +171,9 @@ def quat_multiply_rows(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Hamilton products ``a ⊗ b`` row-wise for (N, 4) arrays, as one matrix product with the
     bilinear tensor of ``⊗``; a single quaternion on either side multiplies every row."""
     if a.ndim == 1:
-        return b @ np.tensordot(a, _PRODUCT.reshape(4, 4, 4), axes=(0, 0))  # a ⊗ b = b @ M(a)
+        return b @ (a @ _PRODUCT_JIK)  # a ⊗ b = b @ M(a), M[j, k] = Σ_i a_i P[i, j, k]
     if b.ndim == 1:
-        return a @ np.tensordot(_PRODUCT.reshape(4, 4, 4), b, axes=(1, 0))  # a ⊗ b = a @ N(b)
+        return a @ (_PRODUCT_IKJ @ b)  # a ⊗ b = a @ N(b), N[i, k] = Σ_j P[i, j, k] b_j
     outer = (a[:, :, None] * b[:, None, :]).reshape(-1, 16)
     return outer @ _PRODUCT
 
@@ -225,4 +225,6 @@ def skew(v: np.ndarray) -> np.ndarray:
 
 # Bilinear tensors of the row-wise helpers, read off the single-quaternion functions above.
 _PRODUCT = _bilinear_tensor(quat_multiply, 4, 4)
+_PRODUCT_JIK = _PRODUCT.reshape(4, 4, 4).transpose(1, 0, 2).copy()
+_PRODUCT_IKJ = _PRODUCT.reshape(4, 4, 4).transpose(0, 2, 1).copy()
 _ROTATION = _bilinear_tensor(_homogeneous_rotation, 4, 4)
