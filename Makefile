@@ -29,7 +29,7 @@ lint: $(STAMP)
 	$(VENV)/bin/ruff check . && $(VENV)/bin/ruff format --check .
 
 bench: $(STAMP)
-	$(PY) scripts/bench_env.py
+	$(PY) scripts/bench.py
 
 clean:
 	rm -rf $(VENV) results
