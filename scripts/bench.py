@@ -30,8 +30,8 @@ import time
 from pathlib import Path
 
 import gymnasium as gym
-import numpy as np
 
+from agents import make_agent
 from quad_wrench_env.bench import bare_pybullet_step_seconds, component_seconds, env_step_seconds
 from quad_wrench_env.estimators import ESTIMATORS
 
@@ -206,17 +206,19 @@ def peers(args: argparse.Namespace) -> str:
 
 
 def soak(minutes: float) -> str:
-    """One long UKF run: rates and memory of the first and last ten simulated minutes."""
+    """One long UKF run, position hold in the moving jet: rates and memory of the first and last ten
+    simulated minutes."""
     env = gym.make("QuadWrench/FanTracking-v0", episode_seconds=minutes * 60.0, fan={"motion": "sine"})
     try:
-        env.reset(seed=0, options={"offset_y": 0.0})
-        action = np.zeros(4, dtype=np.float32)
+        observation, _ = env.reset(seed=0, options={"offset_y": 0.0})
+        policy = make_agent("hold")
+        policy.reset(env)
         window = 10 * 60 * POLICY_HZ
         total = int(minutes * 60 * POLICY_HZ)
         marks = {}
         start = time.perf_counter()
         for k in range(1, total + 1):
-            _, _, terminated, _, info = env.step(action)
+            observation, _, terminated, _, info = env.step(policy.act(observation))
             if k == window or k == total - window:
                 marks[k] = (time.perf_counter(), resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024)
             if terminated:
