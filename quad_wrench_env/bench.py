@@ -102,6 +102,23 @@ def component_seconds(calls: int, **env_kwargs) -> dict[str, float]:
         env.close()
 
 
+def filter_bank_step_seconds(count: int, steps: int, seed: int = 0, dt: float = 0.005) -> float:
+    """Seconds per step of a bank of ``count`` UKFs (all of them) fed hovering vehicles' noisy poses."""
+    from quad_wrench_env.estimators.ukf import UnscentedFilterBank
+
+    vehicle = make_vehicle("ardrone2")
+    bank = UnscentedFilterBank(vehicle, dt, None, count)
+    rng = np.random.default_rng(seed)
+    positions, quaternions = np.tile((0.0, 0.0, 1.0), (count, 1)), np.tile((1.0, 0.0, 0.0, 0.0), (count, 1))
+    bank.reset(slice(None), positions, quaternions)
+    thrusts, torques = np.full(count, vehicle.mass * GRAVITY), np.zeros((count, 3))
+    noisy = positions + 5e-4 * rng.standard_normal((steps, count, 3))
+    start = time.perf_counter()
+    for k in range(steps):
+        bank.step(thrusts, torques, noisy[k], quaternions)
+    return (time.perf_counter() - start) / steps
+
+
 def estimator_step_seconds(name: str, steps: int, seed: int = 0, dt: float = 0.005) -> float:
     """Seconds per ``step`` of estimator ``name`` fed a hovering vehicle's noisy pose (0.5 mm, 2 mrad)."""
     vehicle = make_vehicle("ardrone2")

@@ -168,19 +168,21 @@ def _homogeneous_rotation(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 def quat_multiply_rows(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Hamilton products ``a ⊗ b`` row-wise for (N, 4) arrays, as one matrix product with the
-    bilinear tensor of ``⊗``; a single quaternion on either side multiplies every row."""
+    """Hamilton products ``a ⊗ b`` row-wise for (..., 4) arrays (leading dimensions broadcast), as
+    one matrix product with the bilinear tensor of ``⊗``; a single quaternion on either side
+    multiplies every row."""
     if a.ndim == 1:
         return b @ (a @ _PRODUCT_JIK)  # a ⊗ b = b @ M(a), M[j, k] = Σ_i a_i P[i, j, k]
     if b.ndim == 1:
         return a @ (_PRODUCT_IKJ @ b)  # a ⊗ b = a @ N(b), N[i, k] = Σ_j P[i, j, k] b_j
-    outer = (a[:, :, None] * b[:, None, :]).reshape(-1, 16)
-    return outer @ _PRODUCT
+    outer = a[..., :, None] * b[..., None, :]  # leading dimensions broadcast
+    return outer.reshape(*outer.shape[:-2], 16) @ _PRODUCT
 
 
 def rotation_matrices(q: np.ndarray) -> np.ndarray:
-    """(N, 3, 3) body -> world matrices of (N, 4) unit quaternions (one matrix product)."""
-    return ((q[:, :, None] * q[:, None, :]).reshape(-1, 16) @ _ROTATION).reshape(-1, 3, 3)
+    """(..., 3, 3) body -> world matrices of (..., 4) unit quaternions (one matrix product)."""
+    outer = q[..., :, None] * q[..., None, :]
+    return (outer.reshape(*q.shape[:-1], 16) @ _ROTATION).reshape(*q.shape[:-1], 3, 3)
 
 
 def euler_zyx_from_quat(q: np.ndarray) -> np.ndarray:

@@ -10,6 +10,7 @@ from quad_wrench_env.estimators.ukf import (
     ATT,
     POS,
     STATE_DIM,
+    UnscentedFilterBank,
     UnscentedWrenchEstimator,
 )
 from quad_wrench_env.rotations import mrp_from_quat, quat_conjugate, quat_from_euler_zyx, quat_multiply
@@ -47,7 +48,7 @@ def test_closed_form_noise_points_equal_the_plain_61_point_transform():
     thrust, torque = 4.3, np.array((2e-3, -1e-3, 4e-4))
     # plain form: 2L + 1 = 61 sigma points of the extended state (eqs. 18-22), all through the model
     extended = np.zeros((ukf.L, ukf.L))
-    extended[:STATE_DIM, :STATE_DIM] = ukf.P
+    extended[:STATE_DIM, :STATE_DIM] = ukf.covariance
     extended[STATE_DIM:, STATE_DIM:] = ukf.Q
     offsets = ukf.spread * np.linalg.cholesky(extended).T
     points = np.vstack((np.zeros(ukf.L), offsets, -offsets))
@@ -59,13 +60,13 @@ def test_closed_form_noise_points_equal_the_plain_61_point_transform():
     ukf.predict(thrust, torque)
     np.testing.assert_allclose(ukf.quaternion, q_plain, atol=1e-13)
     np.testing.assert_allclose(ukf.rest, rest_plain, rtol=1e-12, atol=1e-13)
-    np.testing.assert_allclose(ukf.P, P_plain, rtol=1e-9, atol=1e-16)
+    np.testing.assert_allclose(ukf.covariance, P_plain, rtol=1e-9, atol=1e-16)
 
 
 def test_kalman_form_correction_equals_the_unscented_correction():
     ukf = _filter_in_motion()
     ukf.predict(4.1, np.zeros(3))
-    P, G = ukf.P.copy(), ukf.G
+    P, G = ukf.covariance.copy(), ukf.G
     position = ukf.rest[3:6] + np.array((2e-3, -1e-3, 5e-4))
     measured_q = quat_multiply(ukf.quaternion, quat_from_euler_zyx(0.004, -0.002, 0.003))
     # eqs. (32)-(34): sigma points of (P̌, G), measurement [x + η_x, δρ + η_ρ]
@@ -93,7 +94,7 @@ def test_kalman_form_correction_equals_the_unscented_correction():
     rest_before = ukf.rest.copy()
 
     ukf.correct(position, measured_q)
-    np.testing.assert_allclose(ukf.P, P_unscented, rtol=1e-8, atol=1e-15)
+    np.testing.assert_allclose(ukf.covariance, P_unscented, rtol=1e-8, atol=1e-15)
     np.testing.assert_allclose(ukf.rest, rest_before + delta[3:], rtol=1e-9, atol=1e-14)
 
 
@@ -107,10 +108,10 @@ def test_non_finite_input_is_refused_and_never_enters_the_filter():
 
 def test_a_broken_covariance_is_reinitialised_and_reported():
     ukf = _filter_in_motion(5)
-    ukf.P[0, 0] = -1.0
+    ukf.covariance[0, 0] = -1.0
     ukf.step(4.12, np.zeros(3), ukf.rest[3:6].copy(), ukf.quaternion.copy())
     assert ukf.status == "reinitialised" and ukf.reinitialisations == 1
-    assert np.all(np.linalg.eigvalsh(ukf.P) > 0)
+    assert np.all(np.linalg.eigvalsh(ukf.covariance) > 0)
 
 
 def test_noise_settings_are_validated():
@@ -138,8 +139,8 @@ def test_covariance_stays_positive_definite_and_the_quaternion_unit():
     ukf = UnscentedWrenchEstimator(make_vehicle("ardrone2"), DT)
     _hover_measurements(ukf, 120.0, seed=1)
     assert ukf.status == "ok"
-    np.testing.assert_allclose(ukf.P, ukf.P.T, atol=0)
-    assert np.linalg.eigvalsh(ukf.P).min() > 0
+    np.testing.assert_allclose(ukf.covariance, ukf.covariance.T, atol=0)
+    assert np.linalg.eigvalsh(ukf.covariance).min() > 0
     assert np.linalg.norm(ukf.quaternion) == pytest.approx(1.0, abs=1e-12)
 
 
@@ -148,7 +149,7 @@ def test_one_hour_of_flight_keeps_the_filter_sound():
     ukf = UnscentedWrenchEstimator(make_vehicle("ardrone2"), DT)
     estimates = np.array(_hover_measurements(ukf, 3600.0, seed=2))
     assert ukf.status == "ok" and np.all(np.isfinite(estimates))
-    assert np.linalg.eigvalsh(ukf.P).min() > 0
+    assert np.linalg.eigvalsh(ukf.covariance).min() > 0
     assert np.abs(estimates[-20000:].mean(axis=0)[:3]).max() < 0.01
 
 
@@ -158,3 +159,27 @@ def test_zero_wrench_in_hover_is_estimated_without_bias():
     estimates = np.array(_hover_measurements(ukf, 30.0, seed=3))[2000:]
     assert np.abs(estimates[:, :3].mean(axis=0)).max() < 0.01
     assert np.abs(estimates[:, 3:].mean(axis=0)).max() < 0.004
+
+
+def test_a_bank_of_filters_equals_the_filters_run_one_by_one():
+    """The batched computation (issue 6) gives each filter what it would get alone."""
+    vehicle = make_vehicle("ardrone2")
+    n, rng = 5, np.random.default_rng(4)
+    bank = UnscentedFilterBank(vehicle, DT, None, n)
+    singles = [UnscentedWrenchEstimator(vehicle, DT) for _ in range(n)]
+    positions = rng.normal(size=(n, 3))
+    quaternions = np.array([quat_from_euler_zyx(*rng.uniform(-0.3, 0.3, 3)) for _ in range(n)])
+    bank.reset(slice(None), positions, quaternions)
+    for k, single in enumerate(singles):
+        single.reset(positions[k], quaternions[k])
+    for _ in range(50):
+        thrusts = 4.1 + 0.1 * rng.standard_normal(n)
+        torques = 1e-3 * rng.standard_normal((n, 3))
+        positions = positions + 1e-3 * rng.standard_normal((n, 3))
+        bank.step(thrusts, torques, positions, quaternions)
+        for k, single in enumerate(singles):
+            single.step(thrusts[k], torques[k], positions[k], quaternions[k])
+    for k, single in enumerate(singles):
+        np.testing.assert_allclose(bank.rests[k], single.rest, rtol=1e-10, atol=1e-13)
+        np.testing.assert_allclose(bank.covariances[k], single.covariance, rtol=1e-9, atol=1e-16)
+        np.testing.assert_allclose(bank.quaternions[k], single.quaternion, atol=1e-13)

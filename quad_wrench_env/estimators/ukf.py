@@ -39,6 +39,10 @@ If the covariance loses positive definiteness (Cholesky fails), the filter keeps
 the covariance to the initial one; if its state ever became non-finite it restarts from the measured
 pose at rest. Either way it reports ``status = "reinitialised"`` from then on (the env puts it in
 ``info["estimator_status"]``). A non-finite input raises ``ValueError``: nothing non-finite enters.
+
+:class:`UnscentedFilterBank` runs N such filters as one batched computation (every array carries
+a leading filter axis); :class:`UnscentedWrenchEstimator`, the single-vehicle estimator, is a bank
+of one, so there is one implementation of the algebra.
 """
 
 from __future__ import annotations
@@ -52,10 +56,8 @@ from quad_wrench_env.estimators.noise import FilterNoise, mrp_std
 from quad_wrench_env.rotations import (
     cross,
     mrp_from_quat,
-    quat_conjugate,
     quat_exp,
     quat_from_mrp,
-    quat_multiply,
     quat_multiply_rows,
     rotation_matrices,
 )
@@ -70,16 +72,21 @@ _WRENCH_BLOCK = np.ix_(np.r_[15:18, 12:15], np.r_[15:18, 12:15])
 """Error-state block of ``[f_e, τ_e]`` (the order of :class:`WrenchEstimate`'s covariance)."""
 
 
-class UnscentedWrenchEstimator:
-    """USQUE-based external wrench estimator (paper 000); see the module docstring."""
+class UnscentedFilterBank:
+    """N unscented wrench filters of one vehicle model, stepped together (paper 000, Sec. II).
 
-    name = "ukf"
+    State arrays: ``quaternions`` (N, 4), ``rests`` (N, 15) = (ω, x, ẋ, τ_e, f_e) at their mean, and
+    ``covariances`` (N, 18, 18) of the error state.
+    """
 
-    def __init__(self, vehicle: VehicleParams, dt: float, noise: FilterNoise | None = None) -> None:
+    def __init__(self, vehicle: VehicleParams, dt: float, noise: FilterNoise | None, count: int) -> None:
+        if count < 1:
+            raise ValueError(f"count={count!r} must be at least 1 filter")
         self.vehicle = vehicle
         self.dt = dt
         self.noise = noise or FilterNoise()
         n = self.noise
+        self.count = count
         self.mass = vehicle.mass
         self.inertia = np.array(vehicle.inertia)
         self.L = STATE_DIM + NOISE_DIM
@@ -87,47 +94,187 @@ class UnscentedWrenchEstimator:
         self.spread = math.sqrt(lam)
         self.weight_centre = n.kappa / lam
         self.weight_other = 1.0 / (2.0 * lam)
-        self.num_noise_points = 2 * NOISE_DIM
         # The noise-only points have the mean state: their weight adds to the centre's (module doc).
-        self._mean_weights = np.full(2 * STATE_DIM + 1, self.weight_other)
-        self._mean_weights[0] = self.weight_centre + self.num_noise_points * self.weight_other
+        self.mean_weights = np.full(2 * STATE_DIM + 1, self.weight_other)
+        self.mean_weights[0] = self.weight_centre + 2 * NOISE_DIM * self.weight_other
         self.Q = np.diag(np.repeat((n.motor_torque, n.torque_walk, n.thrust, n.force_walk), 3) ** 2)
         self.G = np.diag(np.repeat((n.position, mrp_std(n.attitude)), 3) ** 2)
+        initial = (n.initial_attitude, n.initial_rates, n.initial_position, n.initial_velocity)
         self.P0 = np.diag(
-            np.repeat(
-                (
-                    mrp_std(n.initial_attitude),
-                    n.initial_rates,
-                    n.initial_position,
-                    n.initial_velocity,
-                    n.initial_torque,
-                    n.initial_force,
-                ),
-                3,
-            )
-            ** 2
+            np.repeat((mrp_std(initial[0]), *initial[1:], n.initial_torque, n.initial_force), 3) ** 2
         )
-        self._prior_rotation = np.eye(3)
         self._B = np.zeros((STATE_DIM, NOISE_DIM))
         self._B[RATE, 0:3] = np.diag(dt / self.inertia)
         self._B[TORQUE, 3:6] = np.eye(3)
         self._B[FORCE, 9:12] = np.eye(3)
         self._q_diagonal = np.diag(self.Q).copy()
-        self.quaternion = np.array((1.0, 0.0, 0.0, 0.0))
-        self.rest = np.zeros(STATE_DIM - 3)
-        """(ω, x, ẋ, τ_e, f_e): the error-state components other than the attitude, at their mean."""
-        self.P = self.P0.copy()
-        self.status = "ok"
-        self.reinitialisations = 0
+        self.quaternions = np.tile((1.0, 0.0, 0.0, 0.0), (count, 1))
+        self.rests = np.zeros((count, STATE_DIM - 3))
+        self.covariances = np.tile(self.P0, (count, 1, 1))
+        self.reinitialisations = np.zeros(count, dtype=int)
+
+    def reset(self, index: int | slice | np.ndarray, positions: np.ndarray, quaternions: np.ndarray) -> None:
+        """Restart the filters ``index`` at the given poses, at rest, with no external wrench."""
+        self.quaternions[index] = quaternions
+        self.rests[index] = 0.0
+        self.rests[index, 3:6] = positions
+        self.covariances[index] = self.P0
+
+    def step(
+        self, thrusts: np.ndarray, body_torques: np.ndarray, positions: np.ndarray, quaternions: np.ndarray
+    ) -> None:
+        """Predict with (N,) thrusts and (N, 3) body torques, correct with (N, 3) positions and (N, 4)
+        quaternions; restart any filter whose state became non-finite."""
+        self.predict(thrusts, body_torques)
+        self.correct(positions, quaternions)
+        broken = ~(np.isfinite(self.rests).all(axis=1) & np.isfinite(self.covariances).all(axis=(1, 2)))
+        if np.any(broken):
+            self.reset(broken, positions[broken], quaternions[broken])
+            self.reinitialisations[broken] += 1
+
+    # -- prediction (eqs. 18-28) -------------------------------------------------------------------
+    def state_sigma_points(self) -> np.ndarray:
+        """(N, 37, 18) error-state sigma points ``0, ±sqrt(L+κ)·col_j chol(P)`` (eqs. 19-22)."""
+        try:
+            roots = np.linalg.cholesky(self.covariances)
+        except np.linalg.LinAlgError:
+            for k in range(self.count):
+                try:
+                    np.linalg.cholesky(self.covariances[k])
+                except np.linalg.LinAlgError:
+                    self.covariances[k] = self.P0
+                    self.reinitialisations[k] += 1
+            roots = np.linalg.cholesky(self.covariances)
+        offsets = self.spread * roots.transpose(0, 2, 1)
+        return np.concatenate((np.zeros((self.count, 1, STATE_DIM)), offsets, -offsets), axis=1)
+
+    def propagate(
+        self,
+        errors: np.ndarray,
+        thrusts: np.ndarray,
+        body_torques: np.ndarray,
+        noise: np.ndarray | None = None,
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Motion model (eqs. 2-5, 11-14) for error-state points (N, P, 18) around the means,
+        optionally with process noise (N, P, 12). Returns the propagated quaternions (N, P, 4), the
+        other components (N, P, 15) and the attitude matrices of the points before the step."""
+        T, m = self.dt, self.mass
+        q = quat_multiply_rows(self.quaternions[:, None, :], quat_from_mrp(errors[..., ATT]))
+        rest = self.rests[:, None, :] + errors[..., 3:]
+        omega, v, tau_e, f_e = rest[..., 0:3], rest[..., 6:9], rest[..., 9:12], rest[..., 12:15]
+        R = rotation_matrices(q)
+        thrusts = np.asarray(thrusts, dtype=float)[:, None, None]
+        motor_torque = np.asarray(body_torques, dtype=float)[:, None, :]
+        if noise is None:
+            accel = (thrusts / m) * R[..., 2] + f_e / m
+        else:
+            body_force = noise[..., 6:9].copy()
+            body_force[..., 2:3] += thrusts[..., 0]
+            accel = np.einsum("...ij,...j->...i", R, body_force) / m + f_e / m
+            motor_torque = motor_torque + noise[..., 0:3]
+        accel[..., 2] -= GRAVITY
+        torque = np.einsum("...ji,...j->...i", R, tau_e) + motor_torque - cross(omega, omega * self.inertia)
+        out = rest.copy()  # ω, x, ẋ, τ_e, f_e
+        out[..., 0:3] += (T / self.inertia) * torque
+        out[..., 3:6] += T * v + (0.5 * T * T) * accel
+        out[..., 6:9] += T * accel
+        if noise is not None:
+            out[..., 9:12] += noise[..., 3:6]
+            out[..., 12:15] += noise[..., 9:12]
+        return quat_multiply_rows(q, quat_exp(omega * T)), out, R
+
+    def noise_jacobians(self, R: np.ndarray) -> np.ndarray:
+        """``B`` (N, 18, 12): how the process noise enters the error state over one step, for the
+        mean attitudes ``R`` (N, 3, 3) before the step."""
+        T, m = self.dt, self.mass
+        B = np.broadcast_to(self._B, (len(R), STATE_DIM, NOISE_DIM)).copy()
+        B[:, POS, 6:9] = (0.5 * T * T / m) * R
+        B[:, VEL, 6:9] = (T / m) * R
+        return B
+
+    @staticmethod
+    def recombine(
+        q_points: np.ndarray, rest_points: np.ndarray, weights: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Predicted mean quaternions (N, 4), other components (N, 15) and covariances (N, 18, 18) of
+        propagated sigma points (N, P, ...) (eqs. 25-27): attitude errors are MRPs relative to the
+        propagated central point."""
+        q0 = q_points[:, 0]
+        relative = quat_multiply_rows(quat_conjugate_rows(q0)[:, None, :], q_points)
+        errors = np.concatenate((mrp_from_quat(relative), rest_points), axis=-1)
+        mean = np.einsum("p,npk->nk", weights, errors)
+        deviations = errors - mean[:, None, :]
+        covariance = (deviations * weights[None, :, None]).transpose(0, 2, 1) @ deviations
+        return quat_multiply_rows(q0, quat_from_mrp(mean[:, ATT])), mean[:, 3:], covariance
+
+    def predict(self, thrusts: np.ndarray, body_torques: np.ndarray) -> None:
+        q_points, rest_points, R = self.propagate(self.state_sigma_points(), thrusts, body_torques)
+        B = self.noise_jacobians(R[:, 0])  # the central point is the prior mean
+        self.quaternions, self.rests, P = self.recombine(q_points, rest_points, self.mean_weights)
+        self.covariances = P + (B * self._q_diagonal) @ B.transpose(0, 2, 1)  # B Q Bᵀ, Q diagonal
+
+    # -- correction (eqs. 29-37) -------------------------------------------------------------------
+    def innovations(self, positions: np.ndarray, quaternions: np.ndarray) -> np.ndarray:
+        """Measured minus predicted ``(x, δρ)`` (N, 6); the attitude part is ``δq = q̌⁻¹ ⊗ q_meas``
+        (eq. 35)."""
+        attitude = mrp_from_quat(quat_multiply_rows(quat_conjugate_rows(self.quaternions), quaternions))
+        return np.concatenate((positions - self.rests[:, 3:6], attitude), axis=-1)
+
+    def correct(self, positions: np.ndarray, quaternions: np.ndarray) -> None:
+        P = self.covariances
+        PHt = P[:, :, _MEASURED]  # Σ_xy = P Hᵀ: H only picks the position and attitude components
+        S = PHt[:, _MEASURED, :] + self.G  # Σ_yy
+        K = np.linalg.solve(S, PHt.transpose(0, 2, 1)).transpose(0, 2, 1)  # (29)
+        delta = (K @ self.innovations(positions, quaternions)[..., None])[..., 0]  # (31), (36)
+        P = P - K @ PHt.transpose(0, 2, 1)  # (30)
+        self.covariances = 0.5 * (P + P.transpose(0, 2, 1))
+        q = quat_multiply_rows(self.quaternions, quat_from_mrp(delta[:, ATT]))  # (37)
+        self.quaternions = q / np.linalg.norm(q, axis=1, keepdims=True)
+        self.rests = self.rests + delta[:, 3:]
+
+
+def quat_conjugate_rows(q: np.ndarray) -> np.ndarray:
+    return q * np.array((1.0, -1.0, -1.0, -1.0))
+
+
+class UnscentedWrenchEstimator:
+    """USQUE-based external wrench estimator of one vehicle (paper 000): a bank of one filter."""
+
+    name = "ukf"
+
+    def __init__(self, vehicle: VehicleParams, dt: float, noise: FilterNoise | None = None) -> None:
+        self.bank = UnscentedFilterBank(vehicle, dt, noise, count=1)
+        b = self.bank
+        self.noise, self.mass, self.L, self.spread = b.noise, b.mass, b.L, b.spread
+        self.weight_centre, self.weight_other, self.Q, self.G = b.weight_centre, b.weight_other, b.Q, b.G
+
+    # the single filter's state, as views into the bank
+    @property
+    def quaternion(self) -> np.ndarray:
+        return self.bank.quaternions[0]
+
+    @property
+    def rest(self) -> np.ndarray:
+        """(ω, x, ẋ, τ_e, f_e) at their mean."""
+        return self.bank.rests[0]
+
+    @property
+    def covariance(self) -> np.ndarray:
+        """(18, 18) covariance of the error state."""
+        return self.bank.covariances[0]
+
+    @property
+    def reinitialisations(self) -> int:
+        return int(self.bank.reinitialisations[0])
+
+    @property
+    def status(self) -> str:
+        return "ok" if self.reinitialisations == 0 else "reinitialised"
 
     # -- interface -------------------------------------------------------------------------------
     def reset(self, position: np.ndarray, quaternion_wxyz: np.ndarray) -> None:
-        self.quaternion = np.array(quaternion_wxyz, dtype=float)
-        self.rest = np.zeros(STATE_DIM - 3)
-        self.rest[POS.start - 3 : POS.stop - 3] = position
-        self.P = self.P0.copy()
-        self.status = "ok"
-        self.reinitialisations = 0
+        self.bank.reset(0, position, quaternion_wxyz)
+        self.bank.reinitialisations[0] = 0
 
     def step(
         self,
@@ -143,109 +290,45 @@ class UnscentedWrenchEstimator:
         check_finite_inputs(
             self.name, thrust=thrust, body_torque=body_torque, position=position, quaternion=quaternion_wxyz
         )
-        position = np.asarray(position, dtype=float)
-        quaternion = np.asarray(quaternion_wxyz, dtype=float)
-        self.predict(float(thrust), np.asarray(body_torque, dtype=float))
-        self.correct(position, quaternion)
-        if not (np.all(np.isfinite(self.rest)) and np.all(np.isfinite(self.P))):
-            self.reset(position, quaternion)
-            self.status = "reinitialised"
-            self.reinitialisations += 1
+        self.bank.step(
+            np.array((thrust,), dtype=float),
+            np.asarray(body_torque, dtype=float)[None, :],
+            np.asarray(position, dtype=float)[None, :],
+            np.asarray(quaternion_wxyz, dtype=float)[None, :],
+        )
         return self.estimate
 
     @property
     def estimate(self) -> WrenchEstimate:
         r = self.rest
-        return WrenchEstimate(r[12:15].copy(), r[9:12].copy(), self.P[_WRENCH_BLOCK])
+        return WrenchEstimate(r[12:15].copy(), r[9:12].copy(), self.covariance[_WRENCH_BLOCK])
 
     @property
     def state(self) -> StateEstimate:
         r = self.rest
         return StateEstimate(r[3:6].copy(), r[6:9].copy(), self.quaternion.copy(), r[0:3].copy())
 
-    # -- prediction (eqs. 18-28) -------------------------------------------------------------------
+    # -- single-filter views of the bank's steps (used by the tests of the algebra) ---------------
     def state_sigma_points(self) -> np.ndarray:
-        """(37, 18) error-state sigma points ``0, ±sqrt(L+κ)·col_j chol(P)`` (eqs. 19-22)."""
-        try:
-            root = np.linalg.cholesky(self.P)
-        except np.linalg.LinAlgError:
-            self.P = self.P0.copy()
-            self.status = "reinitialised"
-            self.reinitialisations += 1
-            root = np.linalg.cholesky(self.P)
-        offsets = self.spread * root.T
-        return np.vstack((np.zeros(STATE_DIM), offsets, -offsets))
+        return self.bank.state_sigma_points()[0]
 
     def propagate(
         self, errors: np.ndarray, thrust: float, body_torque: np.ndarray, noise: np.ndarray | None = None
     ) -> tuple[np.ndarray, np.ndarray]:
-        """Motion model (eqs. 2-5, 11-14) for error-state points (N, 18) around the current mean,
-        optionally with process noise (N, 12); returns propagated quaternions (N, 4) and the other
-        components (N, 15)."""
-        T, m = self.dt, self.mass
-        q = quat_multiply_rows(self.quaternion, quat_from_mrp(errors[:, ATT]))
-        rest = self.rest + errors[:, 3:]
-        omega, v, tau_e, f_e = rest[:, 0:3], rest[:, 6:9], rest[:, 9:12], rest[:, 12:15]
-        R = rotation_matrices(q)
-        self._prior_rotation = R[0]
-        if noise is None:
-            accel = (thrust / m) * R[:, :, 2] + f_e / m
-            motor_torque = body_torque
-        else:
-            body_force = noise[:, 6:9].copy()
-            body_force[:, 2] += thrust
-            accel = np.einsum("nij,nj->ni", R, body_force) / m + f_e / m
-            motor_torque = body_torque + noise[:, 0:3]
-        accel[:, 2] -= GRAVITY
-        torque = np.einsum("nji,nj->ni", R, tau_e) + motor_torque - cross(omega, omega * self.inertia)
-        out = rest.copy()  # ω, x, ẋ, τ_e, f_e
-        out[:, 0:3] += (T / self.inertia) * torque
-        out[:, 3:6] += T * v + (0.5 * T * T) * accel
-        out[:, 6:9] += T * accel
-        if noise is not None:
-            out[:, 9:12] += noise[:, 3:6]
-            out[:, 12:15] += noise[:, 9:12]
-        return quat_multiply_rows(q, quat_exp(omega * T)), out
-
-    def noise_jacobian(self, R: np.ndarray) -> np.ndarray:
-        """``B`` (18, 12): how the process noise enters the error state over one step, for the mean
-        attitude ``R`` before the step."""
-        T, m = self.dt, self.mass
-        B = self._B
-        B[POS, 6:9] = (0.5 * T * T / m) * R
-        B[VEL, 6:9] = (T / m) * R
-        return B
+        q, rest, _ = self.bank.propagate(
+            errors[None],
+            np.array((thrust,)),
+            np.asarray(body_torque)[None],
+            None if noise is None else noise[None],
+        )
+        return q[0], rest[0]
 
     def recombine(self, q_points: np.ndarray, rest_points: np.ndarray, weights: np.ndarray):
-        """Predicted mean quaternion, other components and covariance of propagated sigma points
-        (eqs. 25-27): attitude errors are MRPs relative to the propagated central point."""
-        q0 = q_points[0]
-        errors = np.hstack((mrp_from_quat(quat_multiply_rows(quat_conjugate(q0), q_points)), rest_points))
-        mean = weights @ errors
-        deviations = errors - mean
-        covariance = (deviations * weights[:, None]).T @ deviations
-        return quat_multiply(q0, quat_from_mrp(mean[ATT])), mean[3:], covariance
+        q, rest, P = self.bank.recombine(q_points[None], rest_points[None], weights)
+        return q[0], rest[0], P[0]
 
     def predict(self, thrust: float, body_torque: np.ndarray) -> None:
-        q_points, rest_points = self.propagate(self.state_sigma_points(), thrust, body_torque)
-        B = self.noise_jacobian(self._prior_rotation)  # the central point is the prior mean
-        self.quaternion, self.rest, P = self.recombine(q_points, rest_points, self._mean_weights)
-        self.P = P + (B * self._q_diagonal) @ B.T  # B Q Bᵀ, Q diagonal
-
-    # -- correction (eqs. 29-37) -------------------------------------------------------------------
-    def innovation(self, position: np.ndarray, quaternion: np.ndarray) -> np.ndarray:
-        """Measured minus predicted ``(x, δρ)``; the attitude part is ``δq = q̌⁻¹ ⊗ q_meas`` (eq. 35)."""
-        attitude = mrp_from_quat(quat_multiply(quat_conjugate(self.quaternion), quaternion))
-        return np.concatenate((position - self.rest[3:6], attitude))
+        self.bank.predict(np.array((thrust,)), np.asarray(body_torque)[None])
 
     def correct(self, position: np.ndarray, quaternion: np.ndarray) -> None:
-        P = self.P
-        PHt = P[:, _MEASURED]  # Σ_xy = P Hᵀ: H only picks the position and attitude components
-        S = PHt[_MEASURED] + self.G  # Σ_yy
-        K = np.linalg.solve(S, PHt.T).T  # (29)
-        delta = K @ self.innovation(position, quaternion)  # (31), (36)
-        P = P - K @ PHt.T  # (30)
-        self.P = 0.5 * (P + P.T)
-        q = quat_multiply(self.quaternion, quat_from_mrp(delta[ATT]))  # (37)
-        self.quaternion = q / math.sqrt(float(q @ q))
-        self.rest = self.rest + delta[3:]
+        self.bank.correct(np.asarray(position)[None], np.asarray(quaternion)[None])
