@@ -66,9 +66,12 @@ def quat_multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     )
 
 
+_CONJUGATE = np.array((1.0, -1.0, -1.0, -1.0))
+
+
 def quat_conjugate(q: np.ndarray) -> np.ndarray:
-    """Inverse of a unit quaternion."""
-    return np.array((q[0], -q[1], -q[2], -q[3]))
+    """Inverse of a unit quaternion; row-wise on (..., 4) arrays."""
+    return q * _CONJUGATE
 
 
 def quat_normalize(q: np.ndarray) -> np.ndarray:

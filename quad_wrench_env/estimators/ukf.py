@@ -56,6 +56,7 @@ from quad_wrench_env.estimators.noise import FilterNoise, mrp_std
 from quad_wrench_env.rotations import (
     cross,
     mrp_from_quat,
+    quat_conjugate,
     quat_exp,
     quat_from_mrp,
     quat_multiply_rows,
@@ -200,7 +201,7 @@ class UnscentedFilterBank:
         propagated sigma points (N, P, ...) (eqs. 25-27): attitude errors are MRPs relative to the
         propagated central point."""
         q0 = q_points[:, 0]
-        relative = quat_multiply_rows(quat_conjugate_rows(q0)[:, None, :], q_points)
+        relative = quat_multiply_rows(quat_conjugate(q0)[:, None, :], q_points)
         errors = np.concatenate((mrp_from_quat(relative), rest_points), axis=-1)
         mean = np.einsum("p,npk->nk", weights, errors)
         deviations = errors - mean[:, None, :]
@@ -217,7 +218,7 @@ class UnscentedFilterBank:
     def innovations(self, positions: np.ndarray, quaternions: np.ndarray) -> np.ndarray:
         """Measured minus predicted ``(x, δρ)`` (N, 6); the attitude part is ``δq = q̌⁻¹ ⊗ q_meas``
         (eq. 35)."""
-        attitude = mrp_from_quat(quat_multiply_rows(quat_conjugate_rows(self.quaternions), quaternions))
+        attitude = mrp_from_quat(quat_multiply_rows(quat_conjugate(self.quaternions), quaternions))
         return np.concatenate((positions - self.rests[:, 3:6], attitude), axis=-1)
 
     def correct(self, positions: np.ndarray, quaternions: np.ndarray) -> None:
@@ -231,10 +232,6 @@ class UnscentedFilterBank:
         q = quat_multiply_rows(self.quaternions, quat_from_mrp(delta[:, ATT]))  # (37)
         self.quaternions = q / np.linalg.norm(q, axis=1, keepdims=True)
         self.rests = self.rests + delta[:, 3:]
-
-
-def quat_conjugate_rows(q: np.ndarray) -> np.ndarray:
-    return q * np.array((1.0, -1.0, -1.0, -1.0))
 
 
 class UnscentedWrenchEstimator:
