@@ -9,6 +9,8 @@ exactly what PyBullet does with a force at a point, in one call instead of one p
 from __future__ import annotations
 
 import contextlib
+import os
+import sys
 from dataclasses import dataclass
 
 import numpy as np
@@ -42,7 +44,14 @@ class World:
     def __init__(self, vehicle: VehicleParams, dt: float, gui: bool = False) -> None:
         self.vehicle = vehicle
         self.dt = dt
-        self.client: int | None = p.connect(p.GUI if gui else p.DIRECT)
+        self.client: int | None = None
+        if gui and sys.platform.startswith("linux") and not os.environ.get("DISPLAY"):
+            # PyBullet's GUI ends the whole process when it finds no X server: refuse first.
+            raise RuntimeError(
+                "render_mode='human' opens a PyBullet window and needs a display, but DISPLAY is unset; "
+                "use render_mode='rgb_array' or run under a virtual display such as Xvfb"
+            )
+        self.client = p.connect(p.GUI if gui else p.DIRECT)
         if self.client < 0:
             raise RuntimeError("could not connect to a PyBullet physics server")
         self.body = -1

@@ -184,6 +184,12 @@ def test_env_pickles(make_env):
         clone.close()
 
 
+def test_human_render_without_a_display_is_refused_clearly(monkeypatch):
+    monkeypatch.delenv("DISPLAY", raising=False)
+    with pytest.raises(RuntimeError, match="DISPLAY is unset"):
+        gym.make(FAN_TRACKING, render_mode="human")
+
+
 def test_rgb_array_render_shows_a_scene(make_env):
     env = make_env(render_mode="rgb_array")
     env.reset(seed=0)
