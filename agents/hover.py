@@ -7,14 +7,13 @@ one at the start of the episode unless references are given.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import gymnasium as gym
 import numpy as np
 
 from quad_wrench_env.config import build
-from quad_wrench_env.rotations import yaw_of
+from quad_wrench_env.rotations import wrap_angle, yaw_of
 
 
 @dataclass
@@ -63,7 +62,7 @@ class PositionHoldPolicy:
         if self._reference is None:
             self._reference = np.array((*position, yaw))
         error = self._reference[:3] - position
-        yaw_error = (self._reference[3] - yaw + math.pi) % (2.0 * math.pi) - math.pi
+        yaw_error = wrap_angle(self._reference[3] - yaw)
         return np.array((g.k_xy * error[0], g.k_xy * error[1], g.k_z * error[2], g.k_yaw * yaw_error))
 
     def act(self, observation: np.ndarray) -> np.ndarray:

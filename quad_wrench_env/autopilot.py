@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from quad_wrench_env.rotations import cross, quat_from_euler_zyx, rotation_matrix, yaw_of
+from quad_wrench_env.rotations import cross, quat_from_euler_zyx, rotation_matrix, wrap_angle, yaw_of
 from quad_wrench_env.vehicle import GRAVITY, Mixer, VehicleParams
 from quad_wrench_env.world import RigidBodyState
 
@@ -138,7 +138,7 @@ class Autopilot:
     # -- inner loops -------------------------------------------------------------------------
     def _advance_yaw(self, state: RigidBodyState, yaw_rate: float) -> None:
         yaw = yaw_of(state.quaternion)
-        ahead = _wrap(self.yaw_setpoint + yaw_rate * self.dt - yaw)
+        ahead = wrap_angle(self.yaw_setpoint + yaw_rate * self.dt - yaw)
         limit = self.gains.max_yaw_error
         self.yaw_setpoint = yaw + min(limit, max(-limit, ahead))
 
@@ -196,7 +196,3 @@ def attitude_from_thrust(thrust_vector: np.ndarray, yaw: float) -> np.ndarray:
     y_d = cross(z_d, heading)
     y_d /= np.linalg.norm(y_d)
     return np.column_stack((cross(y_d, z_d), y_d, z_d))
-
-
-def _wrap(angle: float) -> float:
-    return (angle + math.pi) % (2.0 * math.pi) - math.pi
