@@ -24,6 +24,7 @@ from agents.evaluate import run_episode
 from quad_wrench_env.bench import bare_pybullet_step_seconds, estimator_step_seconds
 from quad_wrench_env.config import load_yaml
 from quad_wrench_env.estimators import Estimator, make_estimator
+from quad_wrench_env.vehicle import make_vehicle
 
 LABELS = ("f_x", "f_y", "f_z", "tau_x", "tau_y", "tau_z")
 
@@ -80,8 +81,6 @@ def record(config: dict, seed: int, **env_kwargs: Any) -> Stream:
 
 def replay(name: str, vehicle: str, stream: Stream, settings: dict) -> np.ndarray:
     """(steps, 6) wrench estimates of estimator ``name`` on the recorded stream."""
-    from quad_wrench_env.vehicle import make_vehicle
-
     estimator = make_estimator(name, make_vehicle(vehicle), stream.dt, **settings)
     _, _, position, quaternion = stream.inputs[0]
     estimator.reset(position, quaternion)

@@ -17,7 +17,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 
 from agents import make_agent
-from agents.evaluate import Episode, run_episode
+from agents.evaluate import Episode, fan_tracking_metrics, run_episode
 from quad_wrench_env.config import load_yaml
 
 LABELS = ("f_x", "f_y", "f_z", "tau_x", "tau_y", "tau_z")
@@ -195,8 +195,6 @@ def fig7(config: dict, out: Path) -> list[str]:
         "| seed | mean abs(y - y_axis) after 5 s [m] | time within 0.15 m | first within 0.15 m [s] |",
         "|---|---|---|---|",
     ]
-    from agents.evaluate import fan_tracking_metrics
-
     fig, axes = plt.subplots(2, 1, figsize=(8, 6), sharex=True)
     for n, seed in enumerate(config["seeds"]):
         ep = _episode(

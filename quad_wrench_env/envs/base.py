@@ -29,7 +29,7 @@ from quad_wrench_env.disturbances.payload import Payload
 from quad_wrench_env.disturbances.wrench_profile import WrenchProfile
 from quad_wrench_env.envs.actions import ActionMap
 from quad_wrench_env.envs.config import EnvConfig
-from quad_wrench_env.estimators import StateEstimate, TruthFed, make_estimator
+from quad_wrench_env.estimators import StateEstimate, TruthFed, WrenchEstimate, make_estimator
 from quad_wrench_env.rotations import cross, quat_from_matrix
 from quad_wrench_env.rotors import Rotors
 from quad_wrench_env.sensors import MotionCapture, MotorSpeedSensor
@@ -175,7 +175,8 @@ class QuadWrenchEnv(gym.Env, EzPickle):
         self._feed_truth(self._state)
         if self._renderer is not None:
             self._renderer.build()
-        return self._observation(), self._info(self._state)
+        estimate = self.estimator.estimate
+        return self._observation(estimate), self._info(self._state, estimate)
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
         if self._state is None:
@@ -197,13 +198,14 @@ class QuadWrenchEnv(gym.Env, EzPickle):
         terms = self._task_reward(state, a, reason)
         reward = float(sum(terms.values()))
         truncated = reason is None and self._steps >= self.max_steps
-        info = self._info(state)
+        estimate = self.estimator.estimate
+        info = self._info(state, estimate)
         info["reward_terms"] = terms
         if reason is not None:
             info["termination_reason"] = reason
         if self.render_mode == "human":
             self.render()
-        return self._observation(), reward, reason is not None, bool(truncated), info
+        return self._observation(estimate), reward, reason is not None, bool(truncated), info
 
     def render(self) -> np.ndarray | None:
         if self.render_mode is None:
@@ -252,7 +254,6 @@ class QuadWrenchEnv(gym.Env, EzPickle):
         v = self.vehicle
         weight = v.mass * GRAVITY * np.array((0.0, 0.0, 1.0))
         rotation = attitude_from_thrust(weight, yaw)
-        speeds = self.rotors.speeds
         for _ in range(3):  # the loads depend weakly on the tilt and the rotor speeds: fixed point
             rest = RigidBodyState(position, quat_from_matrix(rotation), np.zeros(3), np.zeros(3), rotation)
             force, torque = self._external_loads(rest, mean=True)
@@ -262,9 +263,8 @@ class QuadWrenchEnv(gym.Env, EzPickle):
             squared = self.rotors.mixer.squared_speeds(
                 np.array((np.linalg.norm(thrust_vector), *body_torque))
             )
-            speeds = np.sqrt(np.clip(squared, v.min_rotor_speed**2, v.max_rotor_speed**2))
-            self.rotors.speeds = speeds
-        return rotation, speeds
+            self.rotors.speeds = np.sqrt(np.clip(squared, v.min_rotor_speed**2, v.max_rotor_speed**2))
+        return rotation, self.rotors.speeds
 
     def _external_loads(self, state: RigidBodyState, mean: bool = False) -> tuple[np.ndarray, np.ndarray]:
         """Everything but gravity, thrust and rotor reaction torque, about the centre of mass (world)."""
@@ -292,9 +292,8 @@ class QuadWrenchEnv(gym.Env, EzPickle):
             )
 
     # -- observation, info, termination ------------------------------------------------------------
-    def _observation(self) -> np.ndarray:
+    def _observation(self, wrench: WrenchEstimate) -> np.ndarray:
         est = self.estimator.state
-        wrench = self.estimator.estimate
         quaternion = est.quaternion if est.quaternion[0] >= 0 else -est.quaternion
         return np.concatenate(
             (
@@ -308,13 +307,13 @@ class QuadWrenchEnv(gym.Env, EzPickle):
             )
         ).astype(np.float32)
 
-    def _info(self, state: RigidBodyState) -> dict[str, Any]:
+    def _info(self, state: RigidBodyState, estimate: WrenchEstimate) -> dict[str, Any]:
         info = {
             "time": self.time,
             "position": state.position.copy(),
             "velocity": state.velocity.copy(),
             "wrench_true": self._wrench_true.copy(),
-            "wrench_est": np.concatenate((self.estimator.estimate.force, self.estimator.estimate.torque)),
+            "wrench_est": np.concatenate((estimate.force, estimate.torque)),
             "estimator_status": self.estimator.status,
         }
         info.update(self._task_info(state))
