@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from quad_wrench_env.rotations import cross, quat_from_euler_zyx, rotation_matrix, wrap_angle, yaw_of
+from quad_wrench_env.rotations import cross, quat_from_euler_zyx, rotation_matrices, wrap_angle
 from quad_wrench_env.vehicle import GRAVITY, Mixer, VehicleParams
 from quad_wrench_env.world import RigidBodyState
 
@@ -76,123 +76,142 @@ class AutopilotGains:
 
 
 class Autopilot:
-    """Cascaded controller producing motor-speed commands from velocity, attitude or wrench setpoints."""
+    """Cascaded controllers of ``count`` vehicles producing motor-speed commands from velocity,
+    attitude or wrench setpoints; every argument and state carries a leading dimension N."""
 
-    def __init__(self, vehicle: VehicleParams, dt: float, gains: AutopilotGains | None = None) -> None:
+    def __init__(
+        self, vehicle: VehicleParams, dt: float, gains: AutopilotGains | None = None, count: int = 1
+    ) -> None:
         self.vehicle = vehicle
         self.dt = dt
         self.gains = gains or AutopilotGains.for_vehicle(vehicle)
         g = self.gains
         self._velocity_p = np.array((g.velocity_p, g.velocity_p, g.climb_p))
         self._velocity_i = np.array((g.velocity_i, g.velocity_i, g.climb_i))
+        self._attitude_p = np.array((g.attitude_p, g.attitude_p, g.yaw_p))
         self.mixer = Mixer(vehicle)
+        self._inverse_t = self.mixer.inverse.T.copy()
         self._inertia = np.array(vehicle.inertia)
         self._w2_min = vehicle.min_rotor_speed**2
         self._w2_max = vehicle.max_rotor_speed**2
-        self.reset(0.0)
+        self.yaw_setpoint = np.zeros(count)
+        self._velocity_integral = np.zeros((count, 3))
+        self._rate_integral = np.zeros((count, 3))
+        self.saturated = np.zeros(count, dtype=bool)
 
-    def reset(self, yaw: float) -> None:
-        """Zero the integrators and hold ``yaw`` (rad)."""
-        self.yaw_setpoint = yaw
-        self._velocity_integral = np.zeros(3)
-        self._rate_integral = np.zeros(3)
-        self.saturated = False
+    def reset(self, index: np.ndarray, yaw: np.ndarray) -> None:
+        """Zero the integrators of vehicles ``index`` and hold their ``yaw`` (rad)."""
+        self.yaw_setpoint[index] = yaw
+        self._velocity_integral[index] = 0.0
+        self._rate_integral[index] = 0.0
+        self.saturated[index] = False
 
-    def trim(self, rotation: np.ndarray, rotor_speeds: np.ndarray) -> None:
-        """Preload the integrators so that, at rest in attitude ``rotation`` with zero errors, the
-        cascade commands ``rotor_speeds``: the state of a vehicle that has been hovering in
-        equilibrium (used at the start of an episode)."""
+    def trim(self, index: np.ndarray, rotation: np.ndarray, rotor_speeds: np.ndarray) -> None:
+        """Preload the integrators of vehicles ``index`` so that, at rest in attitudes ``rotation``
+        (n, 3, 3) with zero errors, the cascade commands ``rotor_speeds`` (n, 4): the state of a
+        vehicle that has been hovering in equilibrium (used at the start of an episode)."""
         g = self.gains
-        command = self.mixer.wrench(rotor_speeds)
-        self._rate_integral = command[1:] / (self._inertia * g.rate_i)
-        thrust_vector = command[0] * rotation[:, 2]
-        self._velocity_integral = (thrust_vector / self.vehicle.mass - GRAVITY * _E_Z) / self._velocity_i
+        command = (rotor_speeds * rotor_speeds) @ self.mixer.allocation.T
+        self._rate_integral[index] = command[:, 1:] / (self._inertia * g.rate_i)
+        thrust_vector = command[:, :1] * rotation[:, :, 2]
+        self._velocity_integral[index] = (
+            thrust_vector / self.vehicle.mass - GRAVITY * _E_Z
+        ) / self._velocity_i
 
     # -- outer loops -------------------------------------------------------------------------
-    def velocity_command(self, state: RigidBodyState, velocity: np.ndarray, yaw_rate: float) -> np.ndarray:
-        """Motor speeds that track a world-frame ``velocity`` (m/s) and a yaw rate (rad/s)."""
+    def velocity_command(
+        self, state: RigidBodyState, velocity: np.ndarray, yaw_rate: np.ndarray
+    ) -> np.ndarray:
+        """(N, 4) motor speeds that track (N, 3) world-frame velocities (m/s) and (N,) yaw rates (rad/s)."""
         error = velocity - state.velocity
         proportional = self.gains.setpoint_weight * velocity - state.velocity
         accel = self._velocity_p * proportional + self._velocity_i * self._velocity_integral
         thrust_vector = self.vehicle.mass * (accel + GRAVITY * _E_Z)
         thrust_vector, tilt_limited = self._limit_tilt(thrust_vector)
-        if not (tilt_limited or self.saturated):
-            self._velocity_integral += error * self.dt
+        integrate = ~(tilt_limited | self.saturated)
+        self._velocity_integral += (error * self.dt) * integrate[:, None]
         self._advance_yaw(state, yaw_rate)
         desired = attitude_from_thrust(thrust_vector, self.yaw_setpoint)
-        thrust = float(thrust_vector @ state.rotation[:, 2])
+        thrust = np.einsum("ni,ni->n", thrust_vector, state.rotation[:, :, 2])
         return self._attitude_to_motors(state, desired, thrust)
 
     def attitude_command(
-        self, state: RigidBodyState, roll: float, pitch: float, yaw_rate: float, thrust: float
+        self,
+        state: RigidBodyState,
+        roll: np.ndarray,
+        pitch: np.ndarray,
+        yaw_rate: np.ndarray,
+        thrust: np.ndarray,
     ) -> np.ndarray:
-        """Motor speeds for a roll and pitch (rad), a yaw rate (rad/s) and a collective thrust (N)."""
+        """(N, 4) motor speeds for (N,) rolls and pitches (rad), yaw rates (rad/s) and collective thrusts (N)."""
         self._advance_yaw(state, yaw_rate)
-        desired = rotation_matrix(quat_from_euler_zyx(roll, pitch, self.yaw_setpoint))
+        desired = rotation_matrices(quat_from_euler_zyx(roll, pitch, self.yaw_setpoint))
         return self._attitude_to_motors(state, desired, thrust)
 
-    def wrench_command(self, thrust: float, body_torque: np.ndarray) -> np.ndarray:
-        """Motor speeds for a collective thrust (N) and body torque (N·m), through the mixer."""
-        return self._mix(np.array((thrust, body_torque[0], body_torque[1], body_torque[2])))
+    def wrench_command(self, thrust: np.ndarray, body_torque: np.ndarray) -> np.ndarray:
+        """(N, 4) motor speeds for (N,) collective thrusts (N) and (N, 3) body torques (N·m), through the mixer."""
+        return self._mix(np.column_stack((thrust, body_torque)))
 
     # -- inner loops -------------------------------------------------------------------------
-    def _advance_yaw(self, state: RigidBodyState, yaw_rate: float) -> None:
-        yaw = yaw_of(state.quaternion)
+    def _advance_yaw(self, state: RigidBodyState, yaw_rate: np.ndarray) -> None:
+        r = state.rotation
+        yaw = np.arctan2(r[:, 1, 0], r[:, 0, 0])
         ahead = wrap_angle(self.yaw_setpoint + yaw_rate * self.dt - yaw)
         limit = self.gains.max_yaw_error
-        self.yaw_setpoint = yaw + min(limit, max(-limit, ahead))
+        self.yaw_setpoint = yaw + np.clip(ahead, -limit, limit)
 
-    def _limit_tilt(self, thrust_vector: np.ndarray) -> tuple[np.ndarray, bool]:
-        vertical = max(thrust_vector[2], 0.1 * self.vehicle.mass * GRAVITY)
-        horizontal = thrust_vector[:2]
+    def _limit_tilt(self, thrust_vector: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        vertical = np.maximum(thrust_vector[:, 2], 0.1 * self.vehicle.mass * GRAVITY)
+        horizontal = thrust_vector[:, :2]
         max_horizontal = vertical * math.tan(self.gains.max_tilt)
-        norm = math.hypot(horizontal[0], horizontal[1])
-        limited = norm > max_horizontal or vertical != thrust_vector[2]
-        if norm > max_horizontal:
-            horizontal = horizontal * (max_horizontal / norm)
-        return np.array((horizontal[0], horizontal[1], vertical)), limited
+        norm = np.hypot(horizontal[:, 0], horizontal[:, 1])
+        too_wide = norm > max_horizontal
+        limited = too_wide | (vertical != thrust_vector[:, 2])
+        scale = np.where(too_wide, max_horizontal / np.where(too_wide, norm, 1.0), 1.0)
+        return np.column_stack((horizontal * scale[:, None], vertical)), limited
 
-    def _attitude_to_motors(self, state: RigidBodyState, desired: np.ndarray, thrust: float) -> np.ndarray:
+    def _attitude_to_motors(
+        self, state: RigidBodyState, desired: np.ndarray, thrust: np.ndarray
+    ) -> np.ndarray:
         g = self.gains
         r = state.rotation
-        e = desired.T @ r - r.T @ desired
-        attitude_error = 0.5 * np.array((e[2, 1], e[0, 2], e[1, 0]))
-        rates = -np.array((g.attitude_p, g.attitude_p, g.yaw_p)) * attitude_error
-        rates = np.clip(rates, -g.max_rate, g.max_rate)
+        e = np.swapaxes(desired, 1, 2) @ r
+        e = e - np.swapaxes(e, 1, 2)  # R_dᵀR - RᵀR_d
+        attitude_error = 0.5 * np.stack((e[:, 2, 1], e[:, 0, 2], e[:, 1, 0]), axis=1)
+        rates = np.clip(-self._attitude_p * attitude_error, -g.max_rate, g.max_rate)
         return self._rates_to_motors(state, rates, thrust)
 
-    def _rates_to_motors(self, state: RigidBodyState, rates: np.ndarray, thrust: float) -> np.ndarray:
+    def _rates_to_motors(self, state: RigidBodyState, rates: np.ndarray, thrust: np.ndarray) -> np.ndarray:
         g = self.gains
         omega = state.body_rates
         error = rates - omega
-        if not self.saturated:
-            self._rate_integral += error * self.dt
+        self._rate_integral += (error * self.dt) * ~self.saturated[:, None]
         angular_accel = g.rate_p * error + g.rate_i * self._rate_integral
         torque = self._inertia * angular_accel + cross(omega, self._inertia * omega)
-        return self._mix(np.array((thrust, torque[0], torque[1], torque[2])))
+        return self._mix(np.column_stack((thrust, torque)))
 
     def _mix(self, thrust_and_torque: np.ndarray) -> np.ndarray:
-        """Rotor speeds for ``[c_t, tau]``; yaw torque is given up first, then speeds are clipped."""
-        inverse = self.mixer.inverse
-        without_yaw = inverse[:, :3] @ thrust_and_torque[:3]
-        yaw_part = inverse[:, 3] * thrust_and_torque[3]
+        """(N, 4) rotor speeds for (N, 4) ``[c_t, tau]``; yaw torque is given up first, then speeds are clipped."""
+        without_yaw = thrust_and_torque[:, :3] @ self._inverse_t[:3]
+        yaw_part = thrust_and_torque[:, 3:] * self._inverse_t[3]
         lo, hi = self._w2_min, self._w2_max
-        scale = 1.0
-        for w0, d in zip(without_yaw, yaw_part, strict=True):
-            if d > 0.0 and w0 + d > hi:
-                scale = min(scale, max(0.0, (hi - w0) / d))
-            elif d < 0.0 and w0 + d < lo:
-                scale = min(scale, max(0.0, (lo - w0) / d))
-        squared = without_yaw + scale * yaw_part
+        unsaturated = without_yaw + yaw_part
+        over = (yaw_part > 0.0) & (unsaturated > hi)
+        under = (yaw_part < 0.0) & (unsaturated < lo)
+        bound = np.where(over, hi, lo)
+        safe_part = np.where(over | under, yaw_part, 1.0)
+        ratios = np.where(over | under, np.maximum(0.0, (bound - without_yaw) / safe_part), 1.0)
+        scale = np.minimum(1.0, ratios.min(axis=1))
+        squared = without_yaw + scale[:, None] * yaw_part
         clipped = np.clip(squared, lo, hi)
-        self.saturated = scale < 1.0 or bool(np.any(clipped != squared))
+        self.saturated = (scale < 1.0) | np.any(clipped != squared, axis=1)
         return np.sqrt(clipped)
 
 
-def attitude_from_thrust(thrust_vector: np.ndarray, yaw: float) -> np.ndarray:
-    """Rotation matrix whose body z is along ``thrust_vector`` and whose body x heads to ``yaw``."""
-    z_d = thrust_vector / np.linalg.norm(thrust_vector)
-    heading = np.array((math.cos(yaw), math.sin(yaw), 0.0))
+def attitude_from_thrust(thrust_vector: np.ndarray, yaw: np.ndarray) -> np.ndarray:
+    """(N, 3, 3) rotations whose body z is along (N, 3) ``thrust_vector`` and whose body x heads to (N,) ``yaw``."""
+    z_d = thrust_vector / np.linalg.norm(thrust_vector, axis=1, keepdims=True)
+    heading = np.column_stack((np.cos(yaw), np.sin(yaw), np.zeros_like(yaw)))
     y_d = cross(z_d, heading)
-    y_d /= np.linalg.norm(y_d)
-    return np.column_stack((cross(y_d, z_d), y_d, z_d))
+    y_d /= np.linalg.norm(y_d, axis=1, keepdims=True)
+    return np.stack((cross(y_d, z_d), y_d, z_d), axis=2)

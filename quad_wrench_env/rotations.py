@@ -90,18 +90,20 @@ def quat_from_axis_angle(axis: np.ndarray, angle: float) -> np.ndarray:
     return np.array((math.cos(half), axis[0] * s, axis[1] * s, axis[2] * s))
 
 
-def quat_from_euler_zyx(roll: float, pitch: float, yaw: float) -> np.ndarray:
-    """Quaternion of ``R = Rz(yaw) Ry(pitch) Rx(roll)`` (intrinsic z-y'-x'', aerospace order)."""
-    cr, sr = math.cos(0.5 * roll), math.sin(0.5 * roll)
-    cp, sp = math.cos(0.5 * pitch), math.sin(0.5 * pitch)
-    cy, sy = math.cos(0.5 * yaw), math.sin(0.5 * yaw)
-    return np.array(
+def quat_from_euler_zyx(roll, pitch, yaw) -> np.ndarray:
+    """Quaternion(s) of ``R = Rz(yaw) Ry(pitch) Rx(roll)`` (intrinsic z-y'-x'', aerospace order);
+    scalar angles give (4,), arrays of angles (..., 4)."""
+    cr, sr = np.cos(0.5 * np.asarray(roll)), np.sin(0.5 * np.asarray(roll))
+    cp, sp = np.cos(0.5 * np.asarray(pitch)), np.sin(0.5 * np.asarray(pitch))
+    cy, sy = np.cos(0.5 * np.asarray(yaw)), np.sin(0.5 * np.asarray(yaw))
+    return np.stack(
         (
             cr * cp * cy + sr * sp * sy,
             sr * cp * cy - cr * sp * sy,
             cr * sp * cy + sr * cp * sy,
             cr * cp * sy - sr * sp * cy,
-        )
+        ),
+        axis=-1,
     )
 
 

@@ -1,11 +1,12 @@
-"""The vehicle's true rotors: motor lag, per-rotor thrust coefficients and rotor drag.
+"""The vehicles' true rotors: motor lag, per-rotor thrust coefficients and rotor drag.
 
-This is the truth the physics uses. Thrust ``c_i = k_i·Ω_i²`` and reaction torque ``p_i·Ω_i²`` follow
-paper 000 eqs. (1), (8)-(10) with per-rotor ``k_i = k·(1 + ε_i)``, ``ε_i ~ N(0, spread²)`` drawn once per
-episode (PHYSICS.md), so the nominal mixer that estimators use is not the truth. Each motor follows a
-first-order lag towards its commanded speed, integrated exactly over a physics step, with separate
-time constants for spinning up and down, and its command is limited to the motor's speed range.
-Linear rotor drag ("H-force") acts at each hub against the in-plane airspeed: ``F = -k_d·Ω_i·v_⊥``.
+This is the truth the physics uses, for N vehicles at once. Thrust ``c_i = k_i·Ω_i²`` and reaction
+torque ``p_i·Ω_i²`` follow paper 000 eqs. (1), (8)-(10) with per-rotor ``k_i = k·(1 + ε_i)``,
+``ε_i ~ N(0, spread²)`` drawn once per episode (PHYSICS.md), so the nominal mixer that estimators use
+is not the truth. Each motor follows a first-order lag towards its commanded speed, integrated
+exactly over a physics step, with separate time constants for spinning up and down, and its command
+is limited to the motor's speed range. Linear rotor drag ("H-force") acts at each hub against the
+in-plane airspeed: ``F = -k_d·Ω_i·v_⊥``.
 """
 
 from __future__ import annotations
@@ -18,35 +19,49 @@ from quad_wrench_env.vehicle import Mixer, VehicleParams
 
 
 class Rotors:
-    """Four motors with first-order lag, their true thrust coefficients and their drag."""
+    """The four motors of each of ``count`` vehicles: speeds (N, 4), true allocation matrices (N, 4, 4)."""
 
-    def __init__(self, vehicle: VehicleParams, dt: float) -> None:
+    def __init__(self, vehicle: VehicleParams, dt: float, count: int = 1) -> None:
         self.vehicle = vehicle
         self.dt = dt
         self._alpha_up = 1.0 - math.exp(-dt / vehicle.motor_time_constant_up)
         self._alpha_down = 1.0 - math.exp(-dt / vehicle.motor_time_constant_down)
         self._drag_coefficient = vehicle.rotor_drag_coefficient
-        self.speeds = np.full(4, vehicle.hover_rotor_speed)
-        self.mixer = Mixer(vehicle)
+        self.speeds = np.full((count, 4), vehicle.hover_rotor_speed)
+        self.allocations = np.tile(Mixer(vehicle).allocation, (count, 1, 1))
+        self.inverses = np.tile(Mixer(vehicle).inverse, (count, 1, 1))
 
-    def reset(self, rng: np.random.Generator, kf_spread: float, speeds: np.ndarray | float) -> None:
-        """Draw this episode's true thrust coefficients and set the motor speeds (rad/s)."""
+    def reset(self, index: int, rng: np.random.Generator, kf_spread: float) -> None:
+        """Draw the true thrust coefficients of vehicle ``index`` for a new episode; its motors start
+        at the nominal hover speed."""
         epsilon = kf_spread * rng.standard_normal(4) if kf_spread > 0 else np.zeros(4)
-        self.mixer = Mixer(self.vehicle, self.vehicle.kf * (1.0 + epsilon))
-        self.speeds = np.broadcast_to(np.asarray(speeds, dtype=float), (4,)).copy()
+        mixer = Mixer(self.vehicle, self.vehicle.kf * (1.0 + epsilon))
+        self.allocations[index] = mixer.allocation
+        self.inverses[index] = mixer.inverse
+        self.speeds[index] = self.vehicle.hover_rotor_speed
 
     def step(self, commanded: np.ndarray) -> np.ndarray:
-        """Advance the motors one physics step towards ``commanded`` speeds (limited to their range)."""
+        """Advance the motors one physics step towards (N, 4) ``commanded`` speeds (limited to their range)."""
         target = np.clip(commanded, self.vehicle.min_rotor_speed, self.vehicle.max_rotor_speed)
         error = target - self.speeds
         self.speeds += np.where(error >= 0.0, self._alpha_up, self._alpha_down) * error
         return self.speeds
 
     def thrust_and_torque(self) -> np.ndarray:
-        """True ``[c_t, tau_x, tau_y, tau_z]`` in the body frame from the current speeds."""
-        return self.mixer.wrench(self.speeds)
+        """(N, 4) true ``[c_t, tau_x, tau_y, tau_z]`` in the body frame from the current speeds."""
+        return np.einsum("nij,nj->ni", self.allocations, self.speeds * self.speeds)
 
-    def drag_forces(self, airspeed: np.ndarray, body_z: np.ndarray) -> np.ndarray:
-        """(4, 3) world-frame rotor drag at the hubs for hub airspeeds ``v_hub - wind`` (4, 3)."""
-        in_plane = airspeed - np.outer(airspeed @ body_z, body_z)
-        return -(self._drag_coefficient * self.speeds)[:, None] * in_plane
+    def speeds_for(self, index: np.ndarray, thrust_and_torque: np.ndarray) -> np.ndarray:
+        """(n, 4) speeds of vehicles ``index`` that give (n, 4) ``[c_t, tau]``, clipped to the motors' range."""
+        v = self.vehicle
+        squared = np.einsum("nij,nj->ni", self.inverses[index], thrust_and_torque)
+        return np.sqrt(np.clip(squared, v.min_rotor_speed**2, v.max_rotor_speed**2))
+
+    def drag_forces(
+        self, airspeed: np.ndarray, body_z: np.ndarray, index: np.ndarray | slice = slice(None)
+    ) -> np.ndarray:
+        """(n, 4, 3) world-frame rotor drag at the hubs of vehicles ``index`` for hub airspeeds
+        ``v_hub - wind`` (n, 4, 3) and body z axes (n, 3)."""
+        along = np.einsum("npi,ni->np", airspeed, body_z)
+        in_plane = airspeed - along[:, :, None] * body_z[:, None, :]
+        return -(self._drag_coefficient * self.speeds[index])[:, :, None] * in_plane

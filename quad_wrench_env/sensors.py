@@ -10,19 +10,18 @@
   the AR.Drone reports them; the estimators get thrust and torque from these through the *nominal*
   mixer, while the world uses the true per-rotor coefficients.
 
-Every random draw comes from the Generator handed to :meth:`MotionCapture.reset` (the env's).
+Every random draw comes from the vehicle's own Generator (the env's ``np_random``), drawn in blocks
+(:class:`quad_wrench_env.envs.noise.NoiseBlocks`) and handed in.
 """
 
 from __future__ import annotations
 
-import math
-from collections import deque
 from dataclasses import dataclass
 
 import numpy as np
 
 from quad_wrench_env.config import check_numbers
-from quad_wrench_env.rotations import quat_exp, quat_multiply
+from quad_wrench_env.rotations import quat_exp, quat_multiply_rows
 
 
 @dataclass
@@ -51,46 +50,54 @@ class SensorConfig:
 
 
 class MotionCapture:
-    """Noisy, optionally delayed pose measurements."""
+    """Noisy, optionally delayed pose measurements of N vehicles.
 
-    def __init__(self, config: SensorConfig) -> None:
+    The noise comes in as standard normal draws (:data:`NOISE_DRAWS` per vehicle and step, from
+    each vehicle's own generator), so that a batch of vehicles and the same vehicles flown one by
+    one see the same noise.
+    """
+
+    def __init__(self, config: SensorConfig, count: int = 1) -> None:
         self.config = config
-        self._rng: np.random.Generator | None = None
-        self._queue: deque[tuple[np.ndarray, np.ndarray]] = deque()
+        latency = config.latency_steps
+        self._positions = np.zeros((latency, count, 3))
+        self._quaternions = np.zeros((latency, count, 4))
+        self._head = 0
 
-    def reset(self, rng: np.random.Generator, position: np.ndarray, quaternion: np.ndarray) -> None:
-        """Start an episode; until ``latency_steps`` have passed the start pose is what is seen."""
-        self._rng = rng
-        self._queue = deque([(position.copy(), quaternion.copy())] * self.config.latency_steps)
+    def reset(self, index: int, position: np.ndarray, quaternion: np.ndarray) -> None:
+        """Start an episode of vehicle ``index``; until ``latency_steps`` have passed its start
+        pose is what is seen."""
+        self._positions[:, index] = position
+        self._quaternions[:, index] = quaternion
 
-    def measure(self, position: np.ndarray, quaternion: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Measured ``(position, quaternion [w, x, y, z])`` for the true pose now."""
-        if self._rng is None:
-            raise RuntimeError("MotionCapture.reset() must be called before measure()")
+    def measure(
+        self, positions: np.ndarray, quaternions: np.ndarray, normals: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Measured ``(positions (N, 3), quaternions (N, 4) [w, x, y, z])`` for the true poses now;
+        ``normals`` (N, 6) standard normal draws."""
         cfg = self.config
-        self._queue.append((position, quaternion))
-        position, quaternion = self._queue.popleft()
-        rng = self._rng
-        measured_position = position + cfg.position_noise * rng.standard_normal(3)
-        rotation_error = quat_exp(cfg.attitude_noise * rng.standard_normal(3))
-        return measured_position, quaternion_normalised(quat_multiply(quaternion, rotation_error))
+        if cfg.latency_steps:
+            head = self._head
+            oldest = self._positions[head].copy(), self._quaternions[head].copy()
+            self._positions[head], self._quaternions[head] = positions, quaternions
+            self._head = (head + 1) % cfg.latency_steps
+            positions, quaternions = oldest
+        measured_position = positions + cfg.position_noise * normals[:, :3]
+        rotation_error = quat_exp(cfg.attitude_noise * normals[:, 3:6])
+        measured = quat_multiply_rows(quaternions, rotation_error)
+        return measured_position, measured / np.linalg.norm(measured, axis=1, keepdims=True)
 
     def measure_motion(
-        self, velocity: np.ndarray, body_rates: np.ndarray
+        self, velocity: np.ndarray, body_rates: np.ndarray, normals: np.ndarray
     ) -> tuple[np.ndarray | None, np.ndarray | None]:
-        """Velocity and body rates from the onboard state estimator, or ``(None, None)`` without one."""
+        """Velocities and body rates (N, 3) from the onboard state estimators, or ``(None, None)``
+        without one; ``normals`` (N, 6) standard normal draws."""
         cfg = self.config
         if not cfg.state_estimator:
             return None, None
-        rng = self._rng
-        return (
-            velocity + cfg.velocity_noise * rng.standard_normal(3),
-            body_rates + cfg.body_rate_noise * rng.standard_normal(3),
-        )
-
-
-def quaternion_normalised(q: np.ndarray) -> np.ndarray:
-    return q / math.sqrt(float(q @ q))
+        return velocity + cfg.velocity_noise * normals[:, :3], body_rates + cfg.body_rate_noise * normals[
+            :, 3:6
+        ]
 
 
 class MotorSpeedSensor:

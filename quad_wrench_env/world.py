@@ -1,9 +1,14 @@
-"""The PyBullet world: one client, a ground plane and the rigid body of a vehicle.
+"""The PyBullet world: one client, a ground plane and the rigid bodies of N vehicles.
 
 Every PyBullet call passes ``physicsClientId``; :meth:`World.close` is guarded and idempotent. All
-loads act on the body as one resultant force through the centre of mass and one torque, both in the
+loads act on each body as one resultant force through its centre of mass and one torque, both in the
 world frame: callers sum forces applied at body points (``r × F``) before handing them over, which is
 exactly what PyBullet does with a force at a point, in one call instead of one per point.
+
+The vehicles share the world but never touch each other (collision groups: a vehicle collides
+with the ground only), so each body integrates exactly as it would alone; the body is built once and
+later episodes put it back in place (``resetBasePositionAndOrientation`` and ``resetBaseVelocity``
+fix every degree of freedom of a free body, so nothing of an earlier episode survives).
 """
 
 from __future__ import annotations
@@ -16,13 +21,16 @@ from dataclasses import dataclass
 import numpy as np
 import pybullet as p
 
-from quad_wrench_env.rotations import from_pybullet, rotation_matrix, to_pybullet
+from quad_wrench_env.rotations import rotation_matrices
 from quad_wrench_env.vehicle import GRAVITY, VehicleParams
+
+_GROUND_GROUP, _VEHICLE_GROUP = 1, 2
 
 
 @dataclass(frozen=True)
 class RigidBodyState:
-    """True state of the vehicle's body (world frame, quaternion ``[w, x, y, z]`` body -> world)."""
+    """True states of N bodies (world frame, quaternions ``[w, x, y, z]`` body -> world), arrays with
+    a leading dimension N."""
 
     position: np.ndarray
     quaternion: np.ndarray
@@ -30,20 +38,39 @@ class RigidBodyState:
     angular_velocity: np.ndarray
     """Angular velocity in the world frame (rad/s)."""
     rotation: np.ndarray
-    """Body -> world rotation matrix."""
+    """(N, 3, 3) body -> world rotation matrices."""
 
     @property
     def body_rates(self) -> np.ndarray:
-        """Angular velocity in the body frame (rad/s), paper 000's ``omega``."""
-        return self.rotation.T @ self.angular_velocity
+        """(N, 3) angular velocity in the body frame (rad/s), paper 000's ``omega``."""
+        return np.einsum("nji,nj->ni", self.rotation, self.angular_velocity)
+
+    @classmethod
+    def at_rest(cls, position: np.ndarray, quaternion: np.ndarray) -> RigidBodyState:
+        """Bodies at rest at (N, 3) positions and (N, 4) attitudes."""
+        zeros = np.zeros_like(position)
+        return cls(position, quaternion, zeros, zeros, rotation_matrices(quaternion))
+
+    def select(self, index: np.ndarray | slice) -> RigidBodyState:
+        """The states of the bodies ``index``."""
+        return RigidBodyState(
+            self.position[index],
+            self.quaternion[index],
+            self.velocity[index],
+            self.angular_velocity[index],
+            self.rotation[index],
+        )
 
 
 class World:
-    """A PyBullet client holding a ground plane and one vehicle body."""
+    """A PyBullet client holding a ground plane and ``count`` vehicle bodies."""
 
-    def __init__(self, vehicle: VehicleParams, dt: float, gui: bool = False) -> None:
+    def __init__(self, vehicle: VehicleParams, dt: float, count: int = 1, gui: bool = False) -> None:
+        if not (isinstance(count, int) and count >= 1):
+            raise ValueError(f"count={count!r} must be an integer >= 1 (vehicles in the world)")
         self.vehicle = vehicle
         self.dt = dt
+        self.count = count
         self.client: int | None = None
         if gui and sys.platform.startswith("linux") and not os.environ.get("DISPLAY"):
             # PyBullet's GUI ends the whole process when it finds no X server: refuse first.
@@ -54,11 +81,16 @@ class World:
         self.client = p.connect(p.GUI if gui else p.DIRECT)
         if self.client < 0:
             raise RuntimeError("could not connect to a PyBullet physics server")
-        self.body = -1
+        self.bodies: list[int] = []
         self.plane = -1
+        self._index_of: dict[int, int] = {}
 
-    def build(self, position: np.ndarray, quaternion: np.ndarray) -> None:
-        """Reset the simulation and create the ground and the vehicle at rest at the given pose."""
+    @property
+    def built(self) -> bool:
+        return bool(self.bodies)
+
+    def build(self) -> None:
+        """Reset the simulation and create the ground and the vehicles (at rest, apart along y)."""
         cid = self.client
         p.resetSimulation(physicsClientId=cid)
         p.setGravity(0.0, 0.0, -GRAVITY, physicsClientId=cid)
@@ -67,58 +99,79 @@ class World:
         )
         plane_shape = p.createCollisionShape(p.GEOM_PLANE, physicsClientId=cid)
         self.plane = p.createMultiBody(0.0, plane_shape, physicsClientId=cid)
+        p.setCollisionFilterGroupMask(self.plane, -1, _GROUND_GROUP, _VEHICLE_GROUP, physicsClientId=cid)
         v = self.vehicle
-        half_width = v.arm + v.rotor_radius
-        hull = p.createCollisionShape(
-            p.GEOM_BOX, halfExtents=(half_width, half_width, 0.5 * v.hull_height), physicsClientId=cid
-        )
+        half_extents = (v.arm + v.rotor_radius, v.arm + v.rotor_radius, 0.5 * v.hull_height)
+        hull = p.createCollisionShape(p.GEOM_BOX, halfExtents=half_extents, physicsClientId=cid)
         visual = p.createVisualShape(
-            p.GEOM_BOX,
-            halfExtents=(half_width, half_width, 0.5 * v.hull_height),
-            rgbaColor=(0.2, 0.2, 0.25, 1.0),
-            physicsClientId=cid,
+            p.GEOM_BOX, halfExtents=half_extents, rgbaColor=(0.2, 0.2, 0.25, 1.0), physicsClientId=cid
         )
-        self.body = p.createMultiBody(
-            v.mass,
-            hull,
-            visual,
-            basePosition=tuple(position),
-            baseOrientation=to_pybullet(quaternion),
-            physicsClientId=cid,
-        )
-        p.changeDynamics(
-            self.body,
-            -1,
-            localInertiaDiagonal=v.inertia,
-            linearDamping=0.0,
-            angularDamping=0.0,
-            physicsClientId=cid,
-        )
+        self.bodies = []
+        for i in range(self.count):
+            body = p.createMultiBody(
+                v.mass, hull, visual, basePosition=(0.0, float(i), 1.0), physicsClientId=cid
+            )
+            p.changeDynamics(
+                body,
+                -1,
+                localInertiaDiagonal=v.inertia,
+                linearDamping=0.0,
+                angularDamping=0.0,
+                physicsClientId=cid,
+            )
+            p.setCollisionFilterGroupMask(body, -1, _VEHICLE_GROUP, _GROUND_GROUP, physicsClientId=cid)
+            self.bodies.append(body)
+        self._index_of = {body: i for i, body in enumerate(self.bodies)}
+
+    def place(self, index: np.ndarray, positions: np.ndarray, quaternions: np.ndarray) -> None:
+        """Put the vehicles ``index`` at rest at (n, 3) positions and (n, 4) attitudes ``[w, x, y, z]``;
+        builds the world on first use."""
+        if not self.built:
+            self.build()
+        cid = self.client
+        xyzw = np.asarray(quaternions)[:, [1, 2, 3, 0]].tolist()
+        for i, position, orientation in zip(
+            np.asarray(index).tolist(), positions.tolist(), xyzw, strict=True
+        ):
+            body = self.bodies[i]
+            p.resetBasePositionAndOrientation(body, position, orientation, physicsClientId=cid)
+            p.resetBaseVelocity(body, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), physicsClientId=cid)
 
     def state(self) -> RigidBodyState:
+        """The true states of all vehicles."""
         cid = self.client
-        position, orientation = p.getBasePositionAndOrientation(self.body, physicsClientId=cid)
-        velocity, angular_velocity = p.getBaseVelocity(self.body, physicsClientId=cid)
-        q = from_pybullet(orientation)
+        poses = [p.getBasePositionAndOrientation(body, physicsClientId=cid) for body in self.bodies]
+        velocities = [p.getBaseVelocity(body, physicsClientId=cid) for body in self.bodies]
+        pose = np.array([(*position, *orientation) for position, orientation in poses])
+        twist = np.array([(*linear, *angular) for linear, angular in velocities])
+        quaternion = pose[:, [6, 3, 4, 5]]
         return RigidBodyState(
-            np.array(position), q, np.array(velocity), np.array(angular_velocity), rotation_matrix(q)
+            pose[:, :3], quaternion, twist[:, :3], twist[:, 3:], rotation_matrices(quaternion)
         )
 
-    def set_velocity(self, velocity: np.ndarray, angular_velocity: np.ndarray) -> None:
-        p.resetBaseVelocity(self.body, tuple(velocity), tuple(angular_velocity), physicsClientId=self.client)
+    def set_velocity(self, index: int, velocity: np.ndarray, angular_velocity: np.ndarray) -> None:
+        p.resetBaseVelocity(
+            self.bodies[index], tuple(velocity), tuple(angular_velocity), physicsClientId=self.client
+        )
 
-    def step(self, force: np.ndarray, torque: np.ndarray, centre_of_mass: np.ndarray) -> None:
-        """Apply a world-frame force at the centre of mass (its current world position) and a
-        world-frame torque, then advance the simulation one step."""
+    def step(self, forces: np.ndarray, torques: np.ndarray, centres_of_mass: np.ndarray) -> None:
+        """Apply (N, 3) world-frame forces at the centres of mass (their current world positions) and
+        (N, 3) world-frame torques, then advance the simulation one step."""
         cid = self.client
-        p.applyExternalForce(
-            self.body, -1, tuple(force), tuple(centre_of_mass), p.WORLD_FRAME, physicsClientId=cid
-        )
-        p.applyExternalTorque(self.body, -1, tuple(torque), p.WORLD_FRAME, physicsClientId=cid)
+        world_frame = p.WORLD_FRAME
+        for body, force, torque, com in zip(
+            self.bodies, forces.tolist(), torques.tolist(), centres_of_mass.tolist(), strict=True
+        ):
+            p.applyExternalForce(body, -1, force, com, world_frame, physicsClientId=cid)
+            p.applyExternalTorque(body, -1, torque, world_frame, physicsClientId=cid)
         p.stepSimulation(physicsClientId=cid)
 
-    def ground_contact(self) -> bool:
-        return bool(p.getContactPoints(self.body, self.plane, physicsClientId=self.client))
+    def ground_contacts(self) -> np.ndarray:
+        """(N,) bool: which vehicles touch the ground."""
+        touching = np.zeros(self.count, dtype=bool)
+        for contact in p.getContactPoints(bodyA=self.plane, physicsClientId=self.client):
+            touching[self._index_of[contact[2]]] = True
+        return touching
 
     def close(self) -> None:
         """Disconnect; safe to call any number of times."""

@@ -24,7 +24,7 @@ def test_hover_drift_under_2_cm_in_10_s(make_env, vehicle):
         assert not terminated
         worst = max(worst, float(np.linalg.norm(info["position"] - start)))
     assert worst < 0.02
-    quaternion = env.unwrapped.world.state().quaternion
+    quaternion = env.unwrapped.world.state().quaternion[0]
     assert (
         abs(yaw_of(quaternion) - math.pi) % (2 * math.pi) < 1e-3
         or abs(abs(yaw_of(quaternion)) - math.pi) < 1e-3
@@ -67,5 +67,5 @@ def test_yaw_rate_command_turns_and_holds(make_env):
         env.step(np.array((0.0, 0.0, 0.0, 0.5), dtype=np.float32))
     for _ in range(100):
         env.step(np.zeros(4, dtype=np.float32))
-    turned = (yaw_of(env.unwrapped.world.state().quaternion) - math.pi) % (2 * math.pi)
+    turned = (yaw_of(env.unwrapped.world.state().quaternion[0]) - math.pi) % (2 * math.pi)
     assert turned == pytest.approx(rate * 1.0, abs=0.1)

@@ -8,34 +8,39 @@ import numpy as np
 import pytest
 
 from quad_wrench_env.disturbances.fan import FanConfig, FanJet, make_motion
-from quad_wrench_env.rotations import quat_from_euler_zyx, rotation_matrix
+from quad_wrench_env.rotations import quat_from_euler_zyx
 from quad_wrench_env.world import RigidBodyState
 
 
 def _still_jet(**config) -> FanJet:
     jet = FanJet(FanConfig(turbulence_intensity=0.0, motion="static", **config))
-    jet.reset(np.random.default_rng(0))
+    jet.reset(0, np.random.default_rng(0))
     return jet
+
+
+def _field(jet: FanJet, points: np.ndarray, t: float = 0.0) -> np.ndarray:
+    """Air velocity at (P, 3) points as vehicle 0 meets it at time ``t``."""
+    return jet.velocity_at(points[None], np.array((t,)), np.array((0,)))[0]
 
 
 def test_field_is_symmetric_about_the_axis_and_blows_along_x():
     jet = _still_jet()
     d = np.linspace(0.0, 1.5, 7)
-    left = jet.velocity_at(np.column_stack((np.full(7, 2.3), d, np.full(7, 1.0))), 0.0)
-    right = jet.velocity_at(np.column_stack((np.full(7, 2.3), -d, np.full(7, 1.0))), 0.0)
-    up = jet.velocity_at(np.column_stack((np.full(7, 2.3), np.zeros(7), 1.0 + d)), 0.0)
+    left = _field(jet, np.column_stack((np.full(7, 2.3), d, np.full(7, 1.0))))
+    right = _field(jet, np.column_stack((np.full(7, 2.3), -d, np.full(7, 1.0))))
+    up = _field(jet, np.column_stack((np.full(7, 2.3), np.zeros(7), 1.0 + d)))
     np.testing.assert_allclose(left, right)
     np.testing.assert_allclose(left, up)
     assert np.all(np.diff(left[:, 0]) < 0)
     np.testing.assert_array_equal(left[:, 1:], 0.0)
-    assert jet.velocity_at(np.array([[-0.5, 0.0, 1.0]]), 0.0)[0, 0] == 0.0
+    assert _field(jet, np.array([[-0.5, 0.0, 1.0]]))[0, 0] == 0.0
 
 
 def test_centreline_decays_as_one_over_distance_beyond_the_core():
     jet = _still_jet()
     core = 5.8 * 0.5
     x = np.array((1.0, core, 2 * core, 4 * core))
-    u = jet.velocity_at(np.column_stack((x, np.zeros(4), np.ones(4))), 0.0)[:, 0]
+    u = _field(jet, np.column_stack((x, np.zeros(4), np.ones(4))))[:, 0]
     assert u[0] == pytest.approx(6.0) and u[1] == pytest.approx(6.0)
     assert u[2] == pytest.approx(3.0) and u[3] == pytest.approx(1.5)
 
@@ -44,8 +49,8 @@ def test_axis_follows_the_fan_with_the_transit_delay():
     jet = FanJet(FanConfig(motion="constant_speed", turbulence_intensity=0.0))
     delay = 2.3 / 6.0  # inside the potential core the air moves at U0
     assert jet.transit_time(np.asarray(2.3)) == pytest.approx(delay)
-    assert float(jet.axis_y(2.3, 10.0)) == pytest.approx(0.1 * (10.0 - delay))
-    assert jet.fan_y(10.0) == pytest.approx(1.0)
+    assert float(jet.axis_y(np.array((2.3,)), np.array((10.0,)))[0]) == pytest.approx(0.1 * (10.0 - delay))
+    assert float(jet.fan_y(np.array((10.0,)))[0]) == pytest.approx(1.0)
 
 
 def test_motions():
@@ -63,12 +68,13 @@ def test_motions():
 
 def test_turbulence_is_a_unit_variance_process_scaled_by_intensity():
     jet = FanJet(FanConfig(turbulence_intensity=0.15, motion="static"))
-    jet.reset(np.random.default_rng(1))
+    rng = np.random.default_rng(1)
+    jet.reset(0, rng)
     point = np.array([[2.3, 0.0, 1.0]])
     samples = []
     for _ in range(40000):
-        jet.advance(0.005, point[0])
-        samples.append(jet.velocity_at(point, 0.0)[0])
+        jet.advance(0.005, point, rng.standard_normal((1, 3)))
+        samples.append(_field(jet, point)[0])
     samples = np.array(samples)
     # time scale b/u_c ≈ 0.17 s: 200 s hold ~600 independent samples, so the sd is good to ~6 %
     assert np.std(samples[:, 1]) == pytest.approx(0.15 * 6.0, rel=0.2)
@@ -77,8 +83,9 @@ def test_turbulence_is_a_unit_variance_process_scaled_by_intensity():
 
 def _loads(env, x: float, y: float) -> tuple[np.ndarray, np.ndarray]:
     q = quat_from_euler_zyx(0.0, 0.0, math.pi)
-    rest = RigidBodyState(np.array((x, y, 1.0)), q, np.zeros(3), np.zeros(3), rotation_matrix(q))
-    return env._external_loads(rest, mean=True)
+    rest = RigidBodyState.at_rest(np.array(((x, y, 1.0),)), q[None])
+    loads = env.fleet.external_loads(rest, np.array((0,)), mean=True)[0]
+    return loads[:3], loads[3:]
 
 
 @pytest.mark.parametrize("spread", [0.2, 0.42])

@@ -24,15 +24,16 @@ STEPS = 200
 @pytest.fixture
 def world():
     w = World(make_vehicle("ardrone2"), DT)
-    w.build(np.array((0.0, 0.0, 50.0)), np.array((1.0, 0.0, 0.0, 0.0)))
+    w.place(np.array((0,)), np.array(((0.0, 0.0, 50.0),)), np.array(((1.0, 0.0, 0.0, 0.0),)))
     yield w
     w.close()
 
 
 def _fly(world: World, force: np.ndarray, torque: np.ndarray, steps: int = STEPS):
+    """Fly the world's one body under a constant world-frame force and torque; its final state."""
     for _ in range(steps):
-        world.step(force, torque, world.state().position)
-    return world.state()
+        world.step(force[None], torque[None], world.state().position)
+    return world.state().select(0)
 
 
 def test_free_fall(world):
@@ -55,7 +56,9 @@ def test_torque_is_applied_in_the_world_frame():
     vehicle = make_vehicle("ardrone2")
     w = World(vehicle, DT)
     try:
-        w.build(np.array((0.0, 0.0, 50.0)), quat_from_euler_zyx(0.0, 0.0, math.pi / 2.0))
+        w.place(
+            np.array((0,)), np.array(((0.0, 0.0, 50.0),)), quat_from_euler_zyx(0.0, 0.0, math.pi / 2.0)[None]
+        )
         tau = 1e-3
         state = _fly(w, np.zeros(3), np.array((tau, 0.0, 0.0)), steps=20)
         expected = tau / vehicle.inertia[1] * 20 * DT
@@ -67,24 +70,25 @@ def test_torque_is_applied_in_the_world_frame():
 def test_motor_lag_is_first_order():
     vehicle = make_vehicle("hummingbird", motor_time_constant_up=0.05, motor_time_constant_down=0.1)
     rotors = Rotors(vehicle, DT)
-    rotors.reset(np.random.default_rng(0), 0.0, 300.0)
+    rotors.reset(0, np.random.default_rng(0), 0.0)
+    rotors.speeds[0] = 300.0
     for _ in range(10):  # one time constant up
-        rotors.step(np.full(4, 700.0))
+        rotors.step(np.full((1, 4), 700.0))
     np.testing.assert_allclose(rotors.speeds, 300.0 + 400.0 * (1 - math.exp(-1)), rtol=1e-9)
     start = rotors.speeds.copy()
     for _ in range(20):  # one time constant down
-        rotors.step(np.zeros(4))
+        rotors.step(np.zeros((1, 4)))
     np.testing.assert_allclose(rotors.speeds, start * math.exp(-1), rtol=1e-9)
-    rotors.step(np.full(4, 1e6))
+    rotors.step(np.full((1, 4), 1e6))
     assert np.all(rotors.speeds <= vehicle.max_rotor_speed)
 
 
 def test_rotor_drag_decelerates_as_specified():
     vehicle = make_vehicle("ardrone2")
     rotors = Rotors(vehicle, DT)
-    rotors.reset(np.random.default_rng(0), 0.0, vehicle.hover_rotor_speed)
-    drag = rotors.drag_forces(np.tile((1.0, 0.0, 0.5), (4, 1)), np.array((0.0, 0.0, 1.0)))
-    total = drag.sum(axis=0)
+    rotors.reset(0, np.random.default_rng(0), 0.0)
+    drag = rotors.drag_forces(np.tile((1.0, 0.0, 0.5), (1, 4, 1)), np.array(((0.0, 0.0, 1.0),)))
+    total = drag[0].sum(axis=0)
     np.testing.assert_allclose(total / vehicle.mass, (-vehicle.rotor_drag_decel, 0.0, 0.0))
 
 
@@ -93,7 +97,7 @@ def test_per_rotor_coefficients_spread_as_configured():
     rotors = Rotors(vehicle, DT)
     draws = []
     for seed in range(300):
-        rotors.reset(np.random.default_rng(seed), 0.02, vehicle.hover_rotor_speed)
-        draws.append(rotors.mixer.kf / vehicle.kf - 1.0)
+        rotors.reset(0, np.random.default_rng(seed), 0.02)
+        draws.append(rotors.allocations[0, 0] / vehicle.kf - 1.0)  # row 0 of the allocation: k_i
     # 1200 draws of N(0, 0.02²): the sample sd is within ~4 % of 0.02 with overwhelming probability
     assert np.std(draws) == pytest.approx(0.02, rel=0.1)

@@ -16,10 +16,12 @@ from quad_wrench_env.vehicle import GRAVITY
 def test_motion_capture_noise_has_the_configured_spread():
     mocap = MotionCapture(SensorConfig(position_noise=0.01, attitude_noise=0.05))
     q = quat_from_euler_zyx(0.1, 0.2, 0.3)
-    mocap.reset(np.random.default_rng(0), np.zeros(3), q)
+    mocap.reset(0, np.zeros(3), q)
+    rng = np.random.default_rng(0)
     positions, angles = [], []
     for _ in range(4000):
-        p, qm = mocap.measure(np.array((1.0, 2.0, 3.0)), q)
+        p, qm = mocap.measure(np.array(((1.0, 2.0, 3.0),)), q[None], rng.standard_normal((1, 6)))
+        p, qm = p[0], qm[0]
         positions.append(p)
         error = quat_multiply(quat_conjugate(q), qm)
         angles.append(2.0 * error[1:] * np.sign(error[0]))
@@ -32,8 +34,11 @@ def test_motion_capture_noise_has_the_configured_spread():
 def test_motion_capture_latency_delays_by_whole_steps():
     mocap = MotionCapture(SensorConfig(position_noise=0.0, attitude_noise=0.0, latency_steps=2))
     q = np.array((1.0, 0.0, 0.0, 0.0))
-    mocap.reset(np.random.default_rng(0), np.zeros(3), q)
-    seen = [mocap.measure(np.array((float(k), 0.0, 0.0)), q)[0][0] for k in range(1, 6)]
+    mocap.reset(0, np.zeros(3), q)
+    seen = [
+        mocap.measure(np.array(((float(k), 0.0, 0.0),)), q[None], np.zeros((1, 6)))[0][0, 0]
+        for k in range(1, 6)
+    ]
     assert seen == [0.0, 0.0, 1.0, 2.0, 3.0]
 
 
@@ -46,15 +51,17 @@ def test_motor_speeds_are_quantized_to_8_bits():
 
 def test_payload_under_a_rotor_gives_paper_000s_torque():
     payload = Payload(PayloadConfig(mass=0.053, point=(0.129, 0.129, 0.0), attach_time=7.0, release_time=9.0))
-    assert payload.point_load(6.9, np.eye(3)) is None and payload.point_load(9.0, np.eye(3)) is None
-    offsets, forces = payload.point_load(7.0, np.eye(3))
-    offset, force = offsets[0], forces[0]
+    times = np.array((6.9, 7.0, 9.0))
+    offsets, forces = payload.point_load(times, np.tile(np.eye(3), (3, 1, 1)))
+    np.testing.assert_array_equal(forces[[0, 2]], 0.0)  # before attaching and after the release
+    offset, force = offsets[1, 0], forces[1, 0]
     torque = np.cross(offset, force)
     assert force[2] == pytest.approx(-0.053 * GRAVITY)
     np.testing.assert_allclose(np.abs(torque[:2]), 0.053 * GRAVITY * 0.129)  # 0.067 N·m, Sec. III
     tilted = rotation_matrix(quat_from_euler_zyx(0.0, 0.0, np.pi / 2))
-    offsets, _ = payload.point_load(8.0, tilted)
-    np.testing.assert_allclose(offsets[0], tilted @ (0.129, 0.129, 0.0))
+    offsets, _ = payload.point_load(np.array((8.0,)), tilted[None])
+    np.testing.assert_allclose(offsets[0, 0], tilted @ (0.129, 0.129, 0.0))
+    assert Payload(PayloadConfig()).point_load(times, np.tile(np.eye(3), (3, 1, 1))) is None
 
 
 def test_bad_sensor_and_payload_settings_are_named():
@@ -72,14 +79,11 @@ def test_wrench_profile_applies_its_wrench_through_point_forces():
     profile = WrenchProfile(
         [[5, 10, 1, 0, 0, 0, 0, 0], [25, 30, 0, 0, 0, 1, 0, 0], [8, 9, 0, 0, -1, 0, 0.2, 0.3]]
     )
-    assert profile.point_load(4.9, np.eye(3)) is None
-    for t, expected in (
-        (6.0, (1, 0, 0, 0, 0, 0)),
-        (8.5, (1, 0, -1, 0, 0.2, 0.3)),
-        (26.0, (0, 0, 0, 1, 0, 0)),
-    ):
-        offsets, forces = profile.point_load(t, np.eye(3))
-        force, torque = resultant(offsets, forces)
-        np.testing.assert_allclose(np.concatenate((force, torque)), expected, atol=1e-12)
+    times = np.array((4.9, 6.0, 8.5, 26.0))
+    offsets, forces = profile.point_load(times, np.tile(np.eye(3), (4, 1, 1)))
+    force, torque = resultant(offsets, forces)
+    expected = ((0, 0, 0, 0, 0, 0), (1, 0, 0, 0, 0, 0), (1, 0, -1, 0, 0.2, 0.3), (0, 0, 0, 1, 0, 0))
+    np.testing.assert_allclose(np.concatenate((force, torque), axis=1), expected, atol=1e-12)
+    assert WrenchProfile([]).point_load(times, np.tile(np.eye(3), (4, 1, 1))) is None
     with pytest.raises(ValueError, match="segment"):
         WrenchProfile([[3, 1, 0, 0, 0, 0, 0, 0]])

@@ -22,6 +22,7 @@ class QuadraticDrag:
         self._coefficient = 0.5 * air_density * drag_area / num_points
 
     def forces(self, relative_air_velocity: np.ndarray) -> np.ndarray:
-        """(N, 3) world forces for (N, 3) air velocities relative to the points (wind - point velocity)."""
-        speed = np.sqrt(np.einsum("ij,ij->i", relative_air_velocity, relative_air_velocity))
-        return (self._coefficient * speed)[:, None] * relative_air_velocity
+        """(..., P, 3) world forces for (..., P, 3) air velocities relative to the points (wind - point
+        velocity)."""
+        speed = np.sqrt((relative_air_velocity * relative_air_velocity).sum(axis=-1))
+        return (self._coefficient * speed)[..., None] * relative_air_velocity

@@ -147,21 +147,55 @@ class FanConfig:
 
 
 class FanJet:
-    """The moving, turbulent jet of a fan: a :class:`~quad_wrench_env.disturbances.base.WindField`."""
+    """The moving, turbulent jet of a fan, one copy per vehicle (each with its own fan motion and
+    turbulence): a :class:`~quad_wrench_env.disturbances.base.WindField`."""
 
-    def __init__(self, config: FanConfig, motion: FanMotion | None = None) -> None:
+    def __init__(self, config: FanConfig, count: int = 1) -> None:
         self.config = config
-        self.motion = motion or config.make_motion(config.motion)
+        self.count = count
         self._u0 = config.outlet_speed
         self._core = config.centreline_constant * config.outlet_diameter
         """Length ``B·D`` of the potential core, where the centre-line speed is still ``U0``."""
         self._radius2 = (0.5 * config.outlet_diameter) ** 2
-        self._noise = np.zeros(3)
-        self._rng: np.random.Generator | None = None
+        self._noise = np.zeros((count, 3))
+        self._started = np.zeros(count, dtype=bool)
+        self._motions: list[FanMotion] = [config.make_motion(config.motion)] * count
+        self._group_motions: list[FanMotion] = []
+        self._group_of = np.zeros(count, dtype=int)
+        self._regroup()
 
-    def reset(self, rng: np.random.Generator) -> None:
-        self._rng = rng
-        self._noise = rng.standard_normal(3)  # the stationary distribution of the OU process
+    # -- per-vehicle motions ---------------------------------------------------------------------
+    def motion(self, index: int) -> FanMotion:
+        return self._motions[index]
+
+    def set_motion(self, index: int, motion: FanMotion) -> None:
+        self._motions[index] = motion
+        self._regroup()
+
+    def _regroup(self) -> None:
+        """Vehicles whose fans move alike are evaluated together (usually all of them)."""
+        self._group_motions = []
+        for i, motion in enumerate(self._motions):
+            if motion not in self._group_motions:
+                self._group_motions.append(motion)
+            self._group_of[i] = self._group_motions.index(motion)
+
+    def _y(self, t: np.ndarray, index: np.ndarray | slice) -> np.ndarray:
+        """Fan y at times ``t`` (n, ...) of the vehicles ``index``."""
+        if len(self._group_motions) == 1:
+            return self._group_motions[0].y(t)
+        groups = self._group_of[index]
+        y = np.empty(np.shape(t))
+        for g, motion in enumerate(self._group_motions):
+            mask = groups == g
+            if np.any(mask):
+                y[mask] = motion.y(t[mask])
+        return y
+
+    # -- the field --------------------------------------------------------------------------------
+    def reset(self, index: int, rng: np.random.Generator) -> None:
+        self._noise[index] = rng.standard_normal(3)  # the stationary distribution of the OU process
+        self._started[index] = True
 
     def centreline_speed(self, x: np.ndarray) -> np.ndarray:
         return self._u0 * np.minimum(1.0, self._core / np.maximum(x, 1e-9))
@@ -176,31 +210,35 @@ class FanJet:
         beyond = (x * x - core * core) / (2.0 * self._u0 * core)
         return np.where(x <= core, x / self._u0, core / self._u0 + beyond)
 
-    def axis_y(self, x: float | np.ndarray, t: float) -> np.ndarray:
-        """y of the jet axis at distance ``x`` from the fan at time ``t`` (the fan's retarded y)."""
-        return self.motion.y(t - self.transit_time(np.asarray(x, dtype=float)))
+    def axis_y(self, x: np.ndarray, t: np.ndarray, index: np.ndarray | slice = slice(None)) -> np.ndarray:
+        """y of the jet axis at distances ``x`` (n, ...) from the fans of vehicles ``index`` at their
+        times ``t`` (broadcast against ``x``): each fan's retarded y."""
+        x = np.asarray(x, dtype=float)
+        return self._y(np.broadcast_to(t, x.shape) - self.transit_time(x), index)
 
-    def fan_y(self, t: float) -> float:
-        return float(self.motion.y(np.asarray(t)))
+    def fan_y(self, t: np.ndarray, index: np.ndarray | slice = slice(None)) -> np.ndarray:
+        """The fans' y (n,) now, at times ``t`` (n,)."""
+        return self._y(np.asarray(t, dtype=float), index)
 
-    def advance(self, dt: float, position: np.ndarray) -> None:
-        if self.config.turbulence_intensity == 0.0 or self._rng is None:
+    def advance(self, dt: float, positions: np.ndarray, normals: np.ndarray) -> None:
+        if self.config.turbulence_intensity == 0.0:
             return
-        x = max(float(position[0]), 1e-3)
-        time_scale = float(self.half_width(x) / self.centreline_speed(x))
-        decay = math.exp(-dt / time_scale)
-        self._noise = decay * self._noise + math.sqrt(1.0 - decay * decay) * self._rng.standard_normal(3)
+        x = np.maximum(positions[:, 0], 1e-3)
+        decay = np.exp(-dt * self.centreline_speed(x) / self.half_width(x))
+        advanced = decay[:, None] * self._noise + np.sqrt(1.0 - decay * decay)[:, None] * normals
+        self._noise = np.where(self._started[:, None], advanced, self._noise)
 
-    def velocity_at(self, points: np.ndarray, t: float, mean: bool = False) -> np.ndarray:
-        x = points[:, 0]
-        downstream = x > 0.0
+    def velocity_at(
+        self, points: np.ndarray, t: np.ndarray, index: np.ndarray | slice, mean: bool = False
+    ) -> np.ndarray:
+        x = points[..., 0]
         u_c = self.centreline_speed(x)
         b = self.half_width(x)
-        dy = points[:, 1] - self.axis_y(x, t)
-        dz = points[:, 2] - self.config.height
-        speed = np.where(downstream, u_c * np.exp(-(dy * dy + dz * dz) / (b * b)), 0.0)
+        dy = points[..., 1] - self.axis_y(x, np.asarray(t)[:, None], index)
+        dz = points[..., 2] - self.config.height
+        speed = np.where(x > 0.0, u_c * np.exp(-(dy * dy + dz * dz) / (b * b)), 0.0)
         if mean:
-            return np.outer(speed, (1.0, 0.0, 0.0))
-        direction = self.config.turbulence_intensity * self._noise
-        direction[0] += 1.0
-        return np.outer(speed, direction)
+            return speed[..., None] * np.array((1.0, 0.0, 0.0))
+        direction = self.config.turbulence_intensity * self._noise[index]
+        direction[:, 0] += 1.0
+        return speed[..., None] * direction[:, None, :]

@@ -46,13 +46,17 @@ class Payload:
         self._point = np.array(config.point, dtype=float)
         self._weight = np.array((0.0, 0.0, -config.mass * GRAVITY))
 
-    def attached(self, t: float) -> bool:
+    def attached(self, t: np.ndarray) -> np.ndarray:
+        """Whether the mass hangs at times ``t`` (array)."""
         c = self.config
-        return c.mass > 0 and c.attach_time <= t < c.release_time
+        return (c.mass > 0) & (c.attach_time <= t) & (t < c.release_time)
 
-    def point_load(self, t: float, rotation: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
-        """``(offsets (1, 3) from the centre of mass, forces (1, 3))``, world frame, or None when not
-        hanging."""
-        if not self.attached(t):
+    def point_load(self, t: np.ndarray, rotation: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+        """``(offsets (n, 1, 3) from the centres of mass, forces (n, 1, 3))``, world frame, for n
+        vehicles at times ``t`` (n,) with attitudes ``rotation`` (n, 3, 3) (zero force while the mass
+        does not hang), or None without a payload."""
+        if self.config.mass <= 0:
             return None
-        return (rotation @ self._point)[None, :], self._weight[None, :]
+        offsets = rotation @ self._point
+        forces = self.attached(t)[:, None] * self._weight
+        return offsets[:, None, :], forces[:, None, :]

@@ -43,26 +43,25 @@ class WrenchProfile:
     def __init__(self, segments: list) -> None:
         self.segments = validate_segments(segments)
 
-    def wrench(self, t: float) -> np.ndarray:
-        """``[f, τ]`` (world) acting at time ``t``."""
+    def wrench(self, t: np.ndarray) -> np.ndarray:
+        """(n, 6) ``[f, τ]`` (world) acting at times ``t`` (n,)."""
+        t = np.asarray(t, dtype=float)[..., None]
         active = (self.segments[:, 0] <= t) & (t < self.segments[:, 1])
-        return self.segments[active, 2:].sum(axis=0) if np.any(active) else np.zeros(6)
+        return active.astype(float) @ self.segments[:, 2:]
 
-    def point_load(self, t: float, rotation: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
-        """(offsets, forces) of the force at the centre of mass and the torque couple, or None."""
+    def point_load(self, t: np.ndarray, rotation: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+        """(offsets, forces), each (n, 3, 3), of the force at the centre of mass and the torque couple
+        for n vehicles at times ``t`` (n,), or None without segments."""
         if not self.segments.size:
             return None
         w = self.wrench(t)
-        if not np.any(w):
-            return None
-        force, torque = w[:3], w[3:]
-        norm = np.linalg.norm(torque)
-        if norm == 0.0:
-            return np.zeros((1, 3)), force[None, :]
+        force, torque = w[:, :3], w[:, 3:]
+        norm = np.linalg.norm(torque, axis=1, keepdims=True)
         # a unit vector u ⟂ τ; forces ±F at ±a·u with 2a·(u × F) = τ  =>  F = (τ × u)/(2a)
-        helper = np.array((1.0, 0.0, 0.0)) if abs(torque[0]) < 0.9 * norm else np.array((0.0, 1.0, 0.0))
+        helper = np.where(np.abs(torque[:, :1]) < 0.9 * norm, (1.0, 0.0, 0.0), (0.0, 1.0, 0.0))
         u = cross(torque, helper)
-        u /= np.linalg.norm(u)
+        u_norm = np.linalg.norm(u, axis=1, keepdims=True)
+        u = np.where(norm > 0.0, u / np.where(norm > 0.0, u_norm, 1.0), 0.0)
         couple = cross(torque, u) / (2.0 * _COUPLE_ARM)
-        offsets = np.array((np.zeros(3), _COUPLE_ARM * u, -_COUPLE_ARM * u))
-        return offsets, np.array((force, couple, -couple))
+        offsets = np.stack((np.zeros_like(u), _COUPLE_ARM * u, -_COUPLE_ARM * u), axis=1)
+        return offsets, np.stack((force, couple, -couple), axis=1)

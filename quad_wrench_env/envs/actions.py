@@ -44,7 +44,7 @@ class ActionLimits:
 
 
 class ActionMap:
-    """Turns a clipped normalised action into motor-speed commands through the autopilot."""
+    """Turns clipped normalised actions of N vehicles into motor-speed commands through the autopilot."""
 
     def __init__(self, action_type: str, autopilot: Autopilot, limits: ActionLimits) -> None:
         if action_type not in ACTION_TYPES:
@@ -62,22 +62,22 @@ class ActionMap:
         self._max_speed = vehicle.max_rotor_speed
 
     def motor_command(self, action: np.ndarray, state: RigidBodyState) -> np.ndarray:
-        """Rotor speed commands (rad/s) for one physics step."""
+        """(N, 4) rotor speed commands (rad/s) for one physics step of N vehicles, actions (N, 4)."""
         a = action
         if self.action_type == "velocity":
             return self.autopilot.velocity_command(
-                state, a[:3] * self._velocity_scale, a[3] * self._yaw_rate_scale
+                state, a[:, :3] * self._velocity_scale, a[:, 3] * self._yaw_rate_scale
             )
         if self.action_type == "attitude":
             return self.autopilot.attitude_command(
                 state,
-                a[0] * self._tilt_scale,
-                a[1] * self._tilt_scale,
-                a[2] * self._yaw_rate_scale,
-                (1.0 + a[3]) * self._hover_thrust,
+                a[:, 0] * self._tilt_scale,
+                a[:, 1] * self._tilt_scale,
+                a[:, 2] * self._yaw_rate_scale,
+                (1.0 + a[:, 3]) * self._hover_thrust,
             )
         if self.action_type == "wrench":
             return self.autopilot.wrench_command(
-                (1.0 + a[0]) * self._hover_thrust, a[1:] * self._torque_scale
+                (1.0 + a[:, 0]) * self._hover_thrust, a[:, 1:] * self._torque_scale
             )
         return 0.5 * (a + 1.0) * self._max_speed

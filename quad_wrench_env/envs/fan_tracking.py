@@ -27,7 +27,7 @@ Action: ``Box(-1, 1, (4,), float32)``, meaning set by ``action_type`` (see
 Reward per step (terms in ``info["reward_terms"]``):
 ``tracking = exp(-(d/axis_scale)²)`` with ``d`` the distance in the y-z plane from the jet axis at
 the vehicle's x (the retarded axis, PHYSICS.md), ``effort = -effort_weight·mean(a²)``, and
-``crash = -crash_penalty`` on the step that ends the episode early.
+``crash = -crash_penalty`` on the step that ends the episode early (0 otherwise).
 
 Episode end: terminated on ``crash`` (below ``crash_height`` or touching the ground), ``flip`` (tilt
 above ``flip_tilt_deg``) or ``out_of_arena``, named in ``info["termination_reason"]``; truncated
@@ -54,7 +54,8 @@ from quad_wrench_env.disturbances.base import WindField
 from quad_wrench_env.disturbances.fan import FanConfig, FanJet
 from quad_wrench_env.envs.base import QuadWrenchEnv
 from quad_wrench_env.envs.config import EnvConfig
-from quad_wrench_env.world import RigidBodyState
+from quad_wrench_env.envs.fleet import Fleet
+from quad_wrench_env.vehicle import VehicleParams
 
 
 @dataclass
@@ -72,41 +73,49 @@ class FanTrackingConfig(EnvConfig):
     reward: FanTrackingReward = field(default_factory=FanTrackingReward)
 
 
-class FanTrackingEnv(QuadWrenchEnv):
-    """Track the centre of a moving fan's jet from the estimated wrench (see the module docstring)."""
+class FanTracking:
+    """The task (see the module docstring) for N vehicles, each in front of a fan of its own."""
 
     config_class: ClassVar[type[EnvConfig]] = FanTrackingConfig
     reset_options: ClassVar[tuple[str, ...]] = ("offset_y", "fan_motion")
-    cfg: FanTrackingConfig
 
-    def _make_wind_fields(self) -> list[WindField]:
-        cfg = self.cfg
+    def __init__(self, cfg: FanTrackingConfig, vehicle: VehicleParams, count: int) -> None:
         arena = cfg.arena
         if not (arena.x_min < cfg.start_distance < arena.x_max):
             raise ValueError(
                 f"start_distance={cfg.start_distance} must lie inside the arena "
                 f"({arena.x_min}, {arena.x_max})"
             )
-        self.fan = FanJet(cfg.fan)
-        return [self.fan] if cfg.fan.enabled else []
+        self.cfg = cfg
+        self.vehicle = vehicle
+        self.fan = FanJet(cfg.fan, count)
+        self._default_motion = self.fan.motion(0)
 
-    def _reset_task(self, options: Mapping[str, Any]) -> tuple[np.ndarray, float]:
-        cfg = self.cfg
-        motion_option = options.get("fan_motion", cfg.fan.motion)
-        if isinstance(motion_option, Mapping):
-            params = dict(motion_option)
+    def wind_fields(self) -> list[WindField]:
+        return [self.fan] if self.cfg.fan.enabled else []
+
+    def _motion(self, option: Any):
+        if option is None:
+            return self._default_motion
+        if isinstance(option, Mapping):
+            params = dict(option)
             if "name" not in params:
-                raise ValueError(f"fan_motion={motion_option!r} needs a 'name' key")
-            motion = cfg.fan.make_motion(params.pop("name"), **params)
-        elif isinstance(motion_option, str):
-            motion = cfg.fan.make_motion(motion_option)
-        else:
-            raise ValueError(f"fan_motion={motion_option!r} must be a motion name or a mapping")
+                raise ValueError(f"fan_motion={option!r} needs a 'name' key")
+            return self.cfg.fan.make_motion(params.pop("name"), **params)
+        if isinstance(option, str):
+            return self.cfg.fan.make_motion(option)
+        raise ValueError(f"fan_motion={option!r} must be a motion name or a mapping")
+
+    def reset_vehicle(
+        self, index: int, rng: np.random.Generator, options: Mapping[str, Any]
+    ) -> tuple[np.ndarray, float]:
+        cfg = self.cfg
+        motion = self._motion(options.get("fan_motion"))
         fan_y0 = float(motion.y(np.asarray(0.0)))
         if "offset_y" in options:
             offset = float(options["offset_y"])
         else:
-            offset = float(self.np_random.uniform(-cfg.max_initial_offset, cfg.max_initial_offset))
+            offset = float(rng.uniform(-cfg.max_initial_offset, cfg.max_initial_offset))
         start_y = fan_y0 + offset
         margin = cfg.arena.y_half_width - self.vehicle.hull_radius
         if not (math.isfinite(offset) and abs(start_y) < margin):
@@ -114,31 +123,42 @@ class FanTrackingEnv(QuadWrenchEnv):
                 f"offset_y={options.get('offset_y', offset)!r} puts the vehicle at y={start_y:.3g} m; "
                 f"allowed: |fan y0 + offset_y| < {margin:.3g} m (arena half-width minus hull radius)"
             )
-        self.fan.motion = motion
+        self.fan.set_motion(index, motion)
         return np.array((cfg.start_distance, start_y, cfg.fan.height)), math.pi
 
-    def _axis_error(self, state: RigidBodyState) -> tuple[float, float]:
-        x, y, z = state.position
-        axis_y = float(self.fan.axis_y(x, self.time))
-        return y - axis_y, z - self.cfg.fan.height
+    def axis_errors(self, fleet: Fleet) -> tuple[np.ndarray, np.ndarray]:
+        """(N,) signed ``y - jet axis y`` at each vehicle's x, and ``z - fan height``."""
+        x, y, z = fleet.state.position.T
+        return y - self.fan.axis_y(x, fleet.time), z - self.cfg.fan.height
 
-    def _task_reward(
-        self, state: RigidBodyState, action: np.ndarray, termination: str | None
-    ) -> dict[str, float]:
+    def reward_terms(self, fleet: Fleet, actions: np.ndarray, ended: np.ndarray) -> dict[str, np.ndarray]:
         r = self.cfg.reward
-        dy, dz = self._axis_error(state)
-        terms = {
-            "tracking": math.exp(-(dy * dy + dz * dz) / r.axis_scale**2),
-            "effort": -r.effort_weight * float(np.mean(action * action)),
-        }
-        if termination is not None:
-            terms["crash"] = -r.crash_penalty
-        return terms
-
-    def _task_info(self, state: RigidBodyState) -> dict[str, Any]:
-        axis_error = self._axis_error(state)[0]
+        dy, dz = self.axis_errors(fleet)
         return {
-            "fan_position": np.array((0.0, self.fan.fan_y(self.time), self.cfg.fan.height)),
-            "jet_axis_y": float(state.position[1] - axis_error),
+            "tracking": np.exp(-(dy * dy + dz * dz) / r.axis_scale**2),
+            "effort": -r.effort_weight * np.mean(actions * actions, axis=1),
+            "crash": -r.crash_penalty * ended,
+        }
+
+    def info(self, fleet: Fleet) -> dict[str, np.ndarray]:
+        axis_error = self.axis_errors(fleet)[0]
+        fan_y = self.fan.fan_y(fleet.time)
+        fan_position = np.column_stack(
+            (np.zeros_like(fan_y), fan_y, np.full_like(fan_y, self.cfg.fan.height))
+        )
+        return {
+            "fan_position": fan_position,
+            "jet_axis_y": fleet.state.position[:, 1] - axis_error,
             "axis_error": axis_error,
         }
+
+
+class FanTrackingEnv(QuadWrenchEnv):
+    """Track the centre of a moving fan's jet from the estimated wrench (see the module docstring)."""
+
+    task_class: ClassVar[type] = FanTracking
+    cfg: FanTrackingConfig
+
+    @property
+    def fan(self) -> FanJet:
+        return self.task.fan

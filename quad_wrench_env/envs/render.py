@@ -31,11 +31,10 @@ class SceneRenderer:
         self._jet_length = 0.0
 
     def build(self) -> None:
-        """Create the fan's visual bodies in the current world (call after every world rebuild)."""
+        """Create the fan's visual bodies in the world (once: the world is built once per env)."""
         env = self.env
         fan = getattr(env, "fan", None)
-        self._fan = self._jet = -1
-        if fan is None:
+        if fan is None or self._fan >= 0:
             return
         cid = env.world.client
         radius = 0.5 * fan.config.outlet_diameter
@@ -57,9 +56,9 @@ class SceneRenderer:
         cid = env.world.client
         z = env.cfg.fan.height
         p.resetBasePositionAndOrientation(
-            self._fan, (0.0, env.fan.fan_y(env.time), z), _ALONG_X, physicsClientId=cid
+            self._fan, (0.0, float(env.fan.fan_y(env.fleet.time[:1])[0]), z), _ALONG_X, physicsClientId=cid
         )
-        axis_y = float(env.fan.axis_y(0.5 * self._jet_length, env.time))
+        axis_y = float(env.fan.axis_y(np.array((0.5 * self._jet_length,)), env.fleet.time[:1])[0])
         p.resetBasePositionAndOrientation(
             self._jet, (0.5 * self._jet_length, axis_y, z), _ALONG_X, physicsClientId=cid
         )
@@ -68,7 +67,7 @@ class SceneRenderer:
         env = self.env
         self._place_fan()
         cid = env.world.client
-        target = env.world.state().position * np.array((0.5, 1.0, 1.0))  # between fan and vehicle
+        target = env.world.state().position[0] * np.array((0.5, 1.0, 1.0))  # between fan and vehicle
         if env.render_mode == "human":
             p.resetDebugVisualizerCamera(3.0, 30.0, -30.0, tuple(target), physicsClientId=cid)
             return None

@@ -7,12 +7,13 @@ from collections.abc import Callable
 from typing import Any
 
 from quad_wrench_env.config import build
+from quad_wrench_env.estimators.bank import EstimatorArray, EstimatorBank, OracleBank
 from quad_wrench_env.estimators.base import Estimator, StateEstimate, TruthFed, WrenchEstimate
 from quad_wrench_env.estimators.ekf import ExtendedWrenchEstimator
 from quad_wrench_env.estimators.noise import EKFNoise, FilterNoise
 from quad_wrench_env.estimators.observer import NonlinearWrenchObserver, ObserverGains
 from quad_wrench_env.estimators.oracle import OracleEstimator
-from quad_wrench_env.estimators.ukf import UnscentedWrenchEstimator
+from quad_wrench_env.estimators.ukf import UnscentedFilterBank, UnscentedWrenchEstimator
 from quad_wrench_env.vehicle import VehicleParams
 
 MEASUREMENT_NOISE_KEYS = ("position", "attitude", "velocity", "body_rate")
@@ -23,9 +24,13 @@ def _oracle(vehicle: VehicleParams, dt: float, **noise: Any) -> Estimator:
     return OracleEstimator()
 
 
-def _ukf(vehicle: VehicleParams, dt: float, **noise: Any) -> Estimator:
+def _ukf_noise(noise: dict[str, Any]) -> FilterNoise:
     noise = {k: v for k, v in noise.items() if k not in ("velocity", "body_rate")}  # pose only
-    return UnscentedWrenchEstimator(vehicle, dt, build(FilterNoise, noise, prefix="estimator_params."))
+    return build(FilterNoise, noise, prefix="estimator_params.")
+
+
+def _ukf(vehicle: VehicleParams, dt: float, **noise: Any) -> Estimator:
+    return UnscentedWrenchEstimator(vehicle, dt, _ukf_noise(noise))
 
 
 def _ekf(vehicle: VehicleParams, dt: float, **noise: Any) -> Estimator:
@@ -47,13 +52,7 @@ ESTIMATORS = tuple(FACTORIES)
 """Names accepted by :func:`make_estimator`."""
 
 
-def make_estimator(name: str, vehicle: VehicleParams, dt: float, **noise: Any) -> Estimator:
-    """Build the estimator called ``name`` for ``vehicle``, stepped every ``dt`` seconds.
-
-    ``noise`` holds the estimator's settings: for the UKF the fields of :class:`FilterNoise`, for the
-    EKF those of :class:`EKFNoise`, for the observer those of :class:`ObserverGains`; the observer
-    and the oracle ignore the measurement-noise keys, which the env always passes.
-    """
+def _check(name: str, dt: float, noise: dict[str, Any]) -> None:
     if name not in FACTORIES:
         raise ValueError(f"unknown estimator {name!r}; allowed: {list(ESTIMATORS)}")
     if not (math.isfinite(dt) and dt > 0):
@@ -62,7 +61,31 @@ def make_estimator(name: str, vehicle: VehicleParams, dt: float, **noise: Any) -
         unknown = sorted(set(noise) - set(MEASUREMENT_NOISE_KEYS))
         if unknown:
             raise ValueError(f"the oracle takes no noise settings, got {unknown}")
+
+
+def make_estimator(name: str, vehicle: VehicleParams, dt: float, **noise: Any) -> Estimator:
+    """Build the estimator called ``name`` for ``vehicle``, stepped every ``dt`` seconds.
+
+    ``noise`` holds the estimator's settings: for the UKF the fields of :class:`FilterNoise`, for the
+    EKF those of :class:`EKFNoise`, for the observer those of :class:`ObserverGains`; the observer
+    and the oracle ignore the measurement-noise keys, which the env always passes.
+    """
+    _check(name, dt, noise)
     return FACTORIES[name](vehicle, dt, **noise)
+
+
+def make_estimator_bank(
+    name: str, vehicle: VehicleParams, dt: float, count: int, **noise: Any
+) -> EstimatorBank:
+    """``count`` estimators called ``name`` (settings as :func:`make_estimator`), stepped together."""
+    _check(name, dt, noise)
+    if not (isinstance(count, int) and count >= 1):
+        raise ValueError(f"count={count!r} must be an integer >= 1")
+    if name == "ukf":
+        return UnscentedFilterBank(vehicle, dt, _ukf_noise(noise), count)
+    if name == "oracle":
+        return OracleBank(count)
+    return EstimatorArray([FACTORIES[name](vehicle, dt, **noise) for _ in range(count)])
 
 
 __all__ = [
@@ -70,14 +93,19 @@ __all__ = [
     "MEASUREMENT_NOISE_KEYS",
     "EKFNoise",
     "Estimator",
+    "EstimatorArray",
+    "EstimatorBank",
     "ExtendedWrenchEstimator",
     "FilterNoise",
     "NonlinearWrenchObserver",
     "ObserverGains",
+    "OracleBank",
     "OracleEstimator",
     "StateEstimate",
     "TruthFed",
+    "UnscentedFilterBank",
     "UnscentedWrenchEstimator",
     "WrenchEstimate",
     "make_estimator",
+    "make_estimator_bank",
 ]

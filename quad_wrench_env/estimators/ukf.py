@@ -51,7 +51,8 @@ import math
 
 import numpy as np
 
-from quad_wrench_env.estimators.base import StateEstimate, WrenchEstimate, check_finite_inputs
+from quad_wrench_env.estimators.bank import check_finite_batch
+from quad_wrench_env.estimators.base import StateEstimate, WrenchEstimate
 from quad_wrench_env.estimators.noise import FilterNoise, mrp_std
 from quad_wrench_env.rotations import (
     cross,
@@ -114,24 +115,58 @@ class UnscentedFilterBank:
         self.covariances = np.tile(self.P0, (count, 1, 1))
         self.reinitialisations = np.zeros(count, dtype=int)
 
+    name = "ukf"
+
     def reset(self, index: int | slice | np.ndarray, positions: np.ndarray, quaternions: np.ndarray) -> None:
-        """Restart the filters ``index`` at the given poses, at rest, with no external wrench."""
+        """Start the filters ``index`` afresh at the given poses, at rest, with no external wrench."""
+        self._restart(index, positions, quaternions)
+        self.reinitialisations[index] = 0
+
+    def _restart(
+        self, index: int | slice | np.ndarray, positions: np.ndarray, quaternions: np.ndarray
+    ) -> None:
         self.quaternions[index] = quaternions
         self.rests[index] = 0.0
         self.rests[index, 3:6] = positions
         self.covariances[index] = self.P0
 
     def step(
-        self, thrusts: np.ndarray, body_torques: np.ndarray, positions: np.ndarray, quaternions: np.ndarray
+        self,
+        thrusts: np.ndarray,
+        body_torques: np.ndarray,
+        positions: np.ndarray,
+        quaternions: np.ndarray,
+        velocities: np.ndarray | None = None,
+        body_rates: np.ndarray | None = None,
     ) -> None:
         """Predict with (N,) thrusts and (N, 3) body torques, correct with (N, 3) positions and (N, 4)
-        quaternions; restart any filter whose state became non-finite."""
+        quaternions; restart any filter whose state became non-finite. Paper 000's filter measures
+        nothing else: ``velocities`` and ``body_rates`` are not used."""
+        check_finite_batch(
+            self.name,
+            thrusts=thrusts,
+            body_torques=body_torques,
+            positions=positions,
+            quaternions=quaternions,
+        )
         self.predict(thrusts, body_torques)
         self.correct(positions, quaternions)
         broken = ~(np.isfinite(self.rests).all(axis=1) & np.isfinite(self.covariances).all(axis=(1, 2)))
         if np.any(broken):
-            self.reset(broken, positions[broken], quaternions[broken])
+            self._restart(broken, positions[broken], quaternions[broken])
             self.reinitialisations[broken] += 1
+
+    def wrenches(self) -> np.ndarray:
+        """(N, 6) estimated ``[f_e, τ_e]``, world frame."""
+        return np.concatenate((self.rests[:, 12:15], self.rests[:, 9:12]), axis=1)
+
+    def states(self) -> np.ndarray:
+        """(N, 13) estimated position, velocity, quaternion and body rates."""
+        r = self.rests
+        return np.concatenate((r[:, 3:9], self.quaternions, r[:, 0:3]), axis=1)
+
+    def statuses(self) -> list[str]:
+        return ["ok" if k == 0 else "reinitialised" for k in self.reinitialisations.tolist()]
 
     # -- prediction (eqs. 18-28) -------------------------------------------------------------------
     def state_sigma_points(self) -> np.ndarray:
@@ -271,7 +306,6 @@ class UnscentedWrenchEstimator:
     # -- interface -------------------------------------------------------------------------------
     def reset(self, position: np.ndarray, quaternion_wxyz: np.ndarray) -> None:
         self.bank.reset(0, position, quaternion_wxyz)
-        self.bank.reinitialisations[0] = 0
 
     def step(
         self,
@@ -284,9 +318,6 @@ class UnscentedWrenchEstimator:
     ) -> WrenchEstimate:
         """Predict and correct with the measured pose; paper 000's filter measures nothing else, so
         ``velocity`` and ``body_rates`` are not used."""
-        check_finite_inputs(
-            self.name, thrust=thrust, body_torque=body_torque, position=position, quaternion=quaternion_wxyz
-        )
         self.bank.step(
             np.array((thrust,), dtype=float),
             np.asarray(body_torque, dtype=float)[None, :],

@@ -1,0 +1,212 @@
+"""N vehicles of one configuration flown in one PyBullet world: the core every env runs.
+
+One physics step (ARCHITECTURE.md) for all N at once: the autopilot turns the actions into motor
+commands, the true rotors lag towards them, the wind fields, the body's drag and the point loads give
+forces at body points whose resultants PyBullet integrates; then the sensors measure and the
+estimators step. Every component holds arrays with a leading vehicle axis, so a single env is a
+fleet of one and a vector env a fleet of N running the same code: the same seeds give the same
+numbers either way. Each vehicle has its own generator (its env's ``np_random``), time and episode.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from quad_wrench_env.autopilot import Autopilot, attitude_from_thrust
+from quad_wrench_env.disturbances.base import WindField, resultant
+from quad_wrench_env.disturbances.drag import QuadraticDrag
+from quad_wrench_env.disturbances.payload import Payload
+from quad_wrench_env.disturbances.wrench_profile import WrenchProfile
+from quad_wrench_env.envs.actions import ActionMap
+from quad_wrench_env.envs.config import EnvConfig
+from quad_wrench_env.envs.noise import NoiseBlocks
+from quad_wrench_env.estimators import OracleBank, make_estimator_bank
+from quad_wrench_env.rotations import cross, quat_from_matrix
+from quad_wrench_env.rotors import Rotors
+from quad_wrench_env.sensors import MotionCapture, MotorSpeedSensor
+from quad_wrench_env.vehicle import GRAVITY, VehicleParams
+from quad_wrench_env.world import RigidBodyState, World
+
+TERMINATION_REASONS = ("", "crash", "flip", "out_of_arena")
+"""Codes of :meth:`Fleet.terminations` (0: the episode goes on)."""
+
+_WIND, _MOCAP, _MOTION = slice(0, 3), slice(3, 9), slice(9, 15)
+"""Columns of a vehicle's standard normal draws per physics step."""
+
+
+class Fleet:
+    """``count`` vehicles, their autopilots, sensors and estimators, and the world they fly in."""
+
+    def __init__(
+        self,
+        cfg: EnvConfig,
+        vehicle: VehicleParams,
+        count: int,
+        wind_fields: list[WindField],
+        gui: bool = False,
+    ) -> None:
+        self.cfg = cfg
+        self.vehicle = vehicle
+        self.count = count
+        self.dt = 1.0 / cfg.physics_hz
+        self.substeps = cfg.physics_hz // cfg.policy_hz
+        dt = self.dt
+        # The estimator's measurement noise defaults to the motion capture's; a noise-free capture
+        # leaves the estimator's own default (a filter needs G > 0 to stay well conditioned).
+        sensors = cfg.sensors
+        measured = [("position", sensors.position_noise), ("attitude", sensors.attitude_noise)]
+        if sensors.state_estimator:
+            measured += [("velocity", sensors.velocity_noise), ("body_rate", sensors.body_rate_noise)]
+        measurement_noise = {key: value for key, value in measured if value > 0}
+        self.estimator = make_estimator_bank(
+            cfg.estimator, vehicle, dt, count, **{**measurement_noise, **cfg.estimator_params}
+        )
+        self._truth_fed = isinstance(self.estimator, OracleBank)
+        self.mocap = MotionCapture(sensors, count)
+        self.motor_sensor = MotorSpeedSensor(vehicle.max_rotor_speed, sensors.motor_speed_bits)
+        self.point_loads = [Payload(cfg.payload), WrenchProfile(cfg.external_wrench)]
+        self.autopilot = Autopilot(vehicle, dt, count=count)
+        self._nominal_allocation_t = self.autopilot.mixer.allocation.T.copy()
+        self.actions = ActionMap(cfg.action_type, self.autopilot, cfg.action_limits)
+        self.rotors = Rotors(vehicle, dt, count)
+        self.drag_points = vehicle.drag_points()
+        self.drag = QuadraticDrag(vehicle.drag_area, len(self.drag_points))
+        self.wind_fields = wind_fields
+        self.noise = NoiseBlocks(count, _MOTION.stop if sensors.state_estimator else _MOCAP.stop)
+        self.world = World(vehicle, dt, count, gui=gui)
+        self._flip_cos = math.cos(math.radians(cfg.flip_tilt_deg))
+        self.time = np.zeros(count)
+        self.state: RigidBodyState | None = None
+        self.wrench_true = np.zeros((count, 6))
+
+    # -- episodes ----------------------------------------------------------------------------------
+    def reset_vehicle(self, index: int, rng: np.random.Generator, position: np.ndarray, yaw: float) -> None:
+        """Start vehicle ``index``'s episode at ``position`` heading ``yaw``, trimmed (see
+        :meth:`equilibrium`); its random draws come from ``rng`` from now on. Call :meth:`refresh`
+        after the last vehicle is reset."""
+        self.rotors.reset(index, rng, self.cfg.kf_spread)
+        for wind in self.wind_fields:
+            wind.reset(index, rng)
+        self.time[index] = 0.0
+        rotation, rotor_speeds = self.equilibrium(index, position, yaw)
+        quaternion = quat_from_matrix(rotation)
+        self.world.place(np.array((index,)), position[None], quaternion[None])
+        self.rotors.speeds[index] = rotor_speeds
+        self.autopilot.reset(index, yaw)
+        self.autopilot.trim(np.array((index,)), rotation[None], rotor_speeds[None])
+        self.estimator.reset(index, position, quaternion)
+        self.mocap.reset(index, position, quaternion)
+        self.noise.reset(index, rng)
+
+    def refresh(self) -> None:
+        """Read the true states after resets and hand the truth to a truth-fed estimator."""
+        self.state = self.world.state()
+        self.wrench_true = self.external_loads(self.state, slice(None))
+        self._feed_truth()
+
+    def equilibrium(self, index: int, position: np.ndarray, yaw: float) -> tuple[np.ndarray, np.ndarray]:
+        """Attitude and true rotor speeds that hold vehicle ``index`` at rest at ``position`` with
+        heading ``yaw`` against gravity and the mean external loads there (the vehicle starts trimmed,
+        as one that has been hovering in place; turbulence is left out of the balance)."""
+        v = self.vehicle
+        rows = np.array((index,))
+        weight = np.array(((0.0, 0.0, v.mass * GRAVITY),))
+        yaws = np.array((yaw,))
+        rotation = attitude_from_thrust(weight, yaws)
+        for _ in range(3):  # the loads depend weakly on the tilt and the rotor speeds: fixed point
+            rest = RigidBodyState.at_rest(position[None], quat_from_matrix(rotation[0])[None])
+            loads = self.external_loads(rest, rows, mean=True)
+            thrust_vector = weight - loads[:, :3]
+            rotation = attitude_from_thrust(thrust_vector, yaws)
+            body_torque = -np.einsum("nji,nj->ni", rotation, loads[:, 3:])
+            wanted = np.column_stack((np.linalg.norm(thrust_vector, axis=1), body_torque))
+            self.rotors.speeds[index] = self.rotors.speeds_for(rows, wanted)[0]
+        return rotation[0], self.rotors.speeds[index].copy()
+
+    # -- one physics step --------------------------------------------------------------------------
+    def step(self, actions: np.ndarray) -> None:
+        """One policy step: ``substeps`` physics steps with (N, 4) clipped normalised actions."""
+        for _ in range(self.substeps):
+            self._physics_step(actions)
+
+    def _physics_step(self, actions: np.ndarray) -> None:
+        state = self.state
+        command = self.actions.motor_command(actions, state)
+        self.rotors.step(command)
+        thrust_torque = self.rotors.thrust_and_torque()
+        rotation = state.rotation
+        loads = self.external_loads(state, slice(None))
+        force = rotation[:, :, 2] * thrust_torque[:, :1] + loads[:, :3]
+        torque = np.einsum("nij,nj->ni", rotation, thrust_torque[:, 1:]) + loads[:, 3:]
+        self.world.step(force, torque, state.position)
+        self.time += self.dt
+        after = self.world.state()
+        normals = self.noise.take()
+        for wind in self.wind_fields:
+            wind.advance(self.dt, after.position, normals[:, _WIND])
+        self.state = after
+        self.wrench_true = loads
+        self._feed_truth()
+        measured_speeds = self.motor_sensor.measure(self.rotors.speeds)
+        nominal = (measured_speeds * measured_speeds) @ self._nominal_allocation_t
+        position, quaternion = self.mocap.measure(after.position, after.quaternion, normals[:, _MOCAP])
+        velocity, body_rates = self.mocap.measure_motion(
+            after.velocity, after.body_rates, normals[:, _MOTION]
+        )
+        self.estimator.step(nominal[:, 0], nominal[:, 1:], position, quaternion, velocity, body_rates)
+
+    def external_loads(
+        self, state: RigidBodyState, index: np.ndarray | slice, mean: bool = False
+    ) -> np.ndarray:
+        """(n, 6) ``[F, τ]`` of everything but gravity, thrust and rotor reaction torque, about the
+        centres of mass (world frame), for the vehicles ``index`` in the (n) states ``state``."""
+        rotation = state.rotation
+        offsets = self.drag_points @ rotation.transpose(0, 2, 1)  # (n, P, 3)
+        point_velocity = state.velocity[:, None, :] + cross(state.angular_velocity[:, None, :], offsets)
+        time = self.time[index]
+        wind = np.zeros_like(offsets)
+        for field in self.wind_fields:
+            wind += field.velocity_at(state.position[:, None, :] + offsets, time, index, mean)
+        relative_air = wind - point_velocity
+        forces = self.drag.forces(relative_air)
+        forces[:, :4] += self.rotors.drag_forces(-relative_air[:, :4], rotation[:, :, 2], index)
+        for load in self.point_loads:
+            extra = load.point_load(time, rotation)
+            if extra is not None:
+                offsets = np.concatenate((offsets, extra[0]), axis=1)
+                forces = np.concatenate((forces, extra[1]), axis=1)
+        force, torque = resultant(offsets, forces)
+        return np.concatenate((force, torque), axis=1)
+
+    def _feed_truth(self) -> None:
+        if self._truth_fed:
+            s = self.state
+            truth = np.concatenate((s.position, s.velocity, s.quaternion, s.body_rates), axis=1)
+            self.estimator.observe_truth(truth, self.wrench_true)
+
+    # -- what the envs read ------------------------------------------------------------------------
+    def observations(self, last_actions: np.ndarray) -> np.ndarray:
+        """(N, 23) float32 observations: the estimators' states and wrenches and the last actions
+        (quaternions with ``w >= 0``)."""
+        states = self.estimator.states()
+        quaternion = states[:, 6:10] * np.where(states[:, 6:7] < 0.0, -1.0, 1.0)
+        return np.concatenate(
+            (states[:, :6], quaternion, states[:, 10:13], self.estimator.wrenches(), last_actions), axis=1
+        ).astype(np.float32)
+
+    def terminations(self) -> np.ndarray:
+        """(N,) codes into :data:`TERMINATION_REASONS`: crash (below ``crash_height`` or touching the
+        ground), flip (tilt beyond ``flip_tilt_deg``), out_of_arena; 0 while the episode goes on."""
+        s, cfg, arena = self.state, self.cfg, self.cfg.arena
+        x, y, z = s.position.T
+        crash = (z < cfg.crash_height) | self.world.ground_contacts()
+        flip = s.rotation[:, 2, 2] < self._flip_cos
+        inside = (
+            (arena.x_min <= x) & (x <= arena.x_max) & (np.abs(y) <= arena.y_half_width) & (z <= arena.z_max)
+        )
+        return np.select((crash, flip, ~inside), (1, 2, 3), 0)
+
+    def close(self) -> None:
+        self.world.close()
