@@ -143,13 +143,15 @@ class Autopilot:
         yaw_rate: np.ndarray,
         thrust: np.ndarray,
     ) -> np.ndarray:
-        """(N, 4) motor speeds for (N,) rolls and pitches (rad), yaw rates (rad/s) and collective thrusts (N)."""
+        """(N, 4) motor speeds for (N,) rolls and pitches (rad), yaw rates (rad/s) and collective
+        thrusts (N)."""
         self._advance_yaw(state, yaw_rate)
         desired = rotation_matrices(quat_from_euler_zyx(roll, pitch, self.yaw_setpoint))
         return self._attitude_to_motors(state, desired, thrust)
 
     def wrench_command(self, thrust: np.ndarray, body_torque: np.ndarray) -> np.ndarray:
-        """(N, 4) motor speeds for (N,) collective thrusts (N) and (N, 3) body torques (N·m), through the mixer."""
+        """(N, 4) motor speeds for (N,) collective thrusts (N) and (N, 3) body torques (N·m), through
+        the mixer."""
         return self._mix(np.column_stack((thrust, body_torque)))
 
     # -- inner loops -------------------------------------------------------------------------
@@ -191,7 +193,8 @@ class Autopilot:
         return self._mix(np.column_stack((thrust, torque)))
 
     def _mix(self, thrust_and_torque: np.ndarray) -> np.ndarray:
-        """(N, 4) rotor speeds for (N, 4) ``[c_t, tau]``; yaw torque is given up first, then speeds are clipped."""
+        """(N, 4) rotor speeds for (N, 4) ``[c_t, tau]``; yaw torque is given up first, then speeds
+        are clipped."""
         without_yaw = thrust_and_torque[:, :3] @ self._inverse_t[:3]
         yaw_part = thrust_and_torque[:, 3:] * self._inverse_t[3]
         lo, hi = self._w2_min, self._w2_max
@@ -209,7 +212,8 @@ class Autopilot:
 
 
 def attitude_from_thrust(thrust_vector: np.ndarray, yaw: np.ndarray) -> np.ndarray:
-    """(N, 3, 3) rotations whose body z is along (N, 3) ``thrust_vector`` and whose body x heads to (N,) ``yaw``."""
+    """(N, 3, 3) rotations whose body z is along (N, 3) ``thrust_vector`` and whose body x heads
+    to (N,) ``yaw``."""
     z_d = thrust_vector / np.linalg.norm(thrust_vector, axis=1, keepdims=True)
     heading = np.column_stack((np.cos(yaw), np.sin(yaw), np.zeros_like(yaw)))
     y_d = cross(z_d, heading)

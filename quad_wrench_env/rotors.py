@@ -41,7 +41,8 @@ class Rotors:
         self.speeds[index] = self.vehicle.hover_rotor_speed
 
     def step(self, commanded: np.ndarray) -> np.ndarray:
-        """Advance the motors one physics step towards (N, 4) ``commanded`` speeds (limited to their range)."""
+        """Advance the motors one physics step towards (N, 4) ``commanded`` speeds (limited to their
+        range)."""
         target = np.clip(commanded, self.vehicle.min_rotor_speed, self.vehicle.max_rotor_speed)
         error = target - self.speeds
         self.speeds += np.where(error >= 0.0, self._alpha_up, self._alpha_down) * error
@@ -52,7 +53,8 @@ class Rotors:
         return np.einsum("nij,nj->ni", self.allocations, self.speeds * self.speeds)
 
     def speeds_for(self, index: np.ndarray, thrust_and_torque: np.ndarray) -> np.ndarray:
-        """(n, 4) speeds of vehicles ``index`` that give (n, 4) ``[c_t, tau]``, clipped to the motors' range."""
+        """(n, 4) speeds of vehicles ``index`` that give (n, 4) ``[c_t, tau]``, clipped to the
+        motors' range."""
         v = self.vehicle
         squared = np.einsum("nij,nj->ni", self.inverses[index], thrust_and_torque)
         return np.sqrt(np.clip(squared, v.min_rotor_speed**2, v.max_rotor_speed**2))
