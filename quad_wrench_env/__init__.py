@@ -1,16 +1,23 @@
 """quad-wrench-env: wrench-aware quadrotor control in PyBullet, as Gymnasium environments.
 
 Importing the package registers the environments under the ``QuadWrench`` namespace, so
-``gym.make("quad_wrench_env:QuadWrench/FanTracking-v0")`` works without a prior import.
+``gym.make("quad_wrench_env:QuadWrench/FanTracking-v0")`` works without a prior import, and each id
+has a batched form: ``gym.make_vec(id, num_envs=N, vectorization_mode="vector_entry_point")``.
 """
 
 from gymnasium.envs.registration import register, registry
 
-ENV_IDS = {"QuadWrench/FanTracking-v0": "quad_wrench_env.envs.fan_tracking:FanTrackingEnv"}
+ENV_IDS = {
+    "QuadWrench/FanTracking-v0": (
+        "quad_wrench_env.envs.fan_tracking:FanTrackingEnv",
+        "quad_wrench_env.envs.fan_tracking:FanTrackingVectorEnv",
+    ),
+}
+"""Env id -> (entry point of the single env, entry point of the vector env)."""
 
-for _env_id, _entry_point in ENV_IDS.items():
+for _env_id, (_entry_point, _vector_entry_point) in ENV_IDS.items():
     if _env_id not in registry:
-        register(id=_env_id, entry_point=_entry_point)
+        register(id=_env_id, entry_point=_entry_point, vector_entry_point=_vector_entry_point)
 
 __version__ = "0.1.0"
 __all__ = ["ENV_IDS"]

@@ -162,7 +162,7 @@ class QuadWrenchEnv(gym.Env, EzPickle):
         rng = self.np_random
         position, yaw = self.task.reset_vehicle(0, rng, options)
         self.fleet.reset_vehicle(0, rng, position, yaw)
-        self.fleet.refresh()
+        self.fleet.refresh(np.zeros(1, dtype=int))
         self._started = True
         self._steps = 0
         self._last_action = np.zeros((1, 4))

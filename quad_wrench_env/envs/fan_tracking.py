@@ -55,6 +55,7 @@ from quad_wrench_env.disturbances.fan import FanConfig, FanJet
 from quad_wrench_env.envs.base import QuadWrenchEnv
 from quad_wrench_env.envs.config import EnvConfig
 from quad_wrench_env.envs.fleet import Fleet
+from quad_wrench_env.envs.vector import QuadWrenchVectorEnv
 from quad_wrench_env.vehicle import VehicleParams
 
 
@@ -162,3 +163,9 @@ class FanTrackingEnv(QuadWrenchEnv):
     @property
     def fan(self) -> FanJet:
         return self.task.fan
+
+
+class FanTrackingVectorEnv(QuadWrenchVectorEnv):
+    """N vehicles tracking their fans' jets, flown together (``gym.make_vec``'s vector entry point)."""
+
+    env_class: ClassVar[type[QuadWrenchEnv]] = FanTrackingEnv

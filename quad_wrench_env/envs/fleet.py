@@ -100,10 +100,11 @@ class Fleet:
         self.mocap.reset(index, position, quaternion)
         self.noise.reset(index, rng)
 
-    def refresh(self) -> None:
-        """Read the true states after resets and hand the truth to a truth-fed estimator."""
+    def refresh(self, index: np.ndarray) -> None:
+        """Read the true states after the vehicles ``index`` were reset (their external wrenches
+        now, the others' unchanged) and hand the truth to a truth-fed estimator."""
         self.state = self.world.state()
-        self.wrench_true = self.external_loads(self.state, slice(None))
+        self.wrench_true[index] = self.external_loads(self.state.select(index), index)
         self._feed_truth()
 
     def equilibrium(self, index: int, position: np.ndarray, yaw: float) -> tuple[np.ndarray, np.ndarray]:

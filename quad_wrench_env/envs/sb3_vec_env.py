@@ -1,0 +1,98 @@
+"""stable-baselines3's ``VecEnv`` interface over a :class:`QuadWrenchVectorEnv`, so its algorithms
+train on N vehicles flown in one world directly:
+
+    venv = SB3VecEnv(gym.make_vec("QuadWrench/FanTracking-v0", num_envs=64,
+                                  vectorization_mode="vector_entry_point"))
+    PPO("MlpPolicy", VecMonitor(venv)).learn(1_000_000)
+
+Both restart an episode in the step that ends it; the adapter moves the ended episode's last
+observation to ``infos[i]["terminal_observation"]`` and marks time-outs with
+``"TimeLimit.truncated"``, as SB3 expects. Seeds set with ``seed()`` and options set with
+``set_options()`` apply at the next ``reset()``, vehicle ``i`` getting ``seed + i``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvIndices, VecEnvStepReturn
+
+from quad_wrench_env.envs.vector import QuadWrenchVectorEnv
+
+
+class SB3VecEnv(VecEnv):
+    """A :class:`QuadWrenchVectorEnv` seen through stable-baselines3's ``VecEnv`` interface."""
+
+    def __init__(self, venv: gym.vector.VectorEnv) -> None:
+        unwrapped = venv.unwrapped
+        if not isinstance(unwrapped, QuadWrenchVectorEnv):
+            raise ValueError(
+                f"SB3VecEnv wraps a QuadWrenchVectorEnv (gym.make_vec(..., vectorization_mode="
+                f"'vector_entry_point')), got {type(unwrapped).__name__}"
+            )
+        self.venv = unwrapped
+        super().__init__(
+            unwrapped.num_envs, unwrapped.single_observation_space, unwrapped.single_action_space
+        )
+        self._actions: np.ndarray | None = None
+
+    def reset(self) -> np.ndarray:
+        options = [opts or None for opts in self._options]
+        obs, info = self.venv.reset_vehicles(range(self.num_envs), self._seeds, options)
+        self.reset_infos = self._split(info, np.ones(self.num_envs, bool))
+        self._reset_seeds()
+        self._reset_options()
+        return obs
+
+    def step_async(self, actions: np.ndarray) -> None:
+        self._actions = np.asarray(actions)
+
+    def step_wait(self) -> VecEnvStepReturn:
+        obs, rewards, terminated, truncated, info = self.venv.step(self._actions)
+        dones = terminated | truncated
+        infos: list[dict[str, Any]] = [
+            {"TimeLimit.truncated": bool(truncated[i] and not terminated[i])} for i in range(self.num_envs)
+        ]
+        if np.any(dones):
+            final = self._split(info["final_info"], dones)
+            for i in np.flatnonzero(dones).tolist():
+                infos[i]["terminal_observation"] = info["final_obs"][i]
+                infos[i]["final_info"] = final[i]
+        return obs, rewards.astype(np.float32), dones, infos
+
+    def close(self) -> None:
+        self.venv.close()
+
+    # -- what SB3 asks of every VecEnv -------------------------------------------------------------
+    def get_attr(self, attr_name: str, indices: VecEnvIndices = None) -> list[Any]:
+        return [getattr(self.venv, attr_name)] * len(self._get_indices(indices))
+
+    def set_attr(self, attr_name: str, value: Any, indices: VecEnvIndices = None) -> None:
+        raise AttributeError(f"set_attr({attr_name!r}): the vehicles share one env object; set it there")
+
+    def env_method(
+        self, method_name: str, *method_args, indices: VecEnvIndices = None, **method_kwargs
+    ) -> list[Any]:
+        raise AttributeError(f"env_method({method_name!r}): the vehicles share one env object; call it there")
+
+    def env_is_wrapped(self, wrapper_class: type[gym.Wrapper], indices: VecEnvIndices = None) -> list[bool]:
+        return [False] * len(self._get_indices(indices))
+
+    def get_images(self) -> Sequence[np.ndarray | None]:
+        return [None] * self.num_envs
+
+    @staticmethod
+    def _split(info: dict[str, Any], mask: np.ndarray) -> list[dict[str, Any]]:
+        """Per-vehicle info dicts (entries whose ``_key`` mask is set) from a vector info."""
+        out: list[dict[str, Any]] = [{} for _ in mask]
+        for key, value in info.items():
+            if key.startswith("_"):
+                continue
+            present = info.get(f"_{key}", mask) & mask
+            rows = SB3VecEnv._split(value, present) if isinstance(value, dict) else value
+            for i in np.flatnonzero(present).tolist():
+                out[i][key] = rows[i]
+        return out

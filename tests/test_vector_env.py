@@ -1,0 +1,162 @@
+"""The batched env: every registered id has one, and vehicle i of it is exactly a single env seeded
+with ``seed + i``, across episode ends; the SB3 adapter trains on it."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+import pybullet as p
+import pytest
+from stable_baselines3 import PPO
+from stable_baselines3.common.vec_env import VecEnv, VecMonitor
+
+import quad_wrench_env
+from quad_wrench_env.envs.sb3_vec_env import SB3VecEnv
+from quad_wrench_env.envs.vector import QuadWrenchVectorEnv
+from tests.conftest import FAN_TRACKING
+
+# Short episodes and a low ceiling, so that within 70 steps episodes end both ways: vehicle 2
+# climbs out of the arena (terminated) and the others run out of time (truncated).
+SHORT = {"episode_seconds": 0.8, "arena": {"z_max": 1.1}}
+
+
+def _make_vec(num_envs: int, **kwargs) -> QuadWrenchVectorEnv:
+    return gym.make_vec(FAN_TRACKING, num_envs=num_envs, vectorization_mode="vector_entry_point", **kwargs)
+
+
+def _actions(steps: int, num_envs: int) -> np.ndarray:
+    actions = np.random.default_rng(0).uniform(-0.5, 0.5, (steps, num_envs, 4))
+    actions[:, 2, 2] = 1.0  # vehicle 2 climbs at full speed
+    return actions.astype(np.float32)
+
+
+@pytest.mark.parametrize("estimator", ["ukf", "oracle", "observer"])
+def test_vehicle_i_is_the_single_env_seeded_with_seed_plus_i(estimator):
+    num_envs, steps, seed = 3, 70, 11
+    settings = {"estimator": estimator, **SHORT}
+    actions = _actions(steps, num_envs)
+    venv = _make_vec(num_envs, **settings)
+    singles = [gym.make(FAN_TRACKING, **settings) for _ in range(num_envs)]
+    try:
+        obs, info = venv.reset(seed=seed)
+        for i, env in enumerate(singles):
+            single_obs, single_info = env.reset(seed=seed + i)
+            np.testing.assert_allclose(obs[i], single_obs, rtol=1e-6, atol=1e-7)
+            np.testing.assert_allclose(
+                info["wrench_true"][i], single_info["wrench_true"], rtol=1e-9, atol=1e-12
+            )
+        ended = {"terminated": 0, "truncated": 0}
+        for k in range(steps):
+            obs, rewards, terminated, truncated, info = venv.step(actions[k])
+            for i, env in enumerate(singles):
+                single_obs, reward, single_terminated, single_truncated, single_info = env.step(actions[k, i])
+                assert (terminated[i], truncated[i]) == (single_terminated, single_truncated)
+                assert rewards[i] == pytest.approx(reward, rel=1e-9, abs=1e-12)
+                if single_terminated or single_truncated:
+                    ended["terminated" if single_terminated else "truncated"] += 1
+                    np.testing.assert_allclose(info["final_obs"][i], single_obs, rtol=1e-6, atol=1e-7)
+                    final = info["final_info"]
+                    np.testing.assert_allclose(
+                        final["wrench_true"][i], single_info["wrench_true"], atol=1e-12
+                    )
+                    if single_terminated:
+                        assert final["termination_reason"][i] == single_info["termination_reason"]
+                    single_obs, single_info = env.reset()
+                np.testing.assert_allclose(obs[i], single_obs, rtol=1e-6, atol=1e-7)
+                np.testing.assert_allclose(
+                    info["wrench_true"][i], single_info["wrench_true"], rtol=1e-9, atol=1e-12
+                )
+                np.testing.assert_allclose(
+                    info["wrench_est"][i], single_info["wrench_est"], rtol=1e-9, atol=1e-12
+                )
+                np.testing.assert_allclose(
+                    info["position"][i], single_info["position"], rtol=1e-12, atol=1e-12
+                )
+        assert ended["terminated"] >= 1 and ended["truncated"] >= 2
+    finally:
+        venv.close()
+        for env in singles:
+            env.close()
+
+
+def test_every_registered_id_has_a_vector_entry_point():
+    for env_id in quad_wrench_env.ENV_IDS:
+        venv = gym.make_vec(env_id, num_envs=2, vectorization_mode="vector_entry_point")
+        try:
+            assert isinstance(venv.unwrapped, QuadWrenchVectorEnv)
+            obs, _ = venv.reset(seed=0)
+            assert obs.shape == (2, *venv.single_observation_space.shape) and obs.dtype == np.float32
+            obs, rewards, terminated, truncated, info = venv.step(venv.action_space.sample())
+            assert rewards.shape == (2,) and terminated.dtype == bool and truncated.dtype == bool
+            assert info["wrench_est"].shape == (2, 6) and info["_wrench_est"].all()
+        finally:
+            venv.close()
+
+
+def test_vehicles_in_one_world_do_not_touch():
+    """Two vehicles started at the same spot fly through each other as if each were alone."""
+    venv = _make_vec(2, estimator="oracle")
+    env = gym.make(FAN_TRACKING, estimator="oracle")
+    try:
+        venv.reset(seed=[5, 5], options={"offset_y": 0.0})
+        env.reset(seed=5, options={"offset_y": 0.0})
+        for _ in range(50):
+            action = np.array((0.3, -0.2, 0.1, 0.0), dtype=np.float32)
+            _, _, _, _, info = venv.step(np.stack((action, action)))
+            _, _, _, _, single = env.step(action)
+        np.testing.assert_array_equal(info["position"][0], info["position"][1])
+        np.testing.assert_allclose(info["position"][0], single["position"], atol=1e-12)
+    finally:
+        venv.close()
+        env.close()
+
+
+def test_bad_input_is_refused_by_name_and_close_is_idempotent():
+    with pytest.raises(ValueError, match="num_envs=0"):
+        _make_vec(0)
+    with pytest.raises(ValueError, match="render_mode='rgb_array'"):
+        _make_vec(2, render_mode="rgb_array")
+    venv = _make_vec(2)
+    with pytest.raises(RuntimeError, match="reset"):
+        venv.step(np.zeros((2, 4)))
+    venv.reset(seed=0)
+    with pytest.raises(ValueError, match="shape"):
+        venv.step(np.zeros(4))
+    with pytest.raises(ValueError, match="NaN"):
+        venv.step(np.full((2, 4), np.nan))
+    with pytest.raises(ValueError, match="'spin'"):
+        venv.reset(options={"spin": 1})
+    venv.close()
+    venv.close()
+    assert not any(p.isConnected(physicsClientId=i) for i in range(1024))
+
+
+def test_sb3_adapter_matches_the_vector_env_and_trains():
+    venv = SB3VecEnv(_make_vec(3, estimator="oracle", **SHORT))
+    reference = _make_vec(3, estimator="oracle", **SHORT)
+    try:
+        assert isinstance(venv, VecEnv)
+        venv.seed(4)
+        obs = venv.reset()
+        reference_obs, _ = reference.reset(seed=4)
+        np.testing.assert_array_equal(obs, reference_obs)
+        dones_seen = 0
+        for action in _actions(40, 3):
+            venv.step_async(action)
+            obs, rewards, dones, infos = venv.step_wait()
+            reference_obs, reference_rewards, terminated, truncated, info = reference.step(action)
+            np.testing.assert_array_equal(obs, reference_obs)
+            np.testing.assert_allclose(rewards, reference_rewards, rtol=1e-6)
+            for i in np.flatnonzero(dones):
+                dones_seen += 1
+                np.testing.assert_array_equal(infos[i]["terminal_observation"], info["final_obs"][i])
+                assert infos[i]["TimeLimit.truncated"] == bool(truncated[i] and not terminated[i])
+        assert dones_seen >= 3
+        model = PPO(
+            "MlpPolicy", VecMonitor(venv), n_steps=16, batch_size=24, n_epochs=1, seed=0, device="cpu"
+        )
+        model.learn(total_timesteps=96)
+        assert model.num_timesteps >= 96
+    finally:
+        venv.close()
+        reference.close()
