@@ -52,7 +52,7 @@ class SensorConfig:
 class MotionCapture:
     """Noisy, optionally delayed pose measurements of N vehicles.
 
-    The noise comes in as standard normal draws (:data:`NOISE_DRAWS` per vehicle and step, from
+    The noise comes in as standard normal draws (six per vehicle and step, from
     each vehicle's own generator), so that a batch of vehicles and the same vehicles flown one by
     one see the same noise.
     """
@@ -70,18 +70,24 @@ class MotionCapture:
         self._positions[:, index] = position
         self._quaternions[:, index] = quaternion
 
+    def delayed(self, positions: np.ndarray, quaternions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The true poses ``latency_steps`` physics steps ago, given the poses now (one call per step)."""
+        latency = self.config.latency_steps
+        if not latency:
+            return positions, quaternions
+        head = self._head
+        oldest = self._positions[head].copy(), self._quaternions[head].copy()
+        self._positions[head], self._quaternions[head] = positions, quaternions
+        self._head = (head + 1) % latency
+        return oldest
+
     def measure(
         self, positions: np.ndarray, quaternions: np.ndarray, normals: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray]:
         """Measured ``(positions (N, 3), quaternions (N, 4) [w, x, y, z])`` for the true poses now;
         ``normals`` (N, 6) standard normal draws."""
         cfg = self.config
-        if cfg.latency_steps:
-            head = self._head
-            oldest = self._positions[head].copy(), self._quaternions[head].copy()
-            self._positions[head], self._quaternions[head] = positions, quaternions
-            self._head = (head + 1) % cfg.latency_steps
-            positions, quaternions = oldest
+        positions, quaternions = self.delayed(positions, quaternions)
         measured_position = positions + cfg.position_noise * normals[:, :3]
         rotation_error = quat_exp(cfg.attitude_noise * normals[:, 3:6])
         measured = quat_multiply_rows(quaternions, rotation_error)

@@ -39,17 +39,27 @@ class RigidBodyState:
     """Angular velocity in the world frame (rad/s)."""
     rotation: np.ndarray
     """(N, 3, 3) body -> world rotation matrices."""
+    body_rates: np.ndarray
+    """(N, 3) angular velocity in the body frame (rad/s), paper 000's ``omega``."""
 
-    @property
-    def body_rates(self) -> np.ndarray:
-        """(N, 3) angular velocity in the body frame (rad/s), paper 000's ``omega``."""
-        return np.einsum("nji,nj->ni", self.rotation, self.angular_velocity)
+    @classmethod
+    def from_motion(
+        cls, position: np.ndarray, quaternion: np.ndarray, velocity: np.ndarray, angular_velocity: np.ndarray
+    ) -> RigidBodyState:
+        rotation = rotation_matrices(quaternion)
+        body_rates = np.einsum("nji,nj->ni", rotation, angular_velocity)
+        return cls(position, quaternion, velocity, angular_velocity, rotation, body_rates)
+
+    @classmethod
+    def from_pybullet(cls, raw: np.ndarray) -> RigidBodyState:
+        """States from (N, 13) rows ``[position, quaternion (x, y, z, w), velocity, angular velocity]``
+        as PyBullet reports them."""
+        return cls.from_motion(raw[:, 0:3], raw[:, [6, 3, 4, 5]], raw[:, 7:10], raw[:, 10:13])
 
     @classmethod
     def at_rest(cls, position: np.ndarray, quaternion: np.ndarray) -> RigidBodyState:
         """Bodies at rest at (N, 3) positions and (N, 4) attitudes."""
-        zeros = np.zeros_like(position)
-        return cls(position, quaternion, zeros, zeros, rotation_matrices(quaternion))
+        return cls.from_motion(position, quaternion, np.zeros_like(position), np.zeros_like(position))
 
     def select(self, index: np.ndarray | slice) -> RigidBodyState:
         """The states of the bodies ``index``."""
@@ -59,6 +69,7 @@ class RigidBodyState:
             self.velocity[index],
             self.angular_velocity[index],
             self.rotation[index],
+            self.body_rates[index],
         )
 
 
@@ -137,17 +148,21 @@ class World:
             p.resetBasePositionAndOrientation(body, position, orientation, physicsClientId=cid)
             p.resetBaseVelocity(body, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), physicsClientId=cid)
 
+    def read(self) -> np.ndarray:
+        """(N, 13) rows ``[position, quaternion (x, y, z, w), velocity, angular velocity]`` of the
+        vehicles, as PyBullet reports them."""
+        cid = self.client
+        pose, twist = p.getBasePositionAndOrientation, p.getBaseVelocity
+        flat: list[float] = []
+        for body in self.bodies:
+            position, orientation = pose(body, physicsClientId=cid)
+            linear, angular = twist(body, physicsClientId=cid)
+            flat += position + orientation + linear + angular
+        return np.array(flat).reshape(self.count, 13)
+
     def state(self) -> RigidBodyState:
         """The true states of all vehicles."""
-        cid = self.client
-        poses = [p.getBasePositionAndOrientation(body, physicsClientId=cid) for body in self.bodies]
-        velocities = [p.getBaseVelocity(body, physicsClientId=cid) for body in self.bodies]
-        pose = np.array([(*position, *orientation) for position, orientation in poses])
-        twist = np.array([(*linear, *angular) for linear, angular in velocities])
-        quaternion = pose[:, [6, 3, 4, 5]]
-        return RigidBodyState(
-            pose[:, :3], quaternion, twist[:, :3], twist[:, 3:], rotation_matrices(quaternion)
-        )
+        return RigidBodyState.from_pybullet(self.read())
 
     def set_velocity(self, index: int, velocity: np.ndarray, angular_velocity: np.ndarray) -> None:
         p.resetBaseVelocity(
@@ -159,11 +174,12 @@ class World:
         (N, 3) world-frame torques, then advance the simulation one step."""
         cid = self.client
         world_frame = p.WORLD_FRAME
+        apply_force, apply_torque = p.applyExternalForce, p.applyExternalTorque
         for body, force, torque, com in zip(
             self.bodies, forces.tolist(), torques.tolist(), centres_of_mass.tolist(), strict=True
         ):
-            p.applyExternalForce(body, -1, force, com, world_frame, physicsClientId=cid)
-            p.applyExternalTorque(body, -1, torque, world_frame, physicsClientId=cid)
+            apply_force(body, -1, force, com, world_frame, physicsClientId=cid)
+            apply_torque(body, -1, torque, world_frame, physicsClientId=cid)
         p.stepSimulation(physicsClientId=cid)
 
     def ground_contacts(self) -> np.ndarray:

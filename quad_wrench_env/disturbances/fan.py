@@ -18,6 +18,8 @@ from typing import Protocol
 import numpy as np
 
 from quad_wrench_env.config import check_numbers
+from quad_wrench_env.kernels import resolve_backend
+from quad_wrench_env.kernels.physics import jet_axis_y
 
 
 class FanMotion(Protocol):
@@ -26,6 +28,18 @@ class FanMotion(Protocol):
     def y(self, t: np.ndarray) -> np.ndarray:
         """Fan y (m) at times ``t`` (s, array); times before 0 give the start position."""
 
+    def table(self) -> np.ndarray:
+        """The motion as numbers for the compiled kernels, ``[y0, amplitude, frequency, K, starts
+        (K), positions (K), velocities (K)]``: for ``t' = max(t, 0)``, ``y = y0 + amplitude·sin(2π
+        frequency t') + positions[k] + velocities[k]·(t' - starts[k])`` with ``k`` the last start
+        ``<= t'`` (no such term when K = 0)."""
+
+
+def _table(y0: float = 0.0, amplitude: float = 0.0, frequency: float = 0.0, segments=()) -> np.ndarray:
+    columns = np.asarray(segments, dtype=float).reshape(-1, 3).T
+    starts, positions, velocities = columns
+    return np.concatenate(((y0, amplitude, frequency, len(starts)), starts, positions, velocities))
+
 
 @dataclass(frozen=True)
 class Static:
@@ -33,6 +47,9 @@ class Static:
 
     def y(self, t: np.ndarray) -> np.ndarray:
         return np.full(np.shape(t), self.y0)
+
+    def table(self) -> np.ndarray:
+        return _table(self.y0)
 
 
 @dataclass(frozen=True)
@@ -43,6 +60,9 @@ class ConstantSpeed:
     def y(self, t: np.ndarray) -> np.ndarray:
         return self.y0 + self.speed * np.maximum(t, 0.0)
 
+    def table(self) -> np.ndarray:
+        return _table(self.y0, segments=[(0.0, 0.0, self.speed)])
+
 
 @dataclass(frozen=True)
 class Sine:
@@ -52,6 +72,9 @@ class Sine:
 
     def y(self, t: np.ndarray) -> np.ndarray:
         return self.y0 + self.amplitude * np.sin(2.0 * math.pi * self.frequency * np.maximum(t, 0.0))
+
+    def table(self) -> np.ndarray:
+        return _table(self.y0, self.amplitude, self.frequency)
 
 
 @dataclass(frozen=True)
@@ -80,6 +103,10 @@ class PiecewiseVelocity:
         t = np.maximum(t, 0.0)
         k = np.searchsorted(self._starts, t, side="right") - 1  # type: ignore[attr-defined]
         return self._positions[k] + self._velocities[k] * (t - self._starts[k])  # type: ignore[attr-defined]
+
+    def table(self) -> np.ndarray:
+        rows = zip(self._starts, self._positions, self._velocities, strict=True)  # type: ignore[attr-defined]
+        return _table(segments=list(rows))
 
 
 MOTIONS: dict[str, type] = {
@@ -150,18 +177,21 @@ class FanJet:
     """The moving, turbulent jet of a fan, one copy per vehicle (each with its own fan motion and
     turbulence): a :class:`~quad_wrench_env.disturbances.base.WindField`."""
 
-    def __init__(self, config: FanConfig, count: int = 1) -> None:
+    def __init__(self, config: FanConfig, count: int = 1, backend: str = "numpy") -> None:
         self.config = config
         self.count = count
+        self._compiled = resolve_backend(backend) == "numba"
         self._u0 = config.outlet_speed
         self._core = config.centreline_constant * config.outlet_diameter
         """Length ``B·D`` of the potential core, where the centre-line speed is still ``U0``."""
         self._radius2 = (0.5 * config.outlet_diameter) ** 2
-        self._noise = np.zeros((count, 3))
-        self._started = np.zeros(count, dtype=bool)
+        self.noise = np.zeros((count, 3))
+        """(N, 3) unit-variance Ornstein-Uhlenbeck state of each vehicle's turbulence."""
         self._motions: list[FanMotion] = [config.make_motion(config.motion)] * count
         self._group_motions: list[FanMotion] = []
         self._group_of = np.zeros(count, dtype=int)
+        self.motion_tables = np.zeros((count, 0))
+        """(N, W) :meth:`FanMotion.table` of each vehicle's fan, zero-padded (for the kernels)."""
         self._regroup()
 
     # -- per-vehicle motions ---------------------------------------------------------------------
@@ -179,6 +209,10 @@ class FanJet:
             if motion not in self._group_motions:
                 self._group_motions.append(motion)
             self._group_of[i] = self._group_motions.index(motion)
+        tables = [motion.table() for motion in self._group_motions]
+        width = max(len(t) for t in tables)
+        padded = np.array([np.pad(t, (0, width - len(t))) for t in tables])
+        self.motion_tables = padded[self._group_of]
 
     def _y(self, t: np.ndarray, index: np.ndarray | slice) -> np.ndarray:
         """Fan y at times ``t`` (n, ...) of the vehicles ``index``."""
@@ -194,8 +228,7 @@ class FanJet:
 
     # -- the field --------------------------------------------------------------------------------
     def reset(self, index: int, rng: np.random.Generator) -> None:
-        self._noise[index] = rng.standard_normal(3)  # the stationary distribution of the OU process
-        self._started[index] = True
+        self.noise[index] = rng.standard_normal(3)  # the stationary distribution of the OU process
 
     def centreline_speed(self, x: np.ndarray) -> np.ndarray:
         return self._u0 * np.minimum(1.0, self._core / np.maximum(x, 1e-9))
@@ -214,6 +247,8 @@ class FanJet:
         """y of the jet axis at distances ``x`` (n, ...) from the fans of vehicles ``index`` at their
         times ``t`` (broadcast against ``x``): each fan's retarded y."""
         x = np.asarray(x, dtype=float)
+        if self._compiled and x.shape == (self.count,) and isinstance(index, slice) and index == slice(None):
+            return jet_axis_y(x, np.broadcast_to(t, x.shape), self.motion_tables, self._u0, self._core)
         return self._y(np.broadcast_to(t, x.shape) - self.transit_time(x), index)
 
     def fan_y(self, t: np.ndarray, index: np.ndarray | slice = slice(None)) -> np.ndarray:
@@ -225,8 +260,7 @@ class FanJet:
             return
         x = np.maximum(positions[:, 0], 1e-3)
         decay = np.exp(-dt * self.centreline_speed(x) / self.half_width(x))
-        advanced = decay[:, None] * self._noise + np.sqrt(1.0 - decay * decay)[:, None] * normals
-        self._noise = np.where(self._started[:, None], advanced, self._noise)
+        self.noise[:] = decay[:, None] * self.noise + np.sqrt(1.0 - decay * decay)[:, None] * normals
 
     def velocity_at(
         self, points: np.ndarray, t: np.ndarray, index: np.ndarray | slice, mean: bool = False
@@ -239,6 +273,6 @@ class FanJet:
         speed = np.where(x > 0.0, u_c * np.exp(-(dy * dy + dz * dz) / (b * b)), 0.0)
         if mean:
             return speed[..., None] * np.array((1.0, 0.0, 0.0))
-        direction = self.config.turbulence_intensity * self._noise[index]
+        direction = self.config.turbulence_intensity * self.noise[index]
         direction[:, 0] += 1.0
         return speed[..., None] * direction[:, None, :]

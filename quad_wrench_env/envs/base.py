@@ -84,13 +84,13 @@ def clip_actions(action: Any, shape: tuple[int, ...]) -> np.ndarray:
     """Actions as floats of ``shape`` (a flat action of the right size is accepted for one vehicle),
     clipped to [-1, 1]; other shapes and non-finite values are refused."""
     a = np.asarray(action, dtype=float)
-    if len(shape) == 1:
+    if len(shape) == 1 and a.ndim != 1:
         a = a.reshape(-1)
     if a.shape != shape:
         raise ValueError(f"action {action!r} must have shape {shape}, got {a.shape}")
-    if not np.all(np.isfinite(a)):
+    if not np.isfinite(a).all():
         raise ValueError(f"action {action!r} contains NaN or infinity; allowed: finite values in [-1, 1]")
-    return np.clip(a, -1.0, 1.0)
+    return np.minimum(np.maximum(a, -1.0), 1.0)
 
 
 def info_entries(fleet: Fleet, task: Task) -> dict[str, Any]:

@@ -9,6 +9,7 @@ from typing import Any
 from quad_wrench_env.disturbances.payload import PayloadConfig
 from quad_wrench_env.disturbances.wrench_profile import validate_segments
 from quad_wrench_env.envs.actions import ActionLimits
+from quad_wrench_env.kernels import resolve_backend
 from quad_wrench_env.sensors import SensorConfig
 
 
@@ -52,6 +53,9 @@ class EnvConfig:
     arena: ArenaConfig = field(default_factory=ArenaConfig)
     crash_height: float = 0.1
     flip_tilt_deg: float = 90.0
+    backend: str = "auto"
+    """Per-step arithmetic: ``"numpy"`` (the reference), ``"numba"`` (compiled kernels, the same
+    numbers to rounding) or ``"auto"`` (numba when installed)."""
 
     def __post_init__(self) -> None:
         for name in ("physics_hz", "policy_hz"):
@@ -65,5 +69,6 @@ class EnvConfig:
         if not (0.0 <= self.kf_spread < 0.5):
             raise ValueError(f"kf_spread={self.kf_spread!r} must be in [0, 0.5)")
         validate_segments(self.external_wrench)
+        resolve_backend(self.backend)
         if not (0.0 < self.flip_tilt_deg <= 180.0):
             raise ValueError(f"flip_tilt_deg={self.flip_tilt_deg!r} must be in (0, 180]")

@@ -89,8 +89,9 @@ class FanTracking:
             )
         self.cfg = cfg
         self.vehicle = vehicle
-        self.fan = FanJet(cfg.fan, count)
+        self.fan = FanJet(cfg.fan, count, cfg.backend)
         self._default_motion = self.fan.motion(0)
+        self._axis_errors: tuple[int, np.ndarray, np.ndarray] = (-1, np.zeros(count), np.zeros(count))
 
     def wind_fields(self) -> list[WindField]:
         return [self.fan] if self.cfg.fan.enabled else []
@@ -128,9 +129,14 @@ class FanTracking:
         return np.array((cfg.start_distance, start_y, cfg.fan.height)), math.pi
 
     def axis_errors(self, fleet: Fleet) -> tuple[np.ndarray, np.ndarray]:
-        """(N,) signed ``y - jet axis y`` at each vehicle's x, and ``z - fan height``."""
-        x, y, z = fleet.state.position.T
-        return y - self.fan.axis_y(x, fleet.time), z - self.cfg.fan.height
+        """(N,) signed ``y - jet axis y`` at each vehicle's x, and ``z - fan height`` (computed once
+        per state of the fleet)."""
+        revision, dy, dz = self._axis_errors
+        if revision != fleet.revision:
+            x, y, z = fleet.state.position.T
+            dy, dz = y - self.fan.axis_y(x, fleet.time), z - self.cfg.fan.height
+            self._axis_errors = (fleet.revision, dy, dz)
+        return dy, dz
 
     def reward_terms(self, fleet: Fleet, actions: np.ndarray, ended: np.ndarray) -> dict[str, np.ndarray]:
         r = self.cfg.reward

@@ -20,9 +20,11 @@ from quad_wrench_env.disturbances.drag import QuadraticDrag
 from quad_wrench_env.disturbances.payload import Payload
 from quad_wrench_env.disturbances.wrench_profile import WrenchProfile
 from quad_wrench_env.envs.actions import ActionMap
+from quad_wrench_env.envs.compiled_step import CompiledStep, supports
 from quad_wrench_env.envs.config import EnvConfig
 from quad_wrench_env.envs.noise import NoiseBlocks
 from quad_wrench_env.estimators import OracleBank, make_estimator_bank
+from quad_wrench_env.kernels import resolve_backend
 from quad_wrench_env.rotations import cross, quat_from_matrix
 from quad_wrench_env.rotors import Rotors
 from quad_wrench_env.sensors import MotionCapture, MotorSpeedSensor
@@ -60,10 +62,16 @@ class Fleet:
         if sensors.state_estimator:
             measured += [("velocity", sensors.velocity_noise), ("body_rate", sensors.body_rate_noise)]
         measurement_noise = {key: value for key, value in measured if value > 0}
+        self.backend = resolve_backend(cfg.backend)
         self.estimator = make_estimator_bank(
-            cfg.estimator, vehicle, dt, count, **{**measurement_noise, **cfg.estimator_params}
+            cfg.estimator,
+            vehicle,
+            dt,
+            count,
+            backend=self.backend,
+            **{**measurement_noise, **cfg.estimator_params},
         )
-        self._truth_fed = isinstance(self.estimator, OracleBank)
+        self.truth_fed = isinstance(self.estimator, OracleBank)
         self.mocap = MotionCapture(sensors, count)
         self.motor_sensor = MotorSpeedSensor(vehicle.max_rotor_speed, sensors.motor_speed_bits)
         self.point_loads = [Payload(cfg.payload), WrenchProfile(cfg.external_wrench)]
@@ -80,6 +88,9 @@ class Fleet:
         self.time = np.zeros(count)
         self.state: RigidBodyState | None = None
         self.wrench_true = np.zeros((count, 6))
+        self._compiled = CompiledStep(self) if self.backend == "numba" and supports(self) else None
+        self.revision = 0
+        """Counts the changes of the fleet's state (steps and resets): a key for what tasks cache."""
 
     # -- episodes ----------------------------------------------------------------------------------
     def reset_vehicle(self, index: int, rng: np.random.Generator, position: np.ndarray, yaw: float) -> None:
@@ -106,6 +117,7 @@ class Fleet:
         self.state = self.world.state()
         self.wrench_true[index] = self.external_loads(self.state.select(index), index)
         self._feed_truth()
+        self.revision += 1
 
     def equilibrium(self, index: int, position: np.ndarray, yaw: float) -> tuple[np.ndarray, np.ndarray]:
         """Attitude and true rotor speeds that hold vehicle ``index`` at rest at ``position`` with
@@ -129,8 +141,10 @@ class Fleet:
     # -- one physics step --------------------------------------------------------------------------
     def step(self, actions: np.ndarray) -> None:
         """One policy step: ``substeps`` physics steps with (N, 4) clipped normalised actions."""
+        step = self._physics_step if self._compiled is None else self._compiled.physics_step
         for _ in range(self.substeps):
-            self._physics_step(actions)
+            step(actions)
+        self.revision += 1
 
     def _physics_step(self, actions: np.ndarray) -> None:
         state = self.state
@@ -182,7 +196,7 @@ class Fleet:
         return np.concatenate((force, torque), axis=1)
 
     def _feed_truth(self) -> None:
-        if self._truth_fed:
+        if self.truth_fed:
             s = self.state
             truth = np.concatenate((s.position, s.velocity, s.quaternion, s.body_rates), axis=1)
             self.estimator.observe_truth(truth, self.wrench_true)
@@ -201,13 +215,14 @@ class Fleet:
         """(N,) codes into :data:`TERMINATION_REASONS`: crash (below ``crash_height`` or touching the
         ground), flip (tilt beyond ``flip_tilt_deg``), out_of_arena; 0 while the episode goes on."""
         s, cfg, arena = self.state, self.cfg, self.cfg.arena
-        x, y, z = s.position.T
-        crash = (z < cfg.crash_height) | self.world.ground_contacts()
-        flip = s.rotation[:, 2, 2] < self._flip_cos
-        inside = (
-            (arena.x_min <= x) & (x <= arena.x_max) & (np.abs(y) <= arena.y_half_width) & (z <= arena.z_max)
-        )
-        return np.select((crash, flip, ~inside), (1, 2, 3), 0)
+        x, y, z = s.position[:, 0], s.position[:, 1], s.position[:, 2]
+        codes = np.zeros(self.count, dtype=int)
+        codes[
+            (x < arena.x_min) | (x > arena.x_max) | (np.abs(y) > arena.y_half_width) | (z > arena.z_max)
+        ] = 3
+        codes[s.rotation[:, 2, 2] < self._flip_cos] = 2
+        codes[(z < cfg.crash_height) | self.world.ground_contacts()] = 1
+        return codes
 
     def close(self) -> None:
         self.world.close()

@@ -75,14 +75,15 @@ def make_estimator(name: str, vehicle: VehicleParams, dt: float, **noise: Any) -
 
 
 def make_estimator_bank(
-    name: str, vehicle: VehicleParams, dt: float, count: int, **noise: Any
+    name: str, vehicle: VehicleParams, dt: float, count: int, backend: str = "numpy", **noise: Any
 ) -> EstimatorBank:
-    """``count`` estimators called ``name`` (settings as :func:`make_estimator`), stepped together."""
+    """``count`` estimators called ``name`` (settings as :func:`make_estimator`), stepped together;
+    ``backend`` picks the UKF's arithmetic (see :mod:`quad_wrench_env.kernels`)."""
     _check(name, dt, noise)
     if not (isinstance(count, int) and count >= 1):
         raise ValueError(f"count={count!r} must be an integer >= 1")
     if name == "ukf":
-        return UnscentedFilterBank(vehicle, dt, _ukf_noise(noise), count)
+        return UnscentedFilterBank(vehicle, dt, _ukf_noise(noise), count, backend)
     if name == "oracle":
         return OracleBank(count)
     return EstimatorArray([FACTORIES[name](vehicle, dt, **noise) for _ in range(count)])

@@ -105,14 +105,16 @@ class EstimatorArray:
         self.estimators[index].reset(position, quaternion_wxyz)
 
     def step(self, thrusts, body_torques, positions, quaternions, velocities=None, body_rates=None) -> None:
+        """Each estimator gets its own copies of its rows (an estimator may keep its inputs, and a
+        caller may reuse its buffers)."""
         for i, estimator in enumerate(self.estimators):
             estimator.step(
                 float(thrusts[i]),
-                body_torques[i],
-                positions[i],
-                quaternions[i],
-                None if velocities is None else velocities[i],
-                None if body_rates is None else body_rates[i],
+                body_torques[i].copy(),
+                positions[i].copy(),
+                quaternions[i].copy(),
+                None if velocities is None else velocities[i].copy(),
+                None if body_rates is None else body_rates[i].copy(),
             )
 
     def wrenches(self) -> np.ndarray:

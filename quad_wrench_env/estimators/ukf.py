@@ -54,6 +54,8 @@ import numpy as np
 from quad_wrench_env.estimators.bank import check_finite_batch
 from quad_wrench_env.estimators.base import StateEstimate, WrenchEstimate
 from quad_wrench_env.estimators.noise import FilterNoise, mrp_std
+from quad_wrench_env.kernels import resolve_backend
+from quad_wrench_env.kernels.ukf import ukf_bank_step
 from quad_wrench_env.rotations import (
     cross,
     mrp_from_quat,
@@ -81,9 +83,12 @@ class UnscentedFilterBank:
     ``covariances`` (N, 18, 18) of the error state.
     """
 
-    def __init__(self, vehicle: VehicleParams, dt: float, noise: FilterNoise | None, count: int) -> None:
+    def __init__(
+        self, vehicle: VehicleParams, dt: float, noise: FilterNoise | None, count: int, backend: str = "numpy"
+    ) -> None:
         if count < 1:
             raise ValueError(f"count={count!r} must be at least 1 filter")
+        self.backend = resolve_backend(backend)
         self.vehicle = vehicle
         self.dt = dt
         self.noise = noise or FilterNoise()
@@ -110,6 +115,7 @@ class UnscentedFilterBank:
         self._B[TORQUE, 3:6] = np.eye(3)
         self._B[FORCE, 9:12] = np.eye(3)
         self._q_diagonal = np.diag(self.Q).copy()
+        self._g_diagonal = np.diag(self.G).copy()
         self.quaternions = np.tile((1.0, 0.0, 0.0, 0.0), (count, 1))
         self.rests = np.zeros((count, STATE_DIM - 3))
         self.covariances = np.tile(self.P0, (count, 1, 1))
@@ -142,6 +148,24 @@ class UnscentedFilterBank:
         """Predict with (N,) thrusts and (N, 3) body torques, correct with (N, 3) positions and (N, 4)
         quaternions; restart any filter whose state became non-finite. Paper 000's filter measures
         nothing else: ``velocities`` and ``body_rates`` are not used."""
+        if self.backend == "numba":
+            if not ukf_bank_step(
+                self.quaternions, self.rests, self.covariances, self.reinitialisations,
+                thrusts, body_torques, positions, quaternions,
+                self.dt, self.mass, self.inertia, GRAVITY, self.spread, self.mean_weights,
+                self._q_diagonal, self._g_diagonal, self.P0, self._B,
+            ):  # fmt: skip
+                self._refuse_non_finite(thrusts, body_torques, positions, quaternions)
+            return
+        self._refuse_non_finite(thrusts, body_torques, positions, quaternions)
+        self.predict(thrusts, body_torques)
+        self.correct(positions, quaternions)
+        broken = ~(np.isfinite(self.rests).all(axis=1) & np.isfinite(self.covariances).all(axis=(1, 2)))
+        if np.any(broken):
+            self._restart(broken, positions[broken], quaternions[broken])
+            self.reinitialisations[broken] += 1
+
+    def _refuse_non_finite(self, thrusts, body_torques, positions, quaternions) -> None:
         check_finite_batch(
             self.name,
             thrusts=thrusts,
@@ -149,12 +173,6 @@ class UnscentedFilterBank:
             positions=positions,
             quaternions=quaternions,
         )
-        self.predict(thrusts, body_torques)
-        self.correct(positions, quaternions)
-        broken = ~(np.isfinite(self.rests).all(axis=1) & np.isfinite(self.covariances).all(axis=(1, 2)))
-        if np.any(broken):
-            self._restart(broken, positions[broken], quaternions[broken])
-            self.reinitialisations[broken] += 1
 
     def wrenches(self) -> np.ndarray:
         """(N, 6) estimated ``[f_e, τ_e]``, world frame."""

@@ -1,0 +1,149 @@
+"""A fleet's physics step on the compiled kernels (:mod:`quad_wrench_env.kernels.physics`).
+
+The numbers the kernels need are packed here once from the fleet's own components, so the kernels
+read exactly the parameters the numpy reference uses; the state they update in place (autopilot
+integrators, motor speeds, turbulence) is the components' own arrays, so both paths can be mixed
+and compared at any step.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from quad_wrench_env.disturbances.fan import FanJet
+from quad_wrench_env.envs.actions import ACTION_TYPES
+from quad_wrench_env.kernels.physics import after_world_step, before_world_step
+from quad_wrench_env.vehicle import GRAVITY
+from quad_wrench_env.world import RigidBodyState
+
+if TYPE_CHECKING:
+    from quad_wrench_env.envs.fleet import Fleet
+
+
+def supports(fleet: Fleet) -> bool:
+    """Whether the kernels cover this fleet: its wind fields (a fan jet or none) and sensors (no
+    motion-capture latency)."""
+    winds = fleet.wind_fields
+    return (
+        len(winds) <= 1 and all(isinstance(w, FanJet) for w in winds) and not fleet.cfg.sensors.latency_steps
+    )
+
+
+class CompiledStep:
+    """Packs a fleet's parameters for the kernels and runs its physics steps on them."""
+
+    def __init__(self, fleet: Fleet) -> None:
+        self.fleet = fleet
+        v, ap, g = fleet.vehicle, fleet.autopilot, fleet.autopilot.gains
+        actions, rotors = fleet.actions, fleet.rotors
+        self.action_type = ACTION_TYPES.index(actions.action_type)
+        self.autopilot = np.concatenate(
+            (
+                ap._velocity_p, ap._velocity_i, (g.setpoint_weight, math.tan(g.max_tilt)),
+                ap._attitude_p, (g.max_rate, g.max_yaw_error, g.rate_p, g.rate_i, v.mass, GRAVITY, fleet.dt),
+                (ap._w2_min, ap._w2_max), ap._inertia,
+            )
+        )  # fmt: skip
+        self.scales = np.concatenate(
+            (
+                actions._velocity_scale,
+                (actions._yaw_rate_scale, actions._tilt_scale, actions._hover_thrust),
+                actions._torque_scale, (actions._max_speed,),
+            )
+        )  # fmt: skip
+        self.inverse = ap.mixer.inverse.copy()
+        self.nominal_allocation = ap.mixer.allocation.copy()
+        self.motors = np.array(
+            (
+                rotors._alpha_up, rotors._alpha_down, v.min_rotor_speed, v.max_rotor_speed,
+                rotors._drag_coefficient, fleet.drag._coefficient,
+            )
+        )  # fmt: skip
+        self.fan: FanJet | None = fleet.wind_fields[0] if fleet.wind_fields else None
+        if self.fan is not None:
+            c = self.fan.config
+            self.fan_parameters = np.array(
+                (
+                    1.0,
+                    c.outlet_speed,
+                    self.fan._core,
+                    self.fan._radius2,
+                    c.spread,
+                    c.height,
+                    c.turbulence_intensity,
+                )
+            )
+        else:
+            self.fan_parameters = np.zeros(7)
+        payload, profile = fleet.point_loads
+        p = payload.config
+        self.payload = np.array((p.mass, *p.point, -p.mass * GRAVITY, p.attach_time, p.release_time))
+        self.segments = profile.segments
+        sensors = fleet.cfg.sensors
+        motor_sensor = fleet.motor_sensor
+        self.sensing = np.array(
+            (
+                motor_sensor._levels, motor_sensor._step, sensors.position_noise, sensors.attitude_noise,
+                sensors.velocity_noise, sensors.body_rate_noise,
+            )
+        )  # fmt: skip
+        count = fleet.count
+        self.forces, self.torques, self.loads = (
+            np.zeros((count, 3)),
+            np.zeros((count, 3)),
+            np.zeros((count, 6)),
+        )
+        self.thrusts, self.body_torques = np.zeros(count), np.zeros((count, 3))
+        self.measured = np.zeros((count, 7))
+        self.motion = np.zeros((count, 6) if sensors.state_estimator else (0, 6))
+        self.truth = np.zeros((count, 13))
+        self.normals = np.zeros((count, fleet.noise.buffer.shape[2]))
+        self.state = RigidBodyState.at_rest(np.zeros((count, 3)), np.tile((1.0, 0.0, 0.0, 0.0), (count, 1)))
+        self._fan_noise = np.zeros((count, 3)) if self.fan is None else self.fan.noise
+        self._motion_tables = np.zeros((count, 4)) if self.fan is None else self.fan.motion_tables
+
+    def _adopt(self) -> None:
+        """Take over the state the fleet read after a reset (into the kernels' own arrays)."""
+        fleet, mine = self.fleet, self.state
+        for name in ("position", "quaternion", "velocity", "angular_velocity", "rotation", "body_rates"):
+            getattr(mine, name)[:] = getattr(fleet.state, name)
+        self.loads[:] = fleet.wrench_true
+        fleet.state, fleet.wrench_true = mine, self.loads
+        if self.fan is not None:
+            self._motion_tables = self.fan.motion_tables
+
+    def physics_step(self, actions: np.ndarray) -> None:
+        fleet, s = self.fleet, self.state
+        if fleet.state is not s:
+            self._adopt()
+        ap = fleet.autopilot
+        before_world_step(
+            self.action_type, actions, s.position, s.velocity, s.angular_velocity, s.rotation, fleet.time,
+            ap.yaw_setpoint, ap._velocity_integral, ap._rate_integral, ap.saturated,
+            fleet.rotors.speeds, fleet.rotors.allocations, self.autopilot, self.scales, self.inverse,
+            self.motors, fleet.drag_points, self.fan_parameters, self._fan_noise, self._motion_tables,
+            self.payload, self.segments, self.forces, self.torques, self.loads,
+        )  # fmt: skip
+        fleet.world.step(self.forces, self.torques, s.position)
+        noise = fleet.noise
+        noise.ready()
+        after_world_step(
+            fleet.world.read(), s.position, s.quaternion, s.velocity, s.angular_velocity, s.rotation,
+            s.body_rates, fleet.time, fleet.dt, noise.buffer, noise.cursor, self.normals,
+            self.fan_parameters, self._fan_noise, fleet.rotors.speeds, self.sensing, self.nominal_allocation,
+            self.thrusts, self.body_torques, self.measured, self.motion, self.truth,
+        )  # fmt: skip
+        estimator = fleet.estimator
+        if fleet.truth_fed:
+            estimator.observe_truth(self.truth, self.loads)
+        motion = self.motion
+        if len(motion):
+            estimator.step(
+                self.thrusts, self.body_torques, self.measured[:, :3], self.measured[:, 3:],
+                motion[:, :3], motion[:, 3:],
+            )  # fmt: skip
+        else:
+            estimator.step(self.thrusts, self.body_torques, self.measured[:, :3], self.measured[:, 3:])

@@ -1,0 +1,43 @@
+"""Compiled (numba) forms of the per-step hot paths, optional.
+
+The numpy code is the reference and always available; with numba installed (``pip install
+"quad-wrench-env[fast]"``) the envs run these kernels instead (config ``backend``: ``"auto"`` picks
+numba when it imports, ``"numpy"`` forces the reference, ``"numba"`` requires it). Each kernel loops
+over the vehicles (or filters) of a batch and repeats the reference's arithmetic step by step; the
+tests run both paths and compare them. Compiled code is cached on disk (numba's ``cache=True``), so
+the compile cost (seconds) is paid once per machine, not per env.
+"""
+
+from __future__ import annotations
+
+import os
+
+BACKENDS = ("auto", "numpy", "numba")
+
+try:  # numba is optional: the numpy reference runs without it
+    import numba as _numba
+except ImportError:  # pragma: no cover - exercised where numba is absent
+    _numba = None
+
+NUMBA_AVAILABLE = _numba is not None and os.environ.get("QUAD_WRENCH_DISABLE_NUMBA", "") != "1"
+
+
+def resolve_backend(backend: str) -> str:
+    """``"numpy"`` or ``"numba"`` for a configured backend; bad names and a missing numba are refused."""
+    if backend not in BACKENDS:
+        raise ValueError(f"backend={backend!r} is unknown; allowed: {list(BACKENDS)}")
+    if backend == "auto":
+        return "numba" if NUMBA_AVAILABLE else "numpy"
+    if backend == "numba" and not NUMBA_AVAILABLE:
+        raise ValueError(
+            "backend='numba' needs numba (pip install 'quad-wrench-env[fast]'); "
+            "allowed without it: 'numpy', 'auto'"
+        )
+    return backend
+
+
+def njit(function):
+    """``numba.njit(cache=True)``, or the function unchanged without numba."""
+    if _numba is None:
+        return function
+    return _numba.njit(cache=True, error_model="numpy")(function)

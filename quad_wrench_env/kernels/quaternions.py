@@ -1,0 +1,60 @@
+"""Scalar quaternion helpers for the kernels (Hamilton ``[w, x, y, z]``, as in
+:mod:`quad_wrench_env.rotations`)."""
+
+from __future__ import annotations
+
+import math
+
+from quad_wrench_env.kernels import njit
+
+
+@njit
+def qmul(aw, ax, ay, az, bw, bx, by, bz):
+    """``a ⊗ b``."""
+    return (
+        aw * bw - ax * bx - ay * by - az * bz,
+        aw * bx + ax * bw + ay * bz - az * by,
+        aw * by - ax * bz + ay * bw + az * bx,
+        aw * bz + ax * by - ay * bx + az * bw,
+    )
+
+
+@njit
+def from_mrp(r0, r1, r2):
+    """Quaternion of MRPs (``rotations.quat_from_mrp``)."""
+    n2 = r0 * r0 + r1 * r1 + r2 * r2
+    w = (1.0 - n2) / (1.0 + n2)
+    return w, r0 * (1.0 + w), r1 * (1.0 + w), r2 * (1.0 + w)
+
+
+@njit
+def to_mrp(w, x, y, z):
+    """MRPs of a unit quaternion, ``w >= 0`` first (``rotations.mrp_from_quat``)."""
+    scale = math.copysign(1.0, w) / (1.0 + abs(w))
+    return x * scale, y * scale, z * scale
+
+
+@njit
+def exp(v0, v1, v2):
+    """Quaternion of the rotation vector ``v`` (``rotations.quat_exp``)."""
+    angle = math.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
+    half = 0.5 * angle
+    scale = 0.5 if half == 0.0 else 0.5 * math.sin(half) / half
+    return math.cos(half), v0 * scale, v1 * scale, v2 * scale
+
+
+@njit
+def matrix(w, x, y, z, out):
+    """Body -> world rotation matrix into ``out`` (3, 3) (``rotations.rotation_matrix``)."""
+    xx, yy, zz = x * x, y * y, z * z
+    xy, xz, yz = x * y, x * z, y * z
+    wx, wy, wz = w * x, w * y, w * z
+    out[0, 0] = 1.0 - 2.0 * (yy + zz)
+    out[0, 1] = 2.0 * (xy - wz)
+    out[0, 2] = 2.0 * (xz + wy)
+    out[1, 0] = 2.0 * (xy + wz)
+    out[1, 1] = 1.0 - 2.0 * (xx + zz)
+    out[1, 2] = 2.0 * (yz - wx)
+    out[2, 0] = 2.0 * (xz - wy)
+    out[2, 1] = 2.0 * (yz + wx)
+    out[2, 2] = 1.0 - 2.0 * (xx + yy)

@@ -1,0 +1,84 @@
+"""The compiled kernels against the numpy reference: the same flights to rounding, feature by feature."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+from quad_wrench_env.estimators.ukf import UnscentedFilterBank
+from quad_wrench_env.kernels import NUMBA_AVAILABLE, resolve_backend
+from quad_wrench_env.rotations import quat_exp, quat_multiply_rows
+from quad_wrench_env.vehicle import GRAVITY, make_vehicle
+from tests.conftest import FAN_TRACKING
+
+needs_numba = pytest.mark.skipif(not NUMBA_AVAILABLE, reason="numba is not installed")
+
+CASES = {
+    "velocity, ukf": {},
+    "attitude, oracle": {"action_type": "attitude", "estimator": "oracle"},
+    "wrench, piecewise fan": {"action_type": "wrench", "fan": {"motion": "piecewise"}},
+    "motors, no fan": {"action_type": "motors", "fan": {"enabled": False}, "estimator": "oracle"},
+    "payload and scheduled wrench": {
+        "fan": {"motion": "constant_speed"},
+        "payload": {"mass": 0.05, "point": [0.1, 0.1, 0.0], "attach_time": 0.2, "release_time": 0.6},
+        "external_wrench": [[0.1, 0.5, 0.2, 0.0, -0.3, 0.0, 0.01, 0.02]],
+    },
+    "state estimator, ekf": {"estimator": "ekf", "sensors": {"state_estimator": True}},
+    "crazyflie, observer": {"vehicle": "crazyflie2", "estimator": "observer"},
+}
+
+
+@needs_numba
+@pytest.mark.parametrize("case", sorted(CASES))
+def test_compiled_flight_equals_the_numpy_reference(case):
+    """100 policy steps of random actions (2 s): observations agree to float32 rounding, the true
+    wrench to 1e-9 N (the two sum in different orders; nothing else differs)."""
+    envs = {b: gym.make(FAN_TRACKING, backend=b, **CASES[case]) for b in ("numpy", "numba")}
+    try:
+        assert envs["numba"].unwrapped.fleet._compiled is not None
+        first = {b: env.reset(seed=3) for b, env in envs.items()}
+        np.testing.assert_array_equal(first["numpy"][0], first["numba"][0])
+        actions = np.random.default_rng(3).uniform(-0.6, 0.6, (100, 4))
+        for action in actions:
+            (a, ra, ta, ua, ia), (b, rb, tb, ub, ib) = (env.step(action) for env in envs.values())
+            np.testing.assert_allclose(a, b, rtol=1e-5, atol=1e-6)
+            np.testing.assert_allclose(ia["wrench_true"], ib["wrench_true"], rtol=1e-7, atol=1e-9)
+            assert ra == pytest.approx(rb, rel=1e-7, abs=1e-9) and (ta, ua) == (tb, ub)
+            if ta or ua:
+                break
+    finally:
+        for env in envs.values():
+            env.close()
+
+
+@needs_numba
+@pytest.mark.parametrize("count", [1, 5])
+def test_compiled_ukf_bank_equals_the_numpy_bank(count):
+    """400 steps of noisy poses at random attitudes and inputs: means and covariances agree to 1e-10."""
+    vehicle = make_vehicle("ardrone2")
+    banks = [UnscentedFilterBank(vehicle, 0.005, None, count, backend=b) for b in ("numpy", "numba")]
+    rng = np.random.default_rng(0)
+    positions, quaternions = rng.normal(size=(count, 3)), quat_exp(rng.normal(size=(count, 3)))
+    for bank in banks:
+        bank.reset(slice(None), positions, quaternions)
+    thrusts, torques = np.full(count, vehicle.mass * GRAVITY + 0.1), 1e-3 * rng.normal(size=(count, 3))
+    for _ in range(400):
+        measured_p = positions + 1e-3 * rng.normal(size=(count, 3))
+        measured_q = quat_multiply_rows(quaternions, quat_exp(2e-3 * rng.normal(size=(count, 3))))
+        for bank in banks:
+            bank.step(thrusts, torques, measured_p, measured_q)
+    reference, compiled = banks
+    np.testing.assert_allclose(compiled.rests, reference.rests, atol=1e-10)
+    np.testing.assert_allclose(compiled.quaternions, reference.quaternions, atol=1e-12)
+    np.testing.assert_allclose(compiled.covariances, reference.covariances, atol=1e-14)
+    with pytest.raises(ValueError, match="non-finite"):
+        compiled.step(thrusts * np.nan, torques, measured_p, measured_q)
+
+
+def test_backend_names_are_checked():
+    with pytest.raises(ValueError, match="backend='fortran'"):
+        resolve_backend("fortran")
+    with pytest.raises(ValueError, match="backend='fortran'"):
+        gym.make(FAN_TRACKING, backend="fortran")
+    assert resolve_backend("auto") == ("numba" if NUMBA_AVAILABLE else "numpy")
