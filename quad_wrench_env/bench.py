@@ -11,14 +11,22 @@ import pybullet as p
 import quad_wrench_env  # noqa: F401  (registers the env ids)
 from quad_wrench_env.estimators import TruthFed, make_estimator
 from quad_wrench_env.estimators.ukf import UnscentedFilterBank
+from quad_wrench_env.kernels.ukf import ukf_bank_step
 from quad_wrench_env.rotations import quat_exp, quat_multiply
 from quad_wrench_env.vehicle import GRAVITY, make_vehicle
 
+FLOORS = ("four rotor forces", "resultant force and torque")
+"""What a bare step applies to each body: the issue's limit (a force at each of the four rotor hubs)
+or what the envs apply (one resultant force at the centre of mass and one torque)."""
 
-def bare_pybullet_step_seconds(steps: int, bodies: int = 1) -> float:
+
+def bare_pybullet_step_seconds(steps: int, bodies: int = 1, floor: str = FLOORS[0]) -> float:
     """Seconds per PyBullet step of a world of ``bodies`` box bodies (10 m apart, no ground), each
-    with an applied force and torque and a state read: the floor under any simulator built on
-    PyBullet. Divide by ``bodies`` for the cost per body."""
+    with its state read (pose and velocity) and the loads of ``floor`` applied: the limit under any
+    simulator built on PyBullet. Divide by ``bodies`` for the cost per body."""
+    if floor not in FLOORS:
+        raise ValueError(f"floor={floor!r}; allowed: {list(FLOORS)}")
+    hubs = [(0.13, 0.13, 0.0), (-0.13, 0.13, 0.0), (-0.13, -0.13, 0.0), (0.13, -0.13, 0.0)]
     cid = p.connect(p.DIRECT)
     try:
         p.setGravity(0, 0, -9.81, physicsClientId=cid)
@@ -28,13 +36,18 @@ def bare_pybullet_step_seconds(steps: int, bodies: int = 1) -> float:
             p.createMultiBody(0.42, shape, basePosition=(10.0 * k, 0, 1), physicsClientId=cid)
             for k in range(bodies)
         ]
+        four = floor == FLOORS[0]
         start = time.perf_counter()
         for _ in range(steps):
             for body in ids:
                 position, _ = p.getBasePositionAndOrientation(body, physicsClientId=cid)
                 p.getBaseVelocity(body, physicsClientId=cid)
-                p.applyExternalForce(body, -1, (0, 0, 4.12), position, p.WORLD_FRAME, physicsClientId=cid)
-                p.applyExternalTorque(body, -1, (0, 0, 0), p.WORLD_FRAME, physicsClientId=cid)
+                if four:
+                    for hub in hubs:
+                        p.applyExternalForce(body, -1, (0, 0, 1.03), hub, p.LINK_FRAME, physicsClientId=cid)
+                else:
+                    p.applyExternalForce(body, -1, (0, 0, 4.12), position, p.WORLD_FRAME, physicsClientId=cid)
+                    p.applyExternalTorque(body, -1, (0, 0, 0), p.WORLD_FRAME, physicsClientId=cid)
             p.stepSimulation(physicsClientId=cid)
         return (time.perf_counter() - start) / steps
     finally:
@@ -47,6 +60,7 @@ def env_step_seconds(steps: int, resets: int = 20, **env_kwargs) -> tuple[float,
     env = gym.make("QuadWrench/FanTracking-v0", **env_kwargs)
     try:
         env.reset(seed=0)
+        env.step(np.zeros(4, dtype=np.float32))  # compiled kernels load on first use
         start = time.perf_counter()
         for seed in range(1, resets + 1):
             env.reset(seed=seed)
@@ -66,47 +80,95 @@ def env_step_seconds(steps: int, resets: int = 20, **env_kwargs) -> tuple[float,
         env.close()
 
 
+def vector_step_seconds(steps: int, num_envs: int, **env_kwargs) -> float:
+    """Seconds per policy step of the FanTracking vector env of ``num_envs`` vehicles with zero
+    actions (episode ends and their resets included, as they happen)."""
+    venv = gym.make_vec(
+        "QuadWrench/FanTracking-v0", num_envs=num_envs, vectorization_mode="vector_entry_point", **env_kwargs
+    )
+    try:
+        venv.reset(seed=0)
+        action = np.zeros((num_envs, 4), dtype=np.float32)
+        venv.step(action)
+        start = time.perf_counter()
+        for _ in range(steps):
+            venv.step(action)
+        return (time.perf_counter() - start) / steps
+    finally:
+        venv.close()
+
+
+def _time(call, calls: int) -> float:
+    start = time.perf_counter()
+    for _ in range(calls):
+        call()
+    return (time.perf_counter() - start) / calls
+
+
 def component_seconds(calls: int, **env_kwargs) -> dict[str, float]:
-    """Seconds per call of each part of one physics step, timed in isolation on a live env."""
+    """Seconds per call of each part of a step, timed in isolation on a live single env (its own
+    backend): the parts of one physics step, then the per-policy-step work."""
     env = gym.make("QuadWrench/FanTracking-v0", **env_kwargs)
     try:
         env.reset(seed=0, options={"offset_y": 0.4})
         base = env.unwrapped
-        state = base.world.state()
-        action = np.zeros(4)
-        force, torque = base._external_loads(state)
-        nominal = base.autopilot.mixer.wrench(base.rotors.speeds)
-        parts = {
-            "physics (PyBullet step + state read)": lambda: (
-                base.world.step(force, torque, state.position),
-                base.world.state(),
+        fleet = base.fleet
+        action = np.zeros((1, 4))
+        base.step(action[0])
+        compiled = fleet._compiled
+        if compiled is None:
+            state = fleet.state
+            loads = fleet.external_loads(state, slice(None))
+            nominal = fleet.autopilot.mixer.wrench(fleet.rotors.speeds[0])[None]
+            parts = {
+                "autopilot + motors": lambda: fleet.rotors.step(fleet.actions.motor_command(action, state)),
+                "disturbances (wind, drag, point loads)": lambda: fleet.external_loads(state, slice(None)),
+                "PyBullet apply + step": lambda: fleet.world.step(loads[:, :3], loads[:, 3:], state.position),
+                "PyBullet read + state": fleet.world.state,
+                "sensors (noise, motion capture, motor speeds)": lambda: fleet.mocap.measure(
+                    state.position, state.quaternion, fleet.noise.take()[:, 3:9]
+                ),
+                f"estimator ({fleet.estimator.name})": lambda: fleet.estimator.step(
+                    nominal[:, 0], nominal[:, 1:], state.position, state.quaternion
+                ),
+            }
+        else:
+            parts = {
+                "compiled: autopilot, motors, disturbances": lambda: compiled.physics_step(action),
+                "PyBullet apply + step": lambda: fleet.world.step(
+                    compiled.forces, compiled.torques, fleet.state.position
+                ),
+                "PyBullet read": fleet.world.read,
+            }
+        out = {f"physics step: {name}": _time(call, calls) for name, call in parts.items()}
+        if compiled is not None:  # the whole compiled step, less what is timed on its own
+            whole = out.pop("physics step: compiled: autopilot, motors, disturbances")
+            ukf = compiled._ukf_arguments
+            estimator = _time(lambda: ukf_bank_step(*ukf), calls) if ukf is not None else 0.0
+            pybullet = out["physics step: PyBullet apply + step"] + out["physics step: PyBullet read"]
+            out["physics step: kernels (autopilot, motors, disturbances, sensors) + glue"] = (
+                whole - pybullet - estimator
+            )
+            out[f"physics step: estimator ({fleet.estimator.name}, compiled)"] = estimator
+        out["policy step: observation, reward, termination, info"] = _time(
+            lambda: (
+                fleet.observations(action),
+                base.task.reward_terms(fleet, action, fleet.terminations() > 0),
+                base._info(),
             ),
-            "disturbances (wind, drag, point loads)": lambda: base._external_loads(state),
-            "autopilot + motors": lambda: base.rotors.step(base.actions.motor_command(action, state)),
-            "sensors": lambda: (
-                base.mocap.measure(state.position, state.quaternion),
-                base.motor_sensor.measure(base.rotors.speeds),
-            ),
-            f"estimator ({base.cfg.estimator})": lambda: base.estimator.step(
-                nominal[0], nominal[1:], state.position, state.quaternion
-            ),
-            "observation (per policy step)": lambda: base._observation(base.estimator.estimate),
-        }
-        out = {}
-        for name, call in parts.items():
-            start = time.perf_counter()
-            for _ in range(calls):
-                call()
-            out[name] = (time.perf_counter() - start) / calls
+            calls,
+        )
         return out
     finally:
         env.close()
 
 
-def filter_bank_step_seconds(count: int, steps: int, seed: int = 0, dt: float = 0.005) -> float:
+def filter_bank_step_seconds(
+    count: int, steps: int, seed: int = 0, dt: float = 0.005, backend: str = "numpy"
+) -> float:
     """Seconds per step of a bank of ``count`` UKFs (all of them) fed hovering vehicles' noisy poses."""
     vehicle = make_vehicle("ardrone2")
-    bank = UnscentedFilterBank(vehicle, dt, None, count)
+    bank = UnscentedFilterBank(vehicle, dt, None, count, backend)
     rng = np.random.default_rng(seed)
     positions, quaternions = np.tile((0.0, 0.0, 1.0), (count, 1)), np.tile((1.0, 0.0, 0.0, 0.0), (count, 1))
     bank.reset(slice(None), positions, quaternions)

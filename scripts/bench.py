@@ -32,11 +32,19 @@ from pathlib import Path
 import gymnasium as gym
 
 from agents import make_agent
-from quad_wrench_env.bench import bare_pybullet_step_seconds, component_seconds, env_step_seconds
+from quad_wrench_env.bench import (
+    FLOORS,
+    bare_pybullet_step_seconds,
+    component_seconds,
+    env_step_seconds,
+    vector_step_seconds,
+)
 from quad_wrench_env.estimators import ESTIMATORS
+from quad_wrench_env.kernels import NUMBA_AVAILABLE
 
 ROOT = Path(__file__).resolve().parents[1]
-POLICY_HZ, SUBSTEPS, EPISODE_SECONDS = 50, 4, 30.0
+POLICY_HZ, SUBSTEPS, EPISODE_SECONDS, VECTOR_ENVS = 50, 4, 30.0, 64
+BACKENDS = ("numba", "numpy") if NUMBA_AVAILABLE else ("numpy",)
 
 PYFLYT = """
 import json, time, gymnasium as gym, numpy as np, PyFlyt.gym_envs
@@ -235,6 +243,49 @@ def soak(minutes: float) -> str:
         env.close()
 
 
+def env_rows(args: argparse.Namespace, floors: dict[str, float]) -> list[list[str]]:
+    rows = []
+    for backend in BACKENDS:
+        for estimator in ESTIMATORS:
+            runs = [
+                env_step_seconds(args.steps, estimator=estimator, backend=backend)
+                for _ in range(args.repeats)
+            ]
+            step, reset = min(r[0] for r in runs), min(r[1] for r in runs)
+            physics = step / SUBSTEPS
+            per_episode = EPISODE_SECONDS * POLICY_HZ * step + reset
+            rows.append(
+                [
+                    f"FanTracking-v0, {estimator}, {backend}",
+                    f"{step * 1e6:.0f}",
+                    f"{physics * 1e6:.1f}",
+                    *(f"{floor / physics:.1%}" for floor in floors.values()),
+                    f"{EPISODE_SECONDS / per_episode:.1f}",
+                    f"{reset * 1e3:.2f}",
+                ]
+            )
+    return rows
+
+
+def vector_rows(args: argparse.Namespace, floors: dict[str, float]) -> list[list[str]]:
+    rows = []
+    for estimator, backend in (("ukf", "numba"), ("oracle", "numba"), ("ukf", "numpy")):
+        step = min(
+            vector_step_seconds(args.steps // 8, VECTOR_ENVS, estimator=estimator, backend=backend)
+            for _ in range(args.repeats)
+        )
+        per_vehicle = step / SUBSTEPS / VECTOR_ENVS
+        rows.append(
+            [
+                f"FanTracking-v0 x {VECTOR_ENVS}, {estimator}, {backend}",
+                f"{per_vehicle * 1e6:.2f}",
+                *(f"{per_vehicle / floor:.1f}x" for floor in floors.values()),
+                f"{VECTOR_ENVS / POLICY_HZ / step:.0f}",
+            ]
+        )
+    return rows
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--steps", type=int, default=2000)
@@ -245,67 +296,64 @@ def main() -> None:
     parser.add_argument("--peers-dir", default="~/.cache/quad-wrench-env/peers")
     args = parser.parse_args()
 
-    bare = min(bare_pybullet_step_seconds(4 * args.steps) for _ in range(args.repeats))
-    bare64 = min(bare_pybullet_step_seconds(args.steps // 4, bodies=64) for _ in range(args.repeats)) / 64
+    floors = {
+        floor: min(bare_pybullet_step_seconds(4 * args.steps, floor=floor) for _ in range(args.repeats))
+        for floor in FLOORS
+    }
+    floors64 = {
+        floor: min(
+            bare_pybullet_step_seconds(args.steps // 4, bodies=VECTOR_ENVS, floor=floor)
+            for _ in range(args.repeats)
+        )
+        / VECTOR_ENVS
+        for floor in FLOORS
+    }
     print(
         table(
-            ["floor", "µs per step (per body)"],
             [
-                ["bare PyBullet, 1 body", f"{bare * 1e6:.1f}"],
-                ["bare PyBullet, 64 bodies, per body", f"{bare64 * 1e6:.1f}"],
+                "floor: bare PyBullet step with state read and ...",
+                "1 body, µs",
+                f"{VECTOR_ENVS} bodies, µs per body",
             ],
+            [[floor, f"{floors[floor] * 1e6:.2f}", f"{floors64[floor] * 1e6:.2f}"] for floor in FLOORS],
         )
         + "\n"
     )
-
-    rows = []
-    for estimator in ESTIMATORS:
-        runs = [env_step_seconds(args.steps, estimator=estimator) for _ in range(args.repeats)]
-        step, reset = min(r[0] for r in runs), min(r[1] for r in runs)
-        per_episode = EPISODE_SECONDS * POLICY_HZ * step + reset
-        rows.append(
-            [
-                f"FanTracking-v0, {estimator}",
-                f"{step * 1e6:.0f}",
-                f"{step / SUBSTEPS * 1e6:.1f}",
-                f"{bare / (step / SUBSTEPS):.1%}",
-                f"{1 / step:.0f}",
-                f"{EPISODE_SECONDS / per_episode:.1f}",
-                f"{reset * 1e3:.2f}",
-            ]
-        )
     print(
         table(
             [
-                "env",
+                "single env",
                 "µs/policy step",
                 "µs/physics step",
-                "bare/ours",
-                "steps/s",
-                "sim s per wall s",
+                *(f"floor ({floor}) / ours" for floor in FLOORS),
+                "sim s per wall s, resets counted",
                 "reset ms",
             ],
-            rows,
+            env_rows(args, floors),
         )
         + "\n"
     )
-
-    parts = component_seconds(args.steps)
-    total = sum(v for k, v in parts.items() if not k.startswith("observation"))
     print(
         table(
-            ["part of one physics step (ukf env)", "µs", "share"],
             [
-                [
-                    name,
-                    f"{seconds * 1e6:.1f}",
-                    "" if name.startswith("observation") else f"{seconds / total:.0%}",
-                ]
-                for name, seconds in parts.items()
+                "vector env (one core)",
+                "µs per vehicle and physics step",
+                *(f"ours / floor ({floor}), {VECTOR_ENVS}-body world" for floor in FLOORS),
+                "vehicle-s per wall s",
             ],
+            vector_rows(args, floors64),
         )
         + "\n"
     )
+    for backend in BACKENDS:
+        parts = component_seconds(args.steps, backend=backend)
+        print(
+            table(
+                [f"part of a step (ukf env, {backend})", "µs"],
+                [[name, f"{seconds * 1e6:.1f}"] for name, seconds in parts.items()],
+            )
+            + "\n"
+        )
     print(
         f"peak memory of this process: {resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024:.0f} MiB\n"
     )

@@ -23,7 +23,7 @@ from agents import make_agent
 from agents.evaluate import run_episode
 from quad_wrench_env.bench import bare_pybullet_step_seconds, estimator_step_seconds
 from quad_wrench_env.config import load_yaml
-from quad_wrench_env.estimators import Estimator, make_estimator
+from quad_wrench_env.estimators import OracleBank, make_estimator
 from quad_wrench_env.vehicle import make_vehicle
 
 LABELS = ("f_x", "f_y", "f_z", "tau_x", "tau_y", "tau_z")
@@ -39,31 +39,34 @@ class Stream:
 
 
 class _Recorder:
-    """Wraps the env's oracle and records each step's sensor data (the estimator interface's inputs)."""
+    """Wraps the env's oracle bank (one vehicle) and records each step's sensor data, the inputs of
+    the estimator interface, with the true wrench."""
 
-    def __init__(self, inner: Estimator, stream: Stream) -> None:
+    def __init__(self, inner: OracleBank, stream: Stream) -> None:
         self.inner, self.stream = inner, stream
-        self.name, self.status = inner.name, "ok"
+        self.name, self.count = inner.name, inner.count
 
-    def reset(self, position, quaternion_wxyz):
-        self.inner.reset(position, quaternion_wxyz)
+    def reset(self, index, position, quaternion_wxyz):
+        self.inner.reset(index, position, quaternion_wxyz)
 
-    def observe_truth(self, state, force, torque):
-        self.inner.observe_truth(state, force, torque)
-        self._truth = np.concatenate((force, torque))
+    def observe_truth(self, states, wrenches):
+        self.inner.observe_truth(states, wrenches)
+        self._truth = wrenches[0].copy()
 
-    def step(self, thrust, body_torque, position, quaternion_wxyz, velocity=None, body_rates=None):
-        self.stream.inputs.append((thrust, body_torque.copy(), position.copy(), quaternion_wxyz.copy()))
+    def step(self, thrusts, body_torques, positions, quaternions, velocities=None, body_rates=None):
+        self.stream.inputs.append(
+            (float(thrusts[0]), body_torques[0].copy(), positions[0].copy(), quaternions[0].copy())
+        )
         self.stream.truth.append(self._truth)
-        return self.inner.step(thrust, body_torque, position, quaternion_wxyz)
 
-    @property
-    def estimate(self):
-        return self.inner.estimate
+    def wrenches(self):
+        return self.inner.wrenches()
 
-    @property
-    def state(self):
-        return self.inner.state
+    def states(self):
+        return self.inner.states()
+
+    def statuses(self):
+        return self.inner.statuses()
 
 
 def record(config: dict, seed: int, **env_kwargs: Any) -> Stream:
@@ -72,7 +75,7 @@ def record(config: dict, seed: int, **env_kwargs: Any) -> Stream:
     try:
         base = env.unwrapped
         stream = Stream(base.dt)
-        base.estimator = _Recorder(base.estimator, stream)
+        base.fleet.estimator = _Recorder(base.fleet.estimator, stream)
         run_episode(make_agent("hold", **config["hold"]), env, seed, {"offset_y": 0.0})
         return stream
     finally:

@@ -24,20 +24,9 @@ from gymnasium.utils import EzPickle
 
 from quad_wrench_env.config import build, merged, section
 from quad_wrench_env.envs.config import EnvConfig
-from quad_wrench_env.envs.fleet import TERMINATION_REASONS, Fleet
+from quad_wrench_env.envs.fleet import OBSERVATION_FIELDS, TERMINATION_REASONS, Fleet
 from quad_wrench_env.envs.task import Task
 from quad_wrench_env.vehicle import GRAVITY, VehicleParams, make_vehicle
-
-OBSERVATION_FIELDS: tuple[tuple[str, int], ...] = (
-    ("position", 3),
-    ("velocity", 3),
-    ("quaternion", 4),
-    ("body_rates", 3),
-    ("force", 3),
-    ("torque", 3),
-    ("last_action", 4),
-)
-"""Observation blocks in order: the estimator's state and wrench, and the previous action."""
 
 
 def observation_layout() -> dict[str, slice]:

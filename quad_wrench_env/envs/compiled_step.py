@@ -15,7 +15,9 @@ import numpy as np
 
 from quad_wrench_env.disturbances.fan import FanJet
 from quad_wrench_env.envs.actions import ACTION_TYPES
+from quad_wrench_env.estimators.ukf import UnscentedFilterBank
 from quad_wrench_env.kernels.physics import after_world_step, before_world_step
+from quad_wrench_env.kernels.ukf import ukf_bank_step
 from quad_wrench_env.vehicle import GRAVITY
 from quad_wrench_env.world import RigidBodyState
 
@@ -97,11 +99,21 @@ class CompiledStep:
             np.zeros((count, 6)),
         )
         self.thrusts, self.body_torques = np.zeros(count), np.zeros((count, 3))
-        self.measured = np.zeros((count, 7))
+        self.measured_position, self.measured_quaternion = np.zeros((count, 3)), np.zeros((count, 4))
         self.motion = np.zeros((count, 6) if sensors.state_estimator else (0, 6))
         self.truth = np.zeros((count, 13))
         self.normals = np.zeros((count, fleet.noise.buffer.shape[2]))
+        self.velocity_measured = self.motion[:, :3] if len(self.motion) else None
+        self.body_rates_measured = self.motion[:, 3:] if len(self.motion) else None
         self.state = RigidBodyState.at_rest(np.zeros((count, 3)), np.tile((1.0, 0.0, 0.0, 0.0), (count, 1)))
+        self._ukf_arguments = None
+        bank = fleet.estimator
+        if isinstance(bank, UnscentedFilterBank) and bank.backend == "numba":
+            self._ukf_arguments = (
+                bank.quaternions, bank.rests, bank.covariances, bank.reinitialisations,
+                self.thrusts, self.body_torques, self.measured_position, self.measured_quaternion,
+                *bank.kernel_parameters(),
+            )  # fmt: skip
         self._fan_noise = np.zeros((count, 3)) if self.fan is None else self.fan.noise
         self._motion_tables = np.zeros((count, 4)) if self.fan is None else self.fan.motion_tables
 
@@ -134,16 +146,16 @@ class CompiledStep:
             fleet.world.read(), s.position, s.quaternion, s.velocity, s.angular_velocity, s.rotation,
             s.body_rates, fleet.time, fleet.dt, noise.buffer, noise.cursor, self.normals,
             self.fan_parameters, self._fan_noise, fleet.rotors.speeds, self.sensing, self.nominal_allocation,
-            self.thrusts, self.body_torques, self.measured, self.motion, self.truth,
+            self.thrusts, self.body_torques, self.measured_position, self.measured_quaternion, self.motion,
+            self.truth,
         )  # fmt: skip
-        estimator = fleet.estimator
         if fleet.truth_fed:
-            estimator.observe_truth(self.truth, self.loads)
-        motion = self.motion
-        if len(motion):
-            estimator.step(
-                self.thrusts, self.body_torques, self.measured[:, :3], self.measured[:, 3:],
-                motion[:, :3], motion[:, 3:],
-            )  # fmt: skip
+            fleet.estimator.observe_truth(self.truth, self.loads)
+        if self._ukf_arguments is not None:  # the compiled UKF directly, skipping its wrapper
+            if not ukf_bank_step(*self._ukf_arguments):
+                raise ValueError("non-finite sensor values reached the UKF: the physics state is not finite")
         else:
-            estimator.step(self.thrusts, self.body_torques, self.measured[:, :3], self.measured[:, 3:])
+            fleet.estimator.step(
+                self.thrusts, self.body_torques, self.measured_position, self.measured_quaternion,
+                self.velocity_measured, self.body_rates_measured,
+            )  # fmt: skip

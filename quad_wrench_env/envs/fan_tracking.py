@@ -143,16 +143,15 @@ class FanTracking:
         dy, dz = self.axis_errors(fleet)
         return {
             "tracking": np.exp(-(dy * dy + dz * dz) / r.axis_scale**2),
-            "effort": -r.effort_weight * np.mean(actions * actions, axis=1),
+            "effort": (-r.effort_weight / actions.shape[1]) * (actions * actions).sum(axis=1),
             "crash": -r.crash_penalty * ended,
         }
 
     def info(self, fleet: Fleet) -> dict[str, np.ndarray]:
         axis_error = self.axis_errors(fleet)[0]
-        fan_y = self.fan.fan_y(fleet.time)
-        fan_position = np.column_stack(
-            (np.zeros_like(fan_y), fan_y, np.full_like(fan_y, self.cfg.fan.height))
-        )
+        fan_position = np.zeros((len(axis_error), 3))
+        fan_position[:, 1] = self.fan.fan_y(fleet.time)
+        fan_position[:, 2] = self.cfg.fan.height
         return {
             "fan_position": fan_position,
             "jet_axis_y": fleet.state.position[:, 1] - axis_error,

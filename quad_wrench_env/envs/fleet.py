@@ -25,11 +25,26 @@ from quad_wrench_env.envs.config import EnvConfig
 from quad_wrench_env.envs.noise import NoiseBlocks
 from quad_wrench_env.estimators import OracleBank, make_estimator_bank
 from quad_wrench_env.kernels import resolve_backend
+from quad_wrench_env.kernels.physics import termination_codes
 from quad_wrench_env.rotations import cross, quat_from_matrix
 from quad_wrench_env.rotors import Rotors
 from quad_wrench_env.sensors import MotionCapture, MotorSpeedSensor
 from quad_wrench_env.vehicle import GRAVITY, VehicleParams
 from quad_wrench_env.world import RigidBodyState, World
+
+OBSERVATION_FIELDS: tuple[tuple[str, int], ...] = (
+    ("position", 3),
+    ("velocity", 3),
+    ("quaternion", 4),
+    ("body_rates", 3),
+    ("force", 3),
+    ("torque", 3),
+    ("last_action", 4),
+)
+"""Observation blocks in order: the estimator's state and wrench, and the previous action."""
+
+
+OBSERVATION_SIZE = sum(size for _, size in OBSERVATION_FIELDS)
 
 TERMINATION_REASONS = ("", "crash", "flip", "out_of_arena")
 """Codes of :meth:`Fleet.terminations` (0: the episode goes on)."""
@@ -89,6 +104,10 @@ class Fleet:
         self.state: RigidBodyState | None = None
         self.wrench_true = np.zeros((count, 6))
         self._compiled = CompiledStep(self) if self.backend == "numba" and supports(self) else None
+        arena = cfg.arena
+        self._limits = np.array(
+            (cfg.crash_height, self._flip_cos, arena.x_min, arena.x_max, arena.y_half_width, arena.z_max)
+        )
         self.revision = 0
         """Counts the changes of the fleet's state (steps and resets): a key for what tasks cache."""
 
@@ -203,18 +222,25 @@ class Fleet:
 
     # -- what the envs read ------------------------------------------------------------------------
     def observations(self, last_actions: np.ndarray) -> np.ndarray:
-        """(N, 23) float32 observations: the estimators' states and wrenches and the last actions
-        (quaternions with ``w >= 0``)."""
-        states = self.estimator.states()
-        quaternion = states[:, 6:10] * np.where(states[:, 6:7] < 0.0, -1.0, 1.0)
-        return np.concatenate(
-            (states[:, :6], quaternion, states[:, 10:13], self.estimator.wrenches(), last_actions), axis=1
-        ).astype(np.float32)
+        """(N, 23) float32 observations (:data:`OBSERVATION_FIELDS`): the estimators' states and
+        wrenches and the last actions (quaternions with ``w >= 0``)."""
+        out = np.empty((self.count, OBSERVATION_SIZE), dtype=np.float32)
+        out[:, :13] = self.estimator.states()
+        flipped = out[:, 6] < 0.0
+        if flipped.any():
+            out[flipped, 6:10] *= -1.0
+        out[:, 13:19] = self.estimator.wrenches()
+        out[:, 19:23] = last_actions
+        return out
 
     def terminations(self) -> np.ndarray:
         """(N,) codes into :data:`TERMINATION_REASONS`: crash (below ``crash_height`` or touching the
         ground), flip (tilt beyond ``flip_tilt_deg``), out_of_arena; 0 while the episode goes on."""
         s, cfg, arena = self.state, self.cfg, self.cfg.arena
+        if self._compiled is not None:
+            codes = np.empty(self.count, dtype=np.int64)
+            termination_codes(s.position, s.rotation, self.world.ground_contacts(), self._limits, codes)
+            return codes
         x, y, z = s.position[:, 0], s.position[:, 1], s.position[:, 2]
         codes = np.zeros(self.count, dtype=int)
         codes[

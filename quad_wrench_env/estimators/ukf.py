@@ -151,9 +151,7 @@ class UnscentedFilterBank:
         if self.backend == "numba":
             if not ukf_bank_step(
                 self.quaternions, self.rests, self.covariances, self.reinitialisations,
-                thrusts, body_torques, positions, quaternions,
-                self.dt, self.mass, self.inertia, GRAVITY, self.spread, self.mean_weights,
-                self._q_diagonal, self._g_diagonal, self.P0, self._B,
+                thrusts, body_torques, positions, quaternions, *self.kernel_parameters(),
             ):  # fmt: skip
                 self._refuse_non_finite(thrusts, body_torques, positions, quaternions)
             return
@@ -164,6 +162,13 @@ class UnscentedFilterBank:
         if np.any(broken):
             self._restart(broken, positions[broken], quaternions[broken])
             self.reinitialisations[broken] += 1
+
+    def kernel_parameters(self) -> tuple:
+        """The constant arguments of :func:`~quad_wrench_env.kernels.ukf.ukf_bank_step`."""
+        return (
+            self.dt, self.mass, self.inertia, GRAVITY, self.spread, self.mean_weights,
+            self._q_diagonal, self._g_diagonal, self.P0, self._B,
+        )  # fmt: skip
 
     def _refuse_non_finite(self, thrusts, body_torques, positions, quaternions) -> None:
         check_finite_batch(

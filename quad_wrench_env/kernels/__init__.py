@@ -37,7 +37,7 @@ def resolve_backend(backend: str) -> str:
 
 
 def njit(function):
-    """``numba.njit(cache=True)``, or the function unchanged without numba."""
+    """``numba.njit(cache=True)`` (IEEE arithmetic, no fast-math), or the function unchanged without numba."""
     if _numba is None:
         return function
     return _numba.njit(cache=True, error_model="numpy")(function)

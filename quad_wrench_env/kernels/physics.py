@@ -270,13 +270,13 @@ def before_world_step(
 def after_world_step(
     raw, position, quaternion, velocity, angular_velocity, rotation, body_rates, time, dt,
     noise_buffer, noise_cursor, normals, fan, fan_noise, speeds, sensing, nominal_allocation,
-    thrusts, body_torques, measured, motion, truth,
+    thrusts, body_torques, measured_position, measured_quaternion, motion, truth,
 ):  # fmt: skip
     """After PyBullet's step: the true states from its (N, 13) ``raw`` rows (``World.read``) into the
     state arrays, time on by ``dt``; this step's standard normal draws from each vehicle's block
     (``NoiseBlocks``); turbulence one step on (``FanJet.advance``); the quantized motor speeds
     through the nominal mixer (``MotorSpeedSensor``) into ``thrusts`` and ``body_torques``; the noisy
-    pose (``MotionCapture``) into ``measured`` (N, 7: position, quaternion) and, with an onboard
+    pose (``MotionCapture``) into ``measured_position`` and ``measured_quaternion`` and, with an onboard
     state estimator, noisy velocity and body rates into ``motion`` (N, 6); the true position,
     velocity, quaternion and body rates into ``truth`` (N, 13)."""
     levels, step, position_noise, attitude_noise = sensing[0], sensing[1], sensing[2], sensing[3]
@@ -317,18 +317,14 @@ def after_world_step(
         body_torques[n, 0], body_torques[n, 1], body_torques[n, 2] = body[1], body[2], body[3]
         # -- motion capture --
         for i in range(3):
-            measured[n, i] = position[n, i] + position_noise * normals[n, 3 + i]
+            measured_position[n, i] = position[n, i] + position_noise * normals[n, 3 + i]
         ew, ex, ey, ez = exp(
             attitude_noise * normals[n, 6], attitude_noise * normals[n, 7], attitude_noise * normals[n, 8]
         )
         mw, mx, my, mz = qmul(qw, qx, qy, qz, ew, ex, ey, ez)
         norm = math.sqrt(mw * mw + mx * mx + my * my + mz * mz)
-        measured[n, 3], measured[n, 4], measured[n, 5], measured[n, 6] = (
-            mw / norm,
-            mx / norm,
-            my / norm,
-            mz / norm,
-        )
+        q = measured_quaternion[n]
+        q[0], q[1], q[2], q[3] = mw / norm, mx / norm, my / norm, mz / norm
         if motion.shape[0] > 0:
             for i in range(3):
                 motion[n, i] = velocity[n, i] + sensing[4] * normals[n, 9 + i]
@@ -339,3 +335,20 @@ def after_world_step(
             truth[n, 10 + i] = body_rates[n, i]
         for i in range(4):
             truth[n, 6 + i] = quaternion[n, i]
+
+
+@njit
+def termination_codes(position, rotation, touching, limits, out):
+    """``Fleet.terminations`` into ``out``: 1 crash (below ``limits[0]`` or ``touching`` the ground),
+    2 flip (``R[2, 2]`` below ``limits[1]``), 3 out of the arena ``limits[2:6]`` (x_min, x_max, y half
+    width, z_max), else 0."""
+    for n in range(position.shape[0]):
+        x, y, z = position[n, 0], position[n, 1], position[n, 2]
+        if z < limits[0] or touching[n]:
+            out[n] = 1
+        elif rotation[n, 2, 2] < limits[1]:
+            out[n] = 2
+        elif x < limits[2] or x > limits[3] or abs(y) > limits[4] or z > limits[5]:
+            out[n] = 3
+        else:
+            out[n] = 0

@@ -142,15 +142,19 @@ def ukf_bank_step(
         dw, dx, dy, dz = from_mrp(mean[0], mean[1], mean[2])
         qw, qx, qy, qz = qmul(q_points[0, 0], q_points[0, 1], q_points[0, 2], q_points[0, 3], dw, dx, dy, dz)
         rests[n] = mean[3:]
-        # -- process noise: + B Q Bᵀ, B at the prior mean attitude --
+        # -- process noise: + B Q Bᵀ, B at the prior mean attitude; B is block sparse: diagonal blocks
+        # for the rates, the torque and the force, and [T²/2m; T/m]·R for position and velocity --
         for i in range(3):
+            p[3 + i, 3 + i] += b[3 + i, i] * q_diagonal[i] * b[3 + i, i]
+            p[12 + i, 12 + i] += q_diagonal[3 + i]
+            p[15 + i, 15 + i] += q_diagonal[9 + i]
             for k in range(3):
                 b[6 + i, 6 + k] = (0.5 * dt * dt / mass) * rotation0[i, k]
                 b[9 + i, 6 + k] = (dt / mass) * rotation0[i, k]
-        for a in range(18):
-            for c in range(a, 18):
+        for a in range(6, 12):
+            for c in range(a, 12):
                 total = 0.0
-                for k in range(12):
+                for k in range(6, 9):
                     total += b[a, k] * q_diagonal[k] * b[c, k]
                 p[a, c] += total
                 if c != a:
