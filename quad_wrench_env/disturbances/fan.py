@@ -247,13 +247,17 @@ class FanJet:
         """y of the jet axis at distances ``x`` (n, ...) from the fans of vehicles ``index`` at their
         times ``t`` (broadcast against ``x``): each fan's retarded y."""
         x = np.asarray(x, dtype=float)
-        if self._compiled and x.shape == (self.count,) and isinstance(index, slice) and index == slice(None):
-            return jet_axis_y(x, np.broadcast_to(t, x.shape), self.motion_tables, self._u0, self._core)
+        t = np.asarray(t, dtype=float)
+        if self._compiled and x.shape == t.shape == (self.count,) and index == slice(None):
+            return jet_axis_y(x, t, self.motion_tables, self._u0, self._core)
         return self._y(np.broadcast_to(t, x.shape) - self.transit_time(x), index)
 
     def fan_y(self, t: np.ndarray, index: np.ndarray | slice = slice(None)) -> np.ndarray:
         """The fans' y (n,) now, at times ``t`` (n,)."""
-        return self._y(np.asarray(t, dtype=float), index)
+        t = np.asarray(t, dtype=float)
+        if self._compiled and t.shape == (self.count,) and index == slice(None):
+            return jet_axis_y(np.zeros(self.count), t, self.motion_tables, self._u0, self._core)
+        return self._y(t, index)
 
     def advance(self, dt: float, positions: np.ndarray, normals: np.ndarray) -> None:
         if self.config.turbulence_intensity == 0.0:
