@@ -213,6 +213,15 @@ def peers(args: argparse.Namespace) -> str:
     return table(["peer", "sim s per wall s, resets counted", "without resets", "reset ms"], rows)
 
 
+def resident_mib() -> float:
+    """This process's resident memory now (MiB; Linux ``/proc``, else the peak so far)."""
+    try:
+        pages = int(Path("/proc/self/statm").read_text().split()[1])
+        return pages * resource.getpagesize() / 2**20
+    except (OSError, IndexError, ValueError):
+        return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+
+
 def soak(minutes: float) -> str:
     """One long UKF run, position hold in the moving jet: rates and memory of the first and last ten
     simulated minutes."""
@@ -228,16 +237,16 @@ def soak(minutes: float) -> str:
         for k in range(1, total + 1):
             observation, _, terminated, _, info = env.step(policy.act(observation))
             if k == window or k == total - window:
-                marks[k] = (time.perf_counter(), resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024)
+                marks[k] = (time.perf_counter(), resident_mib())
             if terminated:
                 return f"soak run ended early at {k / POLICY_HZ:.0f} s: {info.get('termination_reason')}"
-        end = (time.perf_counter(), resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024)
+        end = (time.perf_counter(), resident_mib())
         first = window / POLICY_HZ / (marks[window][0] - start)
         last = window / POLICY_HZ / (end[0] - marks[total - window][0])
         return (
             f"soak, {minutes:.0f} simulated minutes (UKF, seed 0): first 10 min {first:.1f} sim s/wall s, "
-            f"last 10 min {last:.1f}; peak RSS after 10 min {marks[window][1]:.0f} MiB, at the end "
-            f"{end[1]:.0f} MiB; estimator status {info['estimator_status']}"
+            f"last 10 min {last:.1f}; resident memory after 10 min {marks[window][1]:.1f} MiB, at the end "
+            f"{end[1]:.1f} MiB; estimator status {info['estimator_status']}"
         )
     finally:
         env.close()

@@ -4,7 +4,8 @@
 
 Each estimator is fed a hovering vehicle's noisy motion-capture pose (0.5 mm, 2 mrad) and the hover
 thrust; the best of ``--repeats`` timings is reported (the machine's noise only ever adds time). The
-last rows step banks of 8 and 64 UKFs as one batched computation (what a batched env runs).
+last rows step banks of 1, 8 and 64 UKFs as one batched computation (what the envs run), in numpy
+and, with numba installed, compiled.
 """
 
 from __future__ import annotations
@@ -13,6 +14,7 @@ import argparse
 
 from quad_wrench_env.bench import bare_pybullet_step_seconds, estimator_step_seconds, filter_bank_step_seconds
 from quad_wrench_env.estimators import ESTIMATORS
+from quad_wrench_env.kernels import NUMBA_AVAILABLE
 
 
 def main() -> None:
@@ -26,9 +28,13 @@ def main() -> None:
     for name in ESTIMATORS:
         seconds = min(estimator_step_seconds(name, args.steps) for _ in range(args.repeats))
         print(f"{'estimator ' + name + ' step':32s} {seconds * 1e6:9.1f} {seconds / bare:21.1f}")
-    for count in (8, 64):
-        bank = min(filter_bank_step_seconds(count, args.steps // 8) for _ in range(args.repeats)) / count
-        print(f"{f'UKF bank of {count}, per filter':32s} {bank * 1e6:9.1f} {bank / bare:21.1f}")
+    for backend in ("numpy", "numba") if NUMBA_AVAILABLE else ("numpy",):
+        filter_bank_step_seconds(1, 2, backend=backend)  # compiled code loads on first use
+        for count in (1, 8, 64):
+            steps = max(args.steps // count, 20)
+            bank = min(filter_bank_step_seconds(count, steps, backend=backend) for _ in range(args.repeats))
+            label = f"UKF bank of {count} ({backend}), per filter"
+            print(f"{label:32s} {bank / count * 1e6:9.1f} {bank / count / bare:21.1f}")
 
 
 if __name__ == "__main__":
