@@ -192,12 +192,12 @@ def rotation_matrices(q: np.ndarray) -> np.ndarray:
 
 def euler_zyx_from_quat(q: np.ndarray) -> np.ndarray:
     """``(roll, pitch, yaw)`` of ``R = Rz(yaw) Ry(pitch) Rx(roll)``; the inverse of
-    :func:`quat_from_euler_zyx` for pitch in (-π/2, π/2)."""
-    w, x, y, z = q
-    roll = math.atan2(2.0 * (w * x + y * z), 1.0 - 2.0 * (x * x + y * y))
-    pitch = math.asin(max(-1.0, min(1.0, 2.0 * (w * y - z * x))))
-    yaw = math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
-    return np.array((roll, pitch, yaw))
+    :func:`quat_from_euler_zyx` for pitch in (-π/2, π/2). Row-wise on (..., 4) arrays."""
+    w, x, y, z = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
+    roll = np.arctan2(2.0 * (w * x + y * z), 1.0 - 2.0 * (x * x + y * y))
+    pitch = np.arcsin(np.clip(2.0 * (w * y - z * x), -1.0, 1.0))
+    yaw = np.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+    return np.stack((roll, pitch, yaw), axis=-1)
 
 
 def wrap_angle(angle):

@@ -5,7 +5,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from quad_wrench_env.estimators import ESTIMATORS, Estimator, TruthFed, make_estimator
+from quad_wrench_env.estimators import (
+    ESTIMATORS,
+    Estimator,
+    EstimatorBank,
+    TruthFed,
+    make_estimator,
+    make_estimator_bank,
+)
 from quad_wrench_env.rotations import quat_from_euler_zyx, rotation_matrix
 from quad_wrench_env.vehicle import GRAVITY, make_vehicle
 
@@ -37,6 +44,9 @@ def test_estimator_conforms(name):
 
 def test_unknown_estimator_and_settings_are_named():
     vehicle = make_vehicle("ardrone2")
+    assert isinstance(make_estimator_bank("oracle", vehicle, 0.005, 2), EstimatorBank)
+    with pytest.raises(ValueError, match="count=0"):
+        make_estimator_bank("ukf", vehicle, 0.005, 0)
     with pytest.raises(ValueError, match="'kalman'"):
         make_estimator("kalman", vehicle, 0.005)
     with pytest.raises(ValueError, match="'estimator_params.sigma'"):
@@ -62,3 +72,39 @@ def test_a_vehicle_held_still_gives_the_wrench_that_balances_its_inputs(name, eu
     expected_force = vehicle.mass * GRAVITY * np.array((0.0, 0.0, 1.0)) - thrust * R[:, 2]
     np.testing.assert_allclose(estimate.force, expected_force, atol=1e-3)
     np.testing.assert_allclose(estimate.torque, -R @ torque, atol=1e-4)
+
+
+@pytest.mark.parametrize("name", [n for n in ESTIMATORS if n != "oracle"])
+def test_a_bank_gives_each_vehicle_what_its_single_estimator_gives(name):
+    """The envs' estimator banks (one batched computation over N) against N single estimators fed
+    the same noisy poses at different attitudes, one of them restarted half-way."""
+    vehicle, count, dt = make_vehicle("ardrone2"), 3, 0.005
+    bank = make_estimator_bank(name, vehicle, dt, count)
+    singles = [make_estimator(name, vehicle, dt) for _ in range(count)]
+    assert isinstance(bank, EstimatorBank) and bank.name == name and bank.count == count
+    rng = np.random.default_rng(1)
+    positions = rng.normal(size=(count, 3))
+    quaternions = np.array([quat_from_euler_zyx(*angles) for angles in rng.uniform(-0.3, 0.3, (count, 3))])
+    thrusts, torques = np.array((4.0, 4.1, 4.2)), 1e-3 * rng.normal(size=(count, 3))
+    for i in range(count):
+        bank.reset(i, positions[i], quaternions[i])
+        singles[i].reset(positions[i], quaternions[i])
+    for k in range(200):
+        measured = positions + 5e-4 * rng.normal(size=(count, 3))
+        if k == 100:
+            bank.reset(1, measured[1], quaternions[1])
+            singles[1].reset(measured[1], quaternions[1])
+        bank.step(thrusts, torques, measured, quaternions)
+        for i, single in enumerate(singles):
+            single.step(thrusts[i], torques[i], measured[i], quaternions[i])
+    for i, single in enumerate(singles):
+        s = single.state
+        np.testing.assert_allclose(
+            bank.wrenches()[i], np.concatenate((single.estimate.force, single.estimate.torque)), atol=1e-10
+        )
+        np.testing.assert_allclose(
+            bank.states()[i], np.concatenate((s.position, s.velocity, s.quaternion, s.body_rates)), atol=1e-10
+        )
+    assert bank.statuses() == ["ok"] * count
+    with pytest.raises(ValueError, match="non-finite"):
+        bank.step(thrusts, torques, measured * np.nan, quaternions)

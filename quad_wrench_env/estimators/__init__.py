@@ -7,11 +7,11 @@ from collections.abc import Callable
 from typing import Any
 
 from quad_wrench_env.config import build
-from quad_wrench_env.estimators.bank import EstimatorArray, EstimatorBank, OracleBank
+from quad_wrench_env.estimators.bank import EstimatorBank, OracleBank
 from quad_wrench_env.estimators.base import Estimator, StateEstimate, TruthFed, WrenchEstimate
-from quad_wrench_env.estimators.ekf import ExtendedWrenchEstimator
+from quad_wrench_env.estimators.ekf import ExtendedFilterBank, ExtendedWrenchEstimator
 from quad_wrench_env.estimators.noise import EKFNoise, FilterNoise
-from quad_wrench_env.estimators.observer import NonlinearWrenchObserver, ObserverGains
+from quad_wrench_env.estimators.observer import NonlinearWrenchObserver, ObserverBank, ObserverGains
 from quad_wrench_env.estimators.oracle import OracleEstimator
 from quad_wrench_env.estimators.ukf import UnscentedFilterBank, UnscentedWrenchEstimator
 from quad_wrench_env.vehicle import VehicleParams
@@ -33,13 +33,21 @@ def _ukf(vehicle: VehicleParams, dt: float, **noise: Any) -> Estimator:
     return UnscentedWrenchEstimator(vehicle, dt, _ukf_noise(noise))
 
 
+def _ekf_noise(noise: dict[str, Any]) -> EKFNoise:
+    return build(EKFNoise, noise, prefix="estimator_params.")
+
+
 def _ekf(vehicle: VehicleParams, dt: float, **noise: Any) -> Estimator:
-    return ExtendedWrenchEstimator(vehicle, dt, build(EKFNoise, noise, prefix="estimator_params."))
+    return ExtendedWrenchEstimator(vehicle, dt, _ekf_noise(noise))
+
+
+def _observer_gains(settings: dict[str, Any]) -> ObserverGains:
+    gains = {k: v for k, v in settings.items() if k not in MEASUREMENT_NOISE_KEYS}
+    return build(ObserverGains, gains, prefix="estimator_params.")
 
 
 def _observer(vehicle: VehicleParams, dt: float, **settings: Any) -> Estimator:
-    gains = {k: v for k, v in settings.items() if k not in MEASUREMENT_NOISE_KEYS}
-    return NonlinearWrenchObserver(vehicle, dt, build(ObserverGains, gains, prefix="estimator_params."))
+    return NonlinearWrenchObserver(vehicle, dt, _observer_gains(settings))
 
 
 FACTORIES: dict[str, Callable[..., Estimator]] = {
@@ -84,9 +92,11 @@ def make_estimator_bank(
         raise ValueError(f"count={count!r} must be an integer >= 1")
     if name == "ukf":
         return UnscentedFilterBank(vehicle, dt, _ukf_noise(noise), count, backend)
-    if name == "oracle":
-        return OracleBank(count)
-    return EstimatorArray([FACTORIES[name](vehicle, dt, **noise) for _ in range(count)])
+    if name == "ekf":
+        return ExtendedFilterBank(vehicle, dt, _ekf_noise(noise), count)
+    if name == "observer":
+        return ObserverBank(vehicle, dt, _observer_gains(noise), count)
+    return OracleBank(count)
 
 
 __all__ = [
@@ -94,11 +104,12 @@ __all__ = [
     "MEASUREMENT_NOISE_KEYS",
     "EKFNoise",
     "Estimator",
-    "EstimatorArray",
     "EstimatorBank",
+    "ExtendedFilterBank",
     "ExtendedWrenchEstimator",
     "FilterNoise",
     "NonlinearWrenchObserver",
+    "ObserverBank",
     "ObserverGains",
     "OracleBank",
     "OracleEstimator",

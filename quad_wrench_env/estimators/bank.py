@@ -1,9 +1,10 @@
 """N wrench estimators of one kind stepped together: what the environments run.
 
-An :class:`EstimatorBank` holds one estimator per vehicle and steps them all at once, arrays with a
-leading dimension N in and out. The UKF is batched natively (:class:`UnscentedFilterBank`: one
-computation over N), the oracle is a copy of the truth; the EKF and the nonlinear observer are
-stepped one by one (:class:`EstimatorArray`) until they get batched forms of their own.
+An :class:`EstimatorBank` holds one estimator per vehicle and steps them all at once as one batched
+computation, arrays with a leading dimension N in and out: ``UnscentedFilterBank``,
+``ExtendedFilterBank``, ``ObserverBank`` and :class:`OracleBank` (a copy of the truth). Each
+single-vehicle estimator (the :class:`~quad_wrench_env.estimators.base.Estimator` protocol) is a bank
+of one, so there is one implementation of each algorithm.
 """
 
 from __future__ import annotations
@@ -11,8 +12,6 @@ from __future__ import annotations
 from typing import Protocol, runtime_checkable
 
 import numpy as np
-
-from quad_wrench_env.estimators.base import Estimator, TruthFed
 
 
 @runtime_checkable
@@ -89,44 +88,3 @@ class OracleBank:
 
     def statuses(self) -> list[str]:
         return ["ok"] * self.count
-
-
-class EstimatorArray:
-    """N single-vehicle estimators (the :class:`Estimator` protocol) stepped one after another."""
-
-    def __init__(self, estimators: list[Estimator]) -> None:
-        if any(isinstance(e, TruthFed) for e in estimators):
-            raise ValueError("truth-fed estimators have a bank of their own (OracleBank)")
-        self.estimators = estimators
-        self.name = estimators[0].name
-        self.count = len(estimators)
-
-    def reset(self, index: int, position: np.ndarray, quaternion_wxyz: np.ndarray) -> None:
-        self.estimators[index].reset(position, quaternion_wxyz)
-
-    def step(self, thrusts, body_torques, positions, quaternions, velocities=None, body_rates=None) -> None:
-        """Each estimator gets its own copies of its rows (an estimator may keep its inputs, and a
-        caller may reuse its buffers)."""
-        for i, estimator in enumerate(self.estimators):
-            estimator.step(
-                float(thrusts[i]),
-                body_torques[i].copy(),
-                positions[i].copy(),
-                quaternions[i].copy(),
-                None if velocities is None else velocities[i].copy(),
-                None if body_rates is None else body_rates[i].copy(),
-            )
-
-    def wrenches(self) -> np.ndarray:
-        return np.array([np.concatenate((e.estimate.force, e.estimate.torque)) for e in self.estimators])
-
-    def states(self) -> np.ndarray:
-        return np.array(
-            [
-                np.concatenate((s.position, s.velocity, s.quaternion, s.body_rates))
-                for s in (e.state for e in self.estimators)
-            ]
-        )
-
-    def statuses(self) -> list[str]:
-        return [e.status for e in self.estimators]

@@ -13,7 +13,7 @@ Dynamics (Sec. II-A with Euler angles, Sec. III-A-d), discretised with forward E
     ω' = ω + T J⁻¹ (η̂_prop + η_ext - ω × J ω)
     f_ext' = f_ext + v_f,   η_ext' = η_ext + v_η          random walks
 
-with the analytic Jacobian :meth:`ExtendedWrenchEstimator.transition_jacobian` (the tests check it
+with the analytic Jacobian :meth:`ExtendedFilterBank.transition_jacobian` (the tests check it
 against finite differences) and the standard EKF equations (Sec. III-A-e). Measurements (Sec.
 III-A-c): the motion-capture pose as Euler angles (the same data the UKF gets, for a fair
 comparison), plus velocity and body rates when the env's sensors provide them (a state estimator,
@@ -21,22 +21,24 @@ as on paper 003's vehicle). The yaw innovation is wrapped to [-π, π). The proc
 same settings as the UKF (:class:`~quad_wrench_env.estimators.noise.FilterNoise`): thrust and
 motor-torque noise enter v and ω through ``T/m`` and ``T/J``. The external torque is estimated in
 the body frame, as in the paper, and reported in the world frame (``R η_ext``), like every estimator.
+
+:class:`ExtendedFilterBank` runs N such filters as one batched computation (every array carries a
+leading filter axis); :class:`ExtendedWrenchEstimator`, the single-vehicle estimator, is a bank of
+one, so there is one implementation of the algebra.
 """
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
-from quad_wrench_env.estimators.base import StateEstimate, WrenchEstimate, check_finite_inputs
+from quad_wrench_env.estimators.bank import check_finite_batch
+from quad_wrench_env.estimators.base import StateEstimate, WrenchEstimate
 from quad_wrench_env.estimators.noise import EKFNoise
 from quad_wrench_env.rotations import (
     cross,
     euler_zyx_from_quat,
     quat_from_euler_zyx,
-    rotation_matrix,
-    skew,
+    rotation_matrices,
     wrap_angle,
 )
 from quad_wrench_env.vehicle import GRAVITY, VehicleParams
@@ -46,26 +48,33 @@ STATE_DIM = 18
 _TINY = 1e-10
 
 
-def euler_rate_matrix(roll: float, pitch: float) -> np.ndarray:
-    """``W`` with ``(φ̇, θ̇, ψ̇) = W ω`` for ZYX Euler angles and body rates ω."""
-    sr, cr = math.sin(roll), math.cos(roll)
-    tp, cp = math.tan(pitch), math.cos(pitch)
-    return np.array(((1.0, sr * tp, cr * tp), (0.0, cr, -sr), (0.0, sr / cp, cr / cp)))
+def euler_rate_matrix(roll: np.ndarray, pitch: np.ndarray) -> np.ndarray:
+    """(..., 3, 3) ``W`` with ``(φ̇, θ̇, ψ̇) = W ω`` for ZYX Euler angles and body rates ω."""
+    sr, cr = np.sin(roll), np.cos(roll)
+    tp, cp = np.tan(pitch), np.cos(pitch)
+    zero, one = np.zeros_like(roll), np.ones_like(roll)
+    rows = ((one, sr * tp, cr * tp), (zero, cr, -sr), (zero, sr / cp, cr / cp))
+    return np.stack([np.stack(row, axis=-1) for row in rows], axis=-2)
 
 
-class ExtendedWrenchEstimator:
-    """Euler-angle EKF with random-walk external force and torque (paper 003)."""
+class ExtendedFilterBank:
+    """N Euler-angle EKFs with random-walk external force and torque (paper 003), stepped together.
+
+    State arrays: ``x`` (N, 18) and ``P`` (N, 18, 18).
+    """
 
     name = "ekf"
 
-    def __init__(self, vehicle: VehicleParams, dt: float, noise: EKFNoise | None = None) -> None:
+    def __init__(self, vehicle: VehicleParams, dt: float, noise: EKFNoise | None, count: int) -> None:
+        if count < 1:
+            raise ValueError(f"count={count!r} must be at least 1 filter")
         self.vehicle = vehicle
         self.dt = dt
+        self.count = count
         self.noise = noise or EKFNoise()
         n = self.noise
         self.mass = vehicle.mass
         self.inertia = np.array(vehicle.inertia)
-        self._J = np.diag(self.inertia)
         q_diag = np.zeros(STATE_DIM)
         q_diag[P] = _TINY
         q_diag[V] = (dt * n.thrust / self.mass) ** 2
@@ -74,33 +83,195 @@ class ExtendedWrenchEstimator:
         q_diag[F] = n.force_walk**2
         q_diag[N] = n.torque_walk**2
         self.Q = np.diag(q_diag)
-        self.P0 = np.diag(
-            np.repeat(
-                (
-                    n.initial_position,
-                    n.initial_velocity,
-                    n.initial_attitude,
-                    n.initial_rates,
-                    n.initial_force,
-                    n.initial_torque,
-                ),
-                3,
-            )
-            ** 2
-        )
+        initial = (
+            n.initial_position, n.initial_velocity, n.initial_attitude,
+            n.initial_rates, n.initial_force, n.initial_torque,
+        )  # fmt: skip
+        self.P0 = np.diag(np.repeat(initial, 3) ** 2)
         self._noise_pose = np.repeat((n.position, n.attitude), 3) ** 2
         self._noise_motion = np.repeat((n.velocity, n.body_rate), 3) ** 2
-        self.x = np.zeros(STATE_DIM)
-        self.P = self.P0.copy()
-        self.status = "ok"
+        self.x = np.zeros((count, STATE_DIM))
+        self.P = np.tile(self.P0, (count, 1, 1))
+        self.reinitialisations = np.zeros(count, dtype=int)
 
-    # -- interface -------------------------------------------------------------------------------
+    # -- bank interface ----------------------------------------------------------------------------
+    def reset(self, index: int | np.ndarray, position: np.ndarray, quaternion_wxyz: np.ndarray) -> None:
+        """Start the filters ``index`` afresh at the given poses, at rest, with no external wrench."""
+        self._restart(index, position, quaternion_wxyz)
+        self.reinitialisations[index] = 0
+
+    def _restart(self, index: int | np.ndarray, position: np.ndarray, quaternion_wxyz: np.ndarray) -> None:
+        self.x[index] = 0.0
+        self.x[index, P] = position
+        self.x[index, E] = euler_zyx_from_quat(np.asarray(quaternion_wxyz, dtype=float))
+        self.P[index] = self.P0
+
+    def step(
+        self,
+        thrusts: np.ndarray,
+        body_torques: np.ndarray,
+        positions: np.ndarray,
+        quaternions: np.ndarray,
+        velocities: np.ndarray | None = None,
+        body_rates: np.ndarray | None = None,
+    ) -> None:
+        """Predict with (N,) thrusts and (N, 3) body torques, correct with the measured (N, 3)
+        positions, (N, 4) attitudes and, where measured, (N, 3) velocities and body rates; restart
+        any filter whose state became non-finite."""
+        check_finite_batch(
+            self.name, thrusts=thrusts, body_torques=body_torques, positions=positions,
+            quaternions=quaternions, velocities=velocities, body_rates=body_rates,
+        )  # fmt: skip
+        u = np.column_stack((thrusts, body_torques))
+        self.predict(u)
+        self.correct(positions, quaternions, velocities, body_rates)
+        broken = ~(np.isfinite(self.x).all(axis=1) & np.isfinite(self.P).all(axis=(1, 2)))
+        if np.any(broken):
+            self._restart(broken, positions[broken], quaternions[broken])
+            self.reinitialisations[broken] += 1
+
+    def rotations(self) -> np.ndarray:
+        """(N, 3, 3) body -> world matrices of the estimated attitudes."""
+        return rotation_matrices(self.quaternions())
+
+    def quaternions(self) -> np.ndarray:
+        return quat_from_euler_zyx(self.x[:, 6], self.x[:, 7], self.x[:, 8])
+
+    def wrenches(self) -> np.ndarray:
+        """(N, 6) estimated ``[f_ext, R η_ext]``, world frame."""
+        torque = np.einsum("nij,nj->ni", self.rotations(), self.x[:, N])
+        return np.concatenate((self.x[:, F], torque), axis=1)
+
+    def wrench_covariances(self) -> np.ndarray:
+        """(N, 6, 6) covariance of ``[f_ext, R η_ext]``."""
+        rotate = np.tile(np.eye(6), (self.count, 1, 1))
+        rotate[:, 3:, 3:] = self.rotations()
+        block = self.P[:, 12:18, 12:18]
+        return rotate @ block @ rotate.transpose(0, 2, 1)
+
+    def states(self) -> np.ndarray:
+        """(N, 13) estimated position, velocity, quaternion and body rates."""
+        return np.concatenate((self.x[:, P], self.x[:, V], self.quaternions(), self.x[:, W]), axis=1)
+
+    def statuses(self) -> list[str]:
+        return ["ok" if k == 0 else "reinitialised" for k in self.reinitialisations.tolist()]
+
+    # -- model -----------------------------------------------------------------------------------
+    def transition(self, x: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """Forward-Euler step of the noise-free dynamics (module docstring) for (n, 18) states and
+        (n, 4) inputs."""
+        T, m = self.dt, self.mass
+        roll, pitch, yaw = x[:, 6], x[:, 7], x[:, 8]
+        omega = x[:, W]
+        R = rotation_matrices(quat_from_euler_zyx(roll, pitch, yaw))
+        out = x.copy()
+        accel = (R[:, :, 2] * u[:, :1] + x[:, F]) / m
+        accel[:, 2] -= GRAVITY
+        out[:, P] += T * x[:, V]
+        out[:, V] += T * accel
+        out[:, E] += T * np.einsum("nij,nj->ni", euler_rate_matrix(roll, pitch), omega)
+        out[:, W] += T * (u[:, 1:] + x[:, N] - cross(omega, self.inertia * omega)) / self.inertia
+        return out
+
+    def transition_jacobian(self, x: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """``∂ transition / ∂ x`` (n, 18, 18), analytic."""
+        T, m = self.dt, self.mass
+        roll, pitch, yaw = x[:, 6], x[:, 7], x[:, 8]
+        p_, q_, r_ = x[:, 9], x[:, 10], x[:, 11]
+        sr, cr = np.sin(roll), np.cos(roll)
+        sp, cp, tp = np.sin(pitch), np.cos(pitch), np.tan(pitch)
+        sy, cy = np.sin(yaw), np.cos(yaw)
+        zero = np.zeros_like(roll)
+        A = np.zeros((len(x), STATE_DIM, STATE_DIM))
+        A[:, P, V] = np.eye(3)
+        # v' = (R e_z T + f)/m - g: columns of ∂(R e_z)/∂(φ, θ, ψ)
+        d_roll = np.stack((-cy * sp * sr + sy * cr, -sy * sp * sr - cy * cr, -cp * sr), axis=-1)
+        d_pitch = np.stack((cy * cp * cr, sy * cp * cr, -sp * cr), axis=-1)
+        d_yaw = np.stack((-sy * sp * cr + cy * sr, cy * sp * cr + sy * sr, zero), axis=-1)
+        A[:, V, E] = np.stack((d_roll, d_pitch, d_yaw), axis=-1) * (u[:, 0] / m)[:, None, None]
+        A[:, V, F] = np.eye(3) / m
+        # Euler rates W(φ, θ) ω
+        rows = (
+            (cr * tp * q_ - sr * tp * r_, (sr * q_ + cr * r_) / cp**2, zero),
+            (-sr * q_ - cr * r_, zero, zero),
+            ((cr * q_ - sr * r_) / cp, (sr * q_ + cr * r_) * sp / cp**2, zero),
+        )
+        A[:, E, E] = np.stack([np.stack(row, axis=-1) for row in rows], axis=-2)
+        A[:, E, W] = euler_rate_matrix(roll, pitch)
+        # ω' : -J⁻¹ (ω × Jω), whose derivative is -J⁻¹ (skew(ω) J - skew(J ω)), and J⁻¹ η_ext
+        jx, jy, jz = self.inertia
+        rows = (
+            (zero, (jy - jz) * r_, (jy - jz) * q_),
+            ((jz - jx) * r_, zero, (jz - jx) * p_),
+            ((jx - jy) * q_, (jx - jy) * p_, zero),
+        )
+        A[:, W, W] = np.stack([np.stack(row, axis=-1) for row in rows], axis=-2) / self.inertia[:, None]
+        A[:, W, N] = np.diag(1.0 / self.inertia)
+        return np.eye(STATE_DIM) + T * A
+
+    # -- filter ----------------------------------------------------------------------------------
+    def predict(self, u: np.ndarray) -> None:
+        F_k = self.transition_jacobian(self.x, u)
+        self.x = self.transition(self.x, u)
+        self.P = F_k @ self.P @ F_k.transpose(0, 2, 1) + self.Q
+
+    def correct(
+        self,
+        positions: np.ndarray,
+        quaternions: np.ndarray,
+        velocities: np.ndarray | None,
+        body_rates: np.ndarray | None,
+    ) -> None:
+        indices = [np.r_[P], np.r_[E]]
+        residuals = [positions - self.x[:, P], wrap_angle(euler_zyx_from_quat(quaternions) - self.x[:, E])]
+        noise = [self._noise_pose]
+        if velocities is not None:
+            indices.append(np.r_[V])
+            residuals.append(velocities - self.x[:, V])
+            noise.append(self._noise_motion[:3])
+        if body_rates is not None:
+            indices.append(np.r_[W])
+            residuals.append(body_rates - self.x[:, W])
+            noise.append(self._noise_motion[3:])
+        measured = np.concatenate(indices)
+        PHt = self.P[:, :, measured]
+        S = PHt[:, measured, :] + np.diag(np.concatenate(noise))
+        K = np.linalg.solve(S, PHt.transpose(0, 2, 1)).transpose(0, 2, 1)
+        self.x = self.x + (K @ np.concatenate(residuals, axis=1)[:, :, None])[:, :, 0]
+        self.x[:, E] = wrap_angle(self.x[:, E])
+        P_new = self.P - K @ PHt.transpose(0, 2, 1)
+        self.P = 0.5 * (P_new + P_new.transpose(0, 2, 1))
+
+
+class ExtendedWrenchEstimator:
+    """Paper 003's EKF for one vehicle: a bank of one filter."""
+
+    name = "ekf"
+
+    def __init__(self, vehicle: VehicleParams, dt: float, noise: EKFNoise | None = None) -> None:
+        self.bank = ExtendedFilterBank(vehicle, dt, noise, count=1)
+        self.noise, self.mass, self.inertia, self.Q = (
+            self.bank.noise,
+            self.bank.mass,
+            self.bank.inertia,
+            self.bank.Q,
+        )
+
+    @property
+    def x(self) -> np.ndarray:
+        return self.bank.x[0]
+
+    @property
+    def covariance(self) -> np.ndarray:
+        """(18, 18) state covariance."""
+        return self.bank.P[0]
+
+    @property
+    def status(self) -> str:
+        return self.bank.statuses()[0]
+
     def reset(self, position: np.ndarray, quaternion_wxyz: np.ndarray) -> None:
-        self.x = np.zeros(STATE_DIM)
-        self.x[P] = position
-        self.x[E] = euler_zyx_from_quat(np.asarray(quaternion_wxyz, dtype=float))
-        self.P = self.P0.copy()
-        self.status = "ok"
+        self.bank.reset(0, position, quaternion_wxyz)
 
     def step(
         self,
@@ -111,118 +282,31 @@ class ExtendedWrenchEstimator:
         velocity: np.ndarray | None = None,
         body_rates: np.ndarray | None = None,
     ) -> WrenchEstimate:
-        check_finite_inputs(
-            self.name,
-            thrust=thrust,
-            body_torque=body_torque,
-            position=position,
-            quaternion=quaternion_wxyz,
-            velocity=velocity,
-            body_rates=body_rates,
-        )
-        u = np.concatenate(((thrust,), body_torque))
-        self.predict(u)
-        self.correct(
-            np.asarray(position, dtype=float), np.asarray(quaternion_wxyz, dtype=float), velocity, body_rates
-        )
-        if not (np.all(np.isfinite(self.x)) and np.all(np.isfinite(self.P))):
-            self.reset(np.asarray(position, dtype=float), np.asarray(quaternion_wxyz, dtype=float))
-            self.status = "reinitialised"
+        def row(value):
+            return None if value is None else np.asarray(value, dtype=float)[None, :]
+
+        self.bank.step(
+            np.array((thrust,), dtype=float), row(body_torque), row(position), row(quaternion_wxyz),
+            row(velocity), row(body_rates),
+        )  # fmt: skip
         return self.estimate
 
     @property
     def estimate(self) -> WrenchEstimate:
-        R = rotation_matrix(self.quaternion)
-        block = np.r_[12:18]
-        rotate = np.eye(6)
-        rotate[3:, 3:] = R
-        covariance = rotate @ self.P[np.ix_(block, block)] @ rotate.T
-        return WrenchEstimate(self.x[F].copy(), R @ self.x[N], covariance)
+        w = self.bank.wrenches()[0]
+        return WrenchEstimate(w[:3], w[3:], self.bank.wrench_covariances()[0])
 
     @property
     def quaternion(self) -> np.ndarray:
-        return quat_from_euler_zyx(*self.x[E])
+        return self.bank.quaternions()[0]
 
     @property
     def state(self) -> StateEstimate:
-        return StateEstimate(self.x[P].copy(), self.x[V].copy(), self.quaternion, self.x[W].copy())
+        s = self.bank.states()[0]
+        return StateEstimate(s[0:3], s[3:6], s[6:10], s[10:13])
 
-    # -- model -----------------------------------------------------------------------------------
     def transition(self, x: np.ndarray, u: np.ndarray) -> np.ndarray:
-        """Forward-Euler step of the noise-free dynamics (module docstring)."""
-        T, m = self.dt, self.mass
-        roll, pitch, yaw = x[E]
-        omega = x[W]
-        R = rotation_matrix(quat_from_euler_zyx(roll, pitch, yaw))
-        out = x.copy()
-        accel = (R[:, 2] * u[0] + x[F]) / m
-        accel[2] -= GRAVITY
-        out[P] += T * x[V]
-        out[V] += T * accel
-        out[E] += T * euler_rate_matrix(roll, pitch) @ omega
-        out[W] += T * (u[1:] + x[N] - cross(omega, self.inertia * omega)) / self.inertia
-        return out
+        return self.bank.transition(x[None], u[None])[0]
 
     def transition_jacobian(self, x: np.ndarray, u: np.ndarray) -> np.ndarray:
-        """``∂ transition / ∂ x`` (18 x 18), analytic."""
-        T, m = self.dt, self.mass
-        roll, pitch, yaw = x[E]
-        _, q_, r_ = x[W]
-        sr, cr = math.sin(roll), math.cos(roll)
-        sp, cp, tp = math.sin(pitch), math.cos(pitch), math.tan(pitch)
-        sy, cy = math.sin(yaw), math.cos(yaw)
-        A = np.zeros((STATE_DIM, STATE_DIM))
-        A[P, V] = np.eye(3)
-        # v' = (R e_z T + f)/m - g: columns of ∂(R e_z)/∂(φ, θ, ψ)
-        d_roll = (-cy * sp * sr + sy * cr, -sy * sp * sr - cy * cr, -cp * sr)
-        d_pitch = (cy * cp * cr, sy * cp * cr, -sp * cr)
-        d_yaw = (-sy * sp * cr + cy * sr, cy * sp * cr + sy * sr, 0.0)
-        A[V, E] = np.column_stack((d_roll, d_pitch, d_yaw)) * (u[0] / m)
-        A[V, F] = np.eye(3) / m
-        # Euler rates W(φ, θ) ω
-        A[E, E] = np.array(
-            (
-                (cr * tp * q_ - sr * tp * r_, (sr * q_ + cr * r_) / cp**2, 0.0),
-                (-sr * q_ - cr * r_, 0.0, 0.0),
-                ((cr * q_ - sr * r_) / cp, (sr * q_ + cr * r_) * sp / cp**2, 0.0),
-            )
-        )
-        A[E, W] = euler_rate_matrix(roll, pitch)
-        # ω' : -J⁻¹ (ω × Jω) and J⁻¹ η_ext
-        omega = x[W]
-        A[W, W] = -(skew(omega) @ self._J - skew(self.inertia * omega)) / self.inertia[:, None]
-        A[W, N] = np.diag(1.0 / self.inertia)
-        return np.eye(STATE_DIM) + T * A
-
-    # -- filter ----------------------------------------------------------------------------------
-    def predict(self, u: np.ndarray) -> None:
-        F_k = self.transition_jacobian(self.x, u)
-        self.x = self.transition(self.x, u)
-        self.P = F_k @ self.P @ F_k.T + self.Q
-
-    def correct(
-        self,
-        position: np.ndarray,
-        quaternion: np.ndarray,
-        velocity: np.ndarray | None,
-        body_rates: np.ndarray | None,
-    ) -> None:
-        indices = [np.r_[P], np.r_[E]]
-        residuals = [position - self.x[P], wrap_angle(euler_zyx_from_quat(quaternion) - self.x[E])]
-        noise = [self._noise_pose]
-        if velocity is not None:
-            indices.append(np.r_[V])
-            residuals.append(velocity - self.x[V])
-            noise.append(self._noise_motion[:3])
-        if body_rates is not None:
-            indices.append(np.r_[W])
-            residuals.append(body_rates - self.x[W])
-            noise.append(self._noise_motion[3:])
-        measured = np.concatenate(indices)
-        PHt = self.P[:, measured]
-        S = PHt[measured] + np.diag(np.concatenate(noise))
-        K = np.linalg.solve(S, PHt.T).T
-        self.x = self.x + K @ np.concatenate(residuals)
-        self.x[E] = wrap_angle(self.x[E])
-        P_new = self.P - K @ PHt.T
-        self.P = 0.5 * (P_new + P_new.T)
+        return self.bank.transition_jacobian(x[None], u[None])[0]

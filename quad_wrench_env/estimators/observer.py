@@ -21,6 +21,9 @@ observer needs filtering under noise); measured velocity and body rates are used
 env provides them. The torque estimate ``τ̂_gen`` is in generalised (Euler) coordinates; it is
 reported in the world frame like every estimator's: ``R T⁻ᵀ τ̂_gen``. The observer carries no
 covariance: it reports zeros.
+
+:class:`ObserverBank` runs N observers as one batched computation (every array carries a leading
+vehicle axis); :class:`NonlinearWrenchObserver`, the single-vehicle estimator, is a bank of one.
 """
 
 from __future__ import annotations
@@ -31,12 +34,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from quad_wrench_env.config import check_numbers
-from quad_wrench_env.estimators.base import StateEstimate, WrenchEstimate, check_finite_inputs
+from quad_wrench_env.estimators.bank import check_finite_batch
+from quad_wrench_env.estimators.base import StateEstimate, WrenchEstimate
 from quad_wrench_env.rotations import (
     cross,
     euler_zyx_from_quat,
     quat_from_euler_zyx,
-    rotation_matrix,
+    rotation_matrices,
     wrap_angle,
 )
 from quad_wrench_env.vehicle import GRAVITY, VehicleParams
@@ -63,35 +67,53 @@ class ObserverGains:
         )
 
 
-def euler_kinematics(roll: float, pitch: float) -> np.ndarray:
-    """``T(η)`` with ``ω = T η̇`` (body rates from ZYX Euler-angle rates), paper 001 Sec. II."""
-    sr, cr = math.sin(roll), math.cos(roll)
-    sp, cp = math.sin(pitch), math.cos(pitch)
-    return np.array(((1.0, 0.0, -sp), (0.0, cr, sr * cp), (0.0, -sr, cr * cp)))
+def _matrices(rows) -> np.ndarray:
+    return np.stack([np.stack(row, axis=-1) for row in rows], axis=-2)
 
 
-def euler_kinematics_rate(roll: float, pitch: float, roll_rate: float, pitch_rate: float) -> np.ndarray:
-    """``Ṫ(η, η̇)``."""
-    sr, cr = math.sin(roll), math.cos(roll)
-    sp, cp = math.sin(pitch), math.cos(pitch)
-    return np.array(
+def euler_kinematics(roll: np.ndarray, pitch: np.ndarray) -> np.ndarray:
+    """(..., 3, 3) ``T(η)`` with ``ω = T η̇`` (body rates from ZYX Euler-angle rates), paper 001 Sec. II."""
+    sr, cr = np.sin(roll), np.cos(roll)
+    sp, cp = np.sin(pitch), np.cos(pitch)
+    zero, one = np.zeros_like(sr), np.ones_like(sr)
+    return _matrices(((one, zero, -sp), (zero, cr, sr * cp), (zero, -sr, cr * cp)))
+
+
+def euler_kinematics_rate(
+    roll: np.ndarray, pitch: np.ndarray, roll_rate: np.ndarray, pitch_rate: np.ndarray
+) -> np.ndarray:
+    """(..., 3, 3) ``Ṫ(η, η̇)``."""
+    sr, cr = np.sin(roll), np.cos(roll)
+    sp, cp = np.sin(pitch), np.cos(pitch)
+    zero = np.zeros_like(sr)
+    return _matrices(
         (
-            (0.0, 0.0, -cp * pitch_rate),
-            (0.0, -sr * roll_rate, cr * cp * roll_rate - sr * sp * pitch_rate),
-            (0.0, -cr * roll_rate, -sr * cp * roll_rate - cr * sp * pitch_rate),
+            (zero, zero, -cp * pitch_rate),
+            (zero, -sr * roll_rate, cr * cp * roll_rate - sr * sp * pitch_rate),
+            (zero, -cr * roll_rate, -sr * cp * roll_rate - cr * sp * pitch_rate),
         )
     )
 
 
-class NonlinearWrenchObserver:
-    """Momentum-type observer without acceleration (paper 001 eqs. 9-15)."""
+def _apply(matrices: np.ndarray, vectors: np.ndarray) -> np.ndarray:
+    return np.einsum("nij,nj->ni", matrices, vectors)
+
+
+def _apply_transposed(matrices: np.ndarray, vectors: np.ndarray) -> np.ndarray:
+    return np.einsum("nji,nj->ni", matrices, vectors)
+
+
+class ObserverBank:
+    """N momentum-type observers without acceleration (paper 001 eqs. 9-15), stepped together."""
 
     name = "observer"
-    status = "ok"
 
-    def __init__(self, vehicle: VehicleParams, dt: float, gains: ObserverGains | None = None) -> None:
+    def __init__(self, vehicle: VehicleParams, dt: float, gains: ObserverGains | None, count: int) -> None:
+        if count < 1:
+            raise ValueError(f"count={count!r} must be at least 1 observer")
         self.vehicle = vehicle
         self.dt = dt
+        self.count = count
         self.gains = gains or ObserverGains()
         self.mass = vehicle.mass
         self.inertia = np.array(vehicle.inertia)
@@ -99,18 +121,115 @@ class NonlinearWrenchObserver:
         self._force_decay = math.exp(-g.c_force * dt / self.mass)
         self._velocity_alpha = _alpha(dt, g.velocity_time_constant)
         self._rate_alpha = _alpha(dt, g.rate_time_constant)
-        self.reset(np.zeros(3), np.array((1.0, 0.0, 0.0, 0.0)))
+        self.positions = np.zeros((count, 3))
+        self.eulers = np.zeros((count, 3))
+        self.velocities = np.zeros((count, 3))
+        self.euler_rates = np.zeros((count, 3))
+        self.psi_force = np.zeros((count, 3))
+        self.psi_torque = np.zeros((count, 3))
+        self.forces = np.zeros((count, 3))
+        self.torques_generalised = np.zeros((count, 3))
+
+    def reset(self, index: int | np.ndarray, position: np.ndarray, quaternion_wxyz: np.ndarray) -> None:
+        """Start the observers ``index`` at rest with zero wrench (``ŵ = Ψ + c q̇ = 0``)."""
+        self.positions[index] = position
+        self.eulers[index] = euler_zyx_from_quat(np.asarray(quaternion_wxyz, dtype=float))
+        for state in (self.velocities, self.euler_rates, self.psi_force, self.psi_torque):
+            state[index] = 0.0
+        self.forces[index] = 0.0
+        self.torques_generalised[index] = 0.0
+
+    def step(
+        self,
+        thrusts: np.ndarray,
+        body_torques: np.ndarray,
+        positions: np.ndarray,
+        quaternions: np.ndarray,
+        velocities: np.ndarray | None = None,
+        body_rates: np.ndarray | None = None,
+    ) -> None:
+        check_finite_batch(
+            self.name, thrusts=thrusts, body_torques=body_torques, positions=positions,
+            quaternions=quaternions, velocities=velocities, body_rates=body_rates,
+        )  # fmt: skip
+        self._measure(positions, quaternions, velocities, body_rates)
+        g, dt = self.gains, self.dt
+        roll, pitch = self.eulers[:, 0], self.eulers[:, 1]
+        R = rotation_matrices(quat_from_euler_zyx(roll, pitch, self.eulers[:, 2]))
+        # force block (eq. 13 with L = c/m): Ψ' = e^{-cT/m} Ψ + (1 - e^{-cT/m}) (m g e_z - ρ R e_z - c ẋ)
+        drive = -np.asarray(thrusts, dtype=float)[:, None] * R[:, :, 2] - g.c_force * self.velocities
+        drive[:, 2] += self.mass * GRAVITY
+        self.psi_force = self._force_decay * self.psi_force + (1.0 - self._force_decay) * drive
+        self.forces = self.psi_force + g.c_force * self.velocities
+        # torque block (eq. 13 with L = c 𝕁⁻¹), backward Euler: (𝕁 + c T) Ψ' = 𝕁 Ψ + c T (C η̇ - Tᵀτ̄ - c η̇)
+        T_eta = euler_kinematics(roll, pitch)
+        J_gen = T_eta.transpose(0, 2, 1) @ (self.inertia[:, None] * T_eta)
+        eta_rate = self.euler_rates
+        omega = _apply(T_eta, eta_rate)
+        T_dot = euler_kinematics_rate(roll, pitch, eta_rate[:, 0], eta_rate[:, 1])
+        coriolis = _apply_transposed(
+            T_eta, self.inertia * _apply(T_dot, eta_rate) + cross(omega, self.inertia * omega)
+        )
+        drive_torque = coriolis - _apply_transposed(T_eta, body_torques) - g.c_torque * eta_rate
+        gain = g.c_torque * dt
+        right = _apply(J_gen, self.psi_torque) + gain * drive_torque
+        self.psi_torque = np.linalg.solve(J_gen + gain * np.eye(3), right[:, :, None])[:, :, 0]
+        self.torques_generalised = self.psi_torque + g.c_torque * eta_rate
+
+    def _measure(
+        self,
+        positions: np.ndarray,
+        quaternions: np.ndarray,
+        velocities: np.ndarray | None,
+        body_rates: np.ndarray | None,
+    ) -> None:
+        euler = euler_zyx_from_quat(np.asarray(quaternions, dtype=float))
+        if velocities is not None:
+            self.velocities = np.array(velocities, dtype=float)
+        else:
+            raw = (positions - self.positions) / self.dt
+            self.velocities = self.velocities + self._velocity_alpha * (raw - self.velocities)
+        if body_rates is not None:
+            kinematics = euler_kinematics(euler[:, 0], euler[:, 1])
+            self.euler_rates = np.linalg.solve(kinematics, np.asarray(body_rates, dtype=float)[:, :, None])[
+                :, :, 0
+            ]
+        else:
+            raw = wrap_angle(euler - self.eulers) / self.dt
+            self.euler_rates = self.euler_rates + self._rate_alpha * (raw - self.euler_rates)
+        self.positions = np.array(positions, dtype=float)
+        self.eulers = euler
+
+    def quaternions(self) -> np.ndarray:
+        return quat_from_euler_zyx(self.eulers[:, 0], self.eulers[:, 1], self.eulers[:, 2])
+
+    def wrenches(self) -> np.ndarray:
+        """(N, 6) estimated ``[f, R T⁻ᵀ τ̂_gen]``, world frame."""
+        kinematics = euler_kinematics(self.eulers[:, 0], self.eulers[:, 1])
+        body = np.linalg.solve(kinematics.transpose(0, 2, 1), self.torques_generalised[:, :, None])[:, :, 0]
+        return np.concatenate((self.forces, _apply(rotation_matrices(self.quaternions()), body)), axis=1)
+
+    def states(self) -> np.ndarray:
+        """(N, 13) position, velocity, quaternion and body rates ``T η̇``."""
+        body_rates = _apply(euler_kinematics(self.eulers[:, 0], self.eulers[:, 1]), self.euler_rates)
+        return np.concatenate((self.positions, self.velocities, self.quaternions(), body_rates), axis=1)
+
+    def statuses(self) -> list[str]:
+        return ["ok"] * self.count
+
+
+class NonlinearWrenchObserver:
+    """Paper 001's observer for one vehicle: a bank of one."""
+
+    name = "observer"
+    status = "ok"
+
+    def __init__(self, vehicle: VehicleParams, dt: float, gains: ObserverGains | None = None) -> None:
+        self.bank = ObserverBank(vehicle, dt, gains, count=1)
+        self.gains, self.mass, self.inertia = self.bank.gains, self.bank.mass, self.bank.inertia
 
     def reset(self, position: np.ndarray, quaternion_wxyz: np.ndarray) -> None:
-        self._position = np.array(position, dtype=float)
-        self._euler = euler_zyx_from_quat(np.asarray(quaternion_wxyz, dtype=float))
-        self._velocity = np.zeros(3)
-        self._euler_rate = np.zeros(3)
-        # at rest with zero wrench: ŵ = Ψ + c q̇ = 0
-        self._psi_force = np.zeros(3)
-        self._psi_torque = np.zeros(3)
-        self._force = np.zeros(3)
-        self._torque_generalised = np.zeros(3)
+        self.bank.reset(0, position, quaternion_wxyz)
 
     def step(
         self,
@@ -121,80 +240,24 @@ class NonlinearWrenchObserver:
         velocity: np.ndarray | None = None,
         body_rates: np.ndarray | None = None,
     ) -> WrenchEstimate:
-        check_finite_inputs(
-            self.name,
-            thrust=thrust,
-            body_torque=body_torque,
-            position=position,
-            quaternion=quaternion_wxyz,
-            velocity=velocity,
-            body_rates=body_rates,
-        )
-        self._measure(
-            np.asarray(position, dtype=float), np.asarray(quaternion_wxyz, dtype=float), velocity, body_rates
-        )
-        g, dt = self.gains, self.dt
-        roll, pitch, _ = self._euler
-        R = rotation_matrix(quat_from_euler_zyx(*self._euler))
-        # force block (eq. 13 with L = c/m): Ψ' = e^{-cT/m} Ψ + (1 - e^{-cT/m}) (m g e_z - ρ R e_z - c ẋ)
-        drive = -thrust * R[:, 2] - g.c_force * self._velocity
-        drive[2] += self.mass * GRAVITY
-        self._psi_force = self._force_decay * self._psi_force + (1.0 - self._force_decay) * drive
-        self._force = self._psi_force + g.c_force * self._velocity
-        # torque block (eq. 13 with L = c 𝕁⁻¹), backward Euler: (𝕁 + c T) Ψ' = 𝕁 Ψ + c T (C η̇ - Tᵀτ̄ - c η̇)
-        T_eta = euler_kinematics(roll, pitch)
-        J_gen = T_eta.T @ (self.inertia[:, None] * T_eta)
-        eta_rate = self._euler_rate
-        omega = T_eta @ eta_rate
-        coriolis = T_eta.T @ (
-            self.inertia * (euler_kinematics_rate(roll, pitch, *eta_rate[:2]) @ eta_rate)
-            + cross(omega, self.inertia * omega)
-        )
-        drive_torque = coriolis - T_eta.T @ body_torque - g.c_torque * eta_rate
-        gain = g.c_torque * dt
-        self._psi_torque = np.linalg.solve(
-            J_gen + gain * np.eye(3), J_gen @ self._psi_torque + gain * drive_torque
-        )
-        self._torque_generalised = self._psi_torque + g.c_torque * eta_rate
-        return self.estimate
+        def row(value):
+            return None if value is None else np.asarray(value, dtype=float)[None, :]
 
-    def _measure(
-        self,
-        position: np.ndarray,
-        quaternion: np.ndarray,
-        velocity: np.ndarray | None,
-        body_rates: np.ndarray | None,
-    ) -> None:
-        euler = euler_zyx_from_quat(quaternion)
-        if velocity is not None:
-            self._velocity = np.asarray(velocity, dtype=float)
-        else:
-            raw = (position - self._position) / self.dt
-            self._velocity = self._velocity + self._velocity_alpha * (raw - self._velocity)
-        if body_rates is not None:
-            self._euler_rate = np.linalg.solve(euler_kinematics(*euler[:2]), body_rates)
-        else:
-            raw = wrap_angle(euler - self._euler) / self.dt
-            self._euler_rate = self._euler_rate + self._rate_alpha * (raw - self._euler_rate)
-        self._position = position
-        self._euler = euler
+        self.bank.step(
+            np.array((thrust,), dtype=float), row(body_torque), row(position), row(quaternion_wxyz),
+            row(velocity), row(body_rates),
+        )  # fmt: skip
+        return self.estimate
 
     @property
     def estimate(self) -> WrenchEstimate:
-        roll, pitch, _ = self._euler
-        body = np.linalg.solve(euler_kinematics(roll, pitch).T, self._torque_generalised)
-        R = rotation_matrix(quat_from_euler_zyx(*self._euler))
-        return WrenchEstimate(self._force.copy(), R @ body, _NO_COVARIANCE)
+        w = self.bank.wrenches()[0]
+        return WrenchEstimate(w[:3], w[3:], _NO_COVARIANCE)
 
     @property
     def state(self) -> StateEstimate:
-        roll, pitch, _ = self._euler
-        return StateEstimate(
-            self._position.copy(),
-            self._velocity.copy(),
-            quat_from_euler_zyx(*self._euler),
-            euler_kinematics(roll, pitch) @ self._euler_rate,
-        )
+        s = self.bank.states()[0]
+        return StateEstimate(s[0:3], s[3:6], s[6:10], s[10:13])
 
 
 def _alpha(dt: float, time_constant: float) -> float:
