@@ -48,13 +48,18 @@ STATE_DIM = 18
 _TINY = 1e-10
 
 
-def euler_rate_matrix(roll: np.ndarray, pitch: np.ndarray) -> np.ndarray:
-    """(..., 3, 3) ``W`` with ``(φ̇, θ̇, ψ̇) = W ω`` for ZYX Euler angles and body rates ω."""
+def euler_rate_matrix(roll: np.ndarray, pitch: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+    """(n, 3, 3) ``W`` with ``(φ̇, θ̇, ψ̇) = W ω`` for ZYX Euler angles and body rates ω (n,);
+    written into ``out`` (n, 3, 3, zero where W is) when given."""
     sr, cr = np.sin(roll), np.cos(roll)
     tp, cp = np.tan(pitch), np.cos(pitch)
-    zero, one = np.zeros_like(roll), np.ones_like(roll)
-    rows = ((one, sr * tp, cr * tp), (zero, cr, -sr), (zero, sr / cp, cr / cp))
-    return np.stack([np.stack(row, axis=-1) for row in rows], axis=-2)
+    if out is None:
+        out = np.zeros((len(roll), 3, 3))
+    out[:, 0, 0] = 1.0
+    out[:, 0, 1], out[:, 0, 2] = sr * tp, cr * tp
+    out[:, 1, 1], out[:, 1, 2] = cr, -sr
+    out[:, 2, 1], out[:, 2, 2] = sr / cp, cr / cp
+    return out
 
 
 class ExtendedFilterBank:
@@ -93,6 +98,8 @@ class ExtendedFilterBank:
         self.x = np.zeros((count, STATE_DIM))
         self.P = np.tile(self.P0, (count, 1, 1))
         self.reinitialisations = np.zeros(count, dtype=int)
+        self._version = 0
+        self._attitude_cache: tuple[int, np.ndarray, np.ndarray] = (-1, np.empty(0), np.empty(0))
 
     # -- bank interface ----------------------------------------------------------------------------
     def reset(self, index: int | np.ndarray, position: np.ndarray, quaternion_wxyz: np.ndarray) -> None:
@@ -105,6 +112,7 @@ class ExtendedFilterBank:
         self.x[index, P] = position
         self.x[index, E] = euler_zyx_from_quat(np.asarray(quaternion_wxyz, dtype=float))
         self.P[index] = self.P0
+        self._version += 1
 
     def step(
         self,
@@ -125,17 +133,28 @@ class ExtendedFilterBank:
         u = np.column_stack((thrusts, body_torques))
         self.predict(u)
         self.correct(positions, quaternions, velocities, body_rates)
+        self._version += 1
         broken = ~(np.isfinite(self.x).all(axis=1) & np.isfinite(self.P).all(axis=(1, 2)))
         if np.any(broken):
             self._restart(broken, positions[broken], quaternions[broken])
             self.reinitialisations[broken] += 1
 
+    def _attitudes(self) -> tuple[np.ndarray, np.ndarray]:
+        """Quaternions (N, 4) and rotation matrices (N, 3, 3) of the estimated Euler angles, computed
+        once per state."""
+        version, q, R = self._attitude_cache
+        if version != self._version:
+            q = quat_from_euler_zyx(self.x[:, 6], self.x[:, 7], self.x[:, 8])
+            R = rotation_matrices(q)
+            self._attitude_cache = (self._version, q, R)
+        return q, R
+
     def rotations(self) -> np.ndarray:
         """(N, 3, 3) body -> world matrices of the estimated attitudes."""
-        return rotation_matrices(self.quaternions())
+        return self._attitudes()[1]
 
     def quaternions(self) -> np.ndarray:
-        return quat_from_euler_zyx(self.x[:, 6], self.x[:, 7], self.x[:, 8])
+        return self._attitudes()[0]
 
     def wrenches(self) -> np.ndarray:
         """(N, 6) estimated ``[f_ext, R η_ext]``, world frame."""
@@ -163,7 +182,7 @@ class ExtendedFilterBank:
         T, m = self.dt, self.mass
         roll, pitch, yaw = x[:, 6], x[:, 7], x[:, 8]
         omega = x[:, W]
-        R = rotation_matrices(quat_from_euler_zyx(roll, pitch, yaw))
+        R = self.rotations() if x is self.x else rotation_matrices(quat_from_euler_zyx(roll, pitch, yaw))
         out = x.copy()
         accel = (R[:, :, 2] * u[:, :1] + x[:, F]) / m
         accel[:, 2] -= GRAVITY
@@ -181,33 +200,32 @@ class ExtendedFilterBank:
         sr, cr = np.sin(roll), np.cos(roll)
         sp, cp, tp = np.sin(pitch), np.cos(pitch), np.tan(pitch)
         sy, cy = np.sin(yaw), np.cos(yaw)
-        zero = np.zeros_like(roll)
         A = np.zeros((len(x), STATE_DIM, STATE_DIM))
         A[:, P, V] = np.eye(3)
-        # v' = (R e_z T + f)/m - g: columns of ∂(R e_z)/∂(φ, θ, ψ)
-        d_roll = np.stack((-cy * sp * sr + sy * cr, -sy * sp * sr - cy * cr, -cp * sr), axis=-1)
-        d_pitch = np.stack((cy * cp * cr, sy * cp * cr, -sp * cr), axis=-1)
-        d_yaw = np.stack((-sy * sp * cr + cy * sr, cy * sp * cr + sy * sr, zero), axis=-1)
-        A[:, V, E] = np.stack((d_roll, d_pitch, d_yaw), axis=-1) * (u[:, 0] / m)[:, None, None]
+        # v' = (R e_z T + f)/m - g: columns of ∂(R e_z)/∂(φ, θ, ψ), times T̂/m
+        c = u[:, 0] / m
+        A[:, 3, 6], A[:, 4, 6], A[:, 5, 6] = (
+            (-cy * sp * sr + sy * cr) * c,
+            (-sy * sp * sr - cy * cr) * c,
+            -cp * sr * c,
+        )
+        A[:, 3, 7], A[:, 4, 7], A[:, 5, 7] = cy * cp * cr * c, sy * cp * cr * c, -sp * cr * c
+        A[:, 3, 8], A[:, 4, 8] = (-sy * sp * cr + cy * sr) * c, (cy * sp * cr + sy * sr) * c
         A[:, V, F] = np.eye(3) / m
         # Euler rates W(φ, θ) ω
-        rows = (
-            (cr * tp * q_ - sr * tp * r_, (sr * q_ + cr * r_) / cp**2, zero),
-            (-sr * q_ - cr * r_, zero, zero),
-            ((cr * q_ - sr * r_) / cp, (sr * q_ + cr * r_) * sp / cp**2, zero),
-        )
-        A[:, E, E] = np.stack([np.stack(row, axis=-1) for row in rows], axis=-2)
-        A[:, E, W] = euler_rate_matrix(roll, pitch)
+        A[:, 6, 6], A[:, 6, 7] = cr * tp * q_ - sr * tp * r_, (sr * q_ + cr * r_) / cp**2
+        A[:, 7, 6] = -sr * q_ - cr * r_
+        A[:, 8, 6], A[:, 8, 7] = (cr * q_ - sr * r_) / cp, (sr * q_ + cr * r_) * sp / cp**2
+        euler_rate_matrix(roll, pitch, out=A[:, E, W])
         # ω' : -J⁻¹ (ω × Jω), whose derivative is -J⁻¹ (skew(ω) J - skew(J ω)), and J⁻¹ η_ext
         jx, jy, jz = self.inertia
-        rows = (
-            (zero, (jy - jz) * r_, (jy - jz) * q_),
-            ((jz - jx) * r_, zero, (jz - jx) * p_),
-            ((jx - jy) * q_, (jx - jy) * p_, zero),
-        )
-        A[:, W, W] = np.stack([np.stack(row, axis=-1) for row in rows], axis=-2) / self.inertia[:, None]
+        A[:, 9, 10], A[:, 9, 11] = (jy - jz) / jx * r_, (jy - jz) / jx * q_
+        A[:, 10, 9], A[:, 10, 11] = (jz - jx) / jy * r_, (jz - jx) / jy * p_
+        A[:, 11, 9], A[:, 11, 10] = (jx - jy) / jz * q_, (jx - jy) / jz * p_
         A[:, W, N] = np.diag(1.0 / self.inertia)
-        return np.eye(STATE_DIM) + T * A
+        A *= T
+        A += np.eye(STATE_DIM)
+        return A
 
     # -- filter ----------------------------------------------------------------------------------
     def predict(self, u: np.ndarray) -> None:

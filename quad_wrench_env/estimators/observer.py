@@ -67,32 +67,28 @@ class ObserverGains:
         )
 
 
-def _matrices(rows) -> np.ndarray:
-    return np.stack([np.stack(row, axis=-1) for row in rows], axis=-2)
-
-
 def euler_kinematics(roll: np.ndarray, pitch: np.ndarray) -> np.ndarray:
-    """(..., 3, 3) ``T(η)`` with ``ω = T η̇`` (body rates from ZYX Euler-angle rates), paper 001 Sec. II."""
+    """(n, 3, 3) ``T(η)`` with ``ω = T η̇`` (body rates from ZYX Euler-angle rates), paper 001 Sec. II."""
     sr, cr = np.sin(roll), np.cos(roll)
     sp, cp = np.sin(pitch), np.cos(pitch)
-    zero, one = np.zeros_like(sr), np.ones_like(sr)
-    return _matrices(((one, zero, -sp), (zero, cr, sr * cp), (zero, -sr, cr * cp)))
+    out = np.zeros((len(roll), 3, 3))
+    out[:, 0, 0], out[:, 0, 2] = 1.0, -sp
+    out[:, 1, 1], out[:, 1, 2] = cr, sr * cp
+    out[:, 2, 1], out[:, 2, 2] = -sr, cr * cp
+    return out
 
 
 def euler_kinematics_rate(
     roll: np.ndarray, pitch: np.ndarray, roll_rate: np.ndarray, pitch_rate: np.ndarray
 ) -> np.ndarray:
-    """(..., 3, 3) ``Ṫ(η, η̇)``."""
+    """(n, 3, 3) ``Ṫ(η, η̇)``."""
     sr, cr = np.sin(roll), np.cos(roll)
     sp, cp = np.sin(pitch), np.cos(pitch)
-    zero = np.zeros_like(sr)
-    return _matrices(
-        (
-            (zero, zero, -cp * pitch_rate),
-            (zero, -sr * roll_rate, cr * cp * roll_rate - sr * sp * pitch_rate),
-            (zero, -cr * roll_rate, -sr * cp * roll_rate - cr * sp * pitch_rate),
-        )
-    )
+    out = np.zeros((len(roll), 3, 3))
+    out[:, 0, 2] = -cp * pitch_rate
+    out[:, 1, 1], out[:, 1, 2] = -sr * roll_rate, cr * cp * roll_rate - sr * sp * pitch_rate
+    out[:, 2, 1], out[:, 2, 2] = -cr * roll_rate, -sr * cp * roll_rate - cr * sp * pitch_rate
+    return out
 
 
 def _apply(matrices: np.ndarray, vectors: np.ndarray) -> np.ndarray:
@@ -129,10 +125,26 @@ class ObserverBank:
         self.psi_torque = np.zeros((count, 3))
         self.forces = np.zeros((count, 3))
         self.torques_generalised = np.zeros((count, 3))
+        self._attitude_cache: tuple[np.ndarray | None, np.ndarray, np.ndarray] = (
+            None,
+            np.empty(0),
+            np.empty(0),
+        )
+
+    def _attitudes(self) -> tuple[np.ndarray, np.ndarray]:
+        """Quaternions (N, 4) and rotation matrices (N, 3, 3) of the measured Euler angles, computed
+        once per measurement."""
+        eulers, q, R = self._attitude_cache
+        if eulers is not self.eulers:
+            q = quat_from_euler_zyx(self.eulers[:, 0], self.eulers[:, 1], self.eulers[:, 2])
+            R = rotation_matrices(q)
+            self._attitude_cache = (self.eulers, q, R)
+        return q, R
 
     def reset(self, index: int | np.ndarray, position: np.ndarray, quaternion_wxyz: np.ndarray) -> None:
         """Start the observers ``index`` at rest with zero wrench (``ŵ = Ψ + c q̇ = 0``)."""
         self.positions[index] = position
+        self.eulers = self.eulers.copy()  # a new array: the cached attitudes no longer apply
         self.eulers[index] = euler_zyx_from_quat(np.asarray(quaternion_wxyz, dtype=float))
         for state in (self.velocities, self.euler_rates, self.psi_force, self.psi_torque):
             state[index] = 0.0
@@ -155,7 +167,7 @@ class ObserverBank:
         self._measure(positions, quaternions, velocities, body_rates)
         g, dt = self.gains, self.dt
         roll, pitch = self.eulers[:, 0], self.eulers[:, 1]
-        R = rotation_matrices(quat_from_euler_zyx(roll, pitch, self.eulers[:, 2]))
+        R = self._attitudes()[1]
         # force block (eq. 13 with L = c/m): Ψ' = e^{-cT/m} Ψ + (1 - e^{-cT/m}) (m g e_z - ρ R e_z - c ẋ)
         drive = -np.asarray(thrusts, dtype=float)[:, None] * R[:, :, 2] - g.c_force * self.velocities
         drive[:, 2] += self.mass * GRAVITY
@@ -201,13 +213,13 @@ class ObserverBank:
         self.eulers = euler
 
     def quaternions(self) -> np.ndarray:
-        return quat_from_euler_zyx(self.eulers[:, 0], self.eulers[:, 1], self.eulers[:, 2])
+        return self._attitudes()[0]
 
     def wrenches(self) -> np.ndarray:
         """(N, 6) estimated ``[f, R T⁻ᵀ τ̂_gen]``, world frame."""
         kinematics = euler_kinematics(self.eulers[:, 0], self.eulers[:, 1])
         body = np.linalg.solve(kinematics.transpose(0, 2, 1), self.torques_generalised[:, :, None])[:, :, 0]
-        return np.concatenate((self.forces, _apply(rotation_matrices(self.quaternions()), body)), axis=1)
+        return np.concatenate((self.forces, _apply(self._attitudes()[1], body)), axis=1)
 
     def states(self) -> np.ndarray:
         """(N, 13) position, velocity, quaternion and body rates ``T η̇``."""
