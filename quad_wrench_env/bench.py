@@ -134,7 +134,7 @@ def component_seconds(calls: int, **env_kwargs) -> dict[str, float]:
             }
         else:
             parts = {
-                "compiled: autopilot, motors, disturbances": lambda: compiled.physics_step(action),
+                "compiled: autopilot, motors, disturbances": lambda: compiled.physics_steps(action, 1),
                 "PyBullet apply + step": lambda: fleet.world.step(
                     compiled.forces, compiled.torques, fleet.state.position
                 ),

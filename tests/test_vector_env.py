@@ -30,10 +30,13 @@ def _actions(steps: int, num_envs: int) -> np.ndarray:
     return actions.astype(np.float32)
 
 
-@pytest.mark.parametrize("estimator", ["ukf", "oracle", "observer"])
-def test_vehicle_i_is_the_single_env_seeded_with_seed_plus_i(estimator):
+@pytest.mark.parametrize(
+    ("estimator", "backend"),
+    [("ukf", "auto"), ("oracle", "auto"), ("observer", "auto"), ("ekf", "numpy"), ("ukf", "numpy")],
+)
+def test_vehicle_i_is_the_single_env_seeded_with_seed_plus_i(estimator, backend):
     num_envs, steps, seed = 3, 70, 11
-    settings = {"estimator": estimator, **SHORT}
+    settings = {"estimator": estimator, "backend": backend, **SHORT}
     actions = _actions(steps, num_envs)
     venv = _make_vec(num_envs, **settings)
     singles = [gym.make(FAN_TRACKING, **settings) for _ in range(num_envs)]

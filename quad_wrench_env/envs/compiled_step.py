@@ -118,7 +118,8 @@ class CompiledStep:
         self._motion_tables = np.zeros((count, 4)) if self.fan is None else self.fan.motion_tables
 
     def _adopt(self) -> None:
-        """Take over the state the fleet read after a reset (into the kernels' own arrays)."""
+        """Take over the state the fleet read after a reset (into the kernels' own arrays) and bind
+        the kernels' arguments, all of them arrays updated in place from then on."""
         fleet, mine = self.fleet, self.state
         for name in ("position", "quaternion", "velocity", "angular_velocity", "rotation", "body_rates"):
             getattr(mine, name)[:] = getattr(fleet.state, name)
@@ -126,36 +127,44 @@ class CompiledStep:
         fleet.state, fleet.wrench_true = mine, self.loads
         if self.fan is not None:
             self._motion_tables = self.fan.motion_tables
-
-    def physics_step(self, actions: np.ndarray) -> None:
-        fleet, s = self.fleet, self.state
-        if fleet.state is not s:
-            self._adopt()
-        ap = fleet.autopilot
-        before_world_step(
-            self.action_type, actions, s.position, s.velocity, s.angular_velocity, s.rotation, fleet.time,
+        s, ap, noise = mine, fleet.autopilot, fleet.noise
+        self._before = (
+            s.position, s.velocity, s.angular_velocity, s.rotation, fleet.time,
             ap.yaw_setpoint, ap._velocity_integral, ap._rate_integral, ap.saturated,
             fleet.rotors.speeds, fleet.rotors.allocations, self.autopilot, self.scales, self.inverse,
             self.motors, fleet.drag_points, self.fan_parameters, self._fan_noise, self._motion_tables,
             self.payload, self.segments, self.forces, self.torques, self.loads,
         )  # fmt: skip
-        fleet.world.step(self.forces, self.torques, s.position)
-        noise = fleet.noise
-        noise.ready()
-        after_world_step(
-            fleet.world.read(), s.position, s.quaternion, s.velocity, s.angular_velocity, s.rotation,
+        self._after = (
+            s.position, s.quaternion, s.velocity, s.angular_velocity, s.rotation,
             s.body_rates, fleet.time, fleet.dt, noise.buffer, noise.cursor, self.normals,
             self.fan_parameters, self._fan_noise, fleet.rotors.speeds, self.sensing, self.nominal_allocation,
             self.thrusts, self.body_torques, self.measured_position, self.measured_quaternion, self.motion,
             self.truth,
         )  # fmt: skip
-        if fleet.truth_fed:
-            fleet.estimator.observe_truth(self.truth, self.loads)
-        if self._ukf_arguments is not None:  # the compiled UKF directly, skipping its wrapper
-            if not ukf_bank_step(*self._ukf_arguments):
-                raise ValueError("non-finite sensor values reached the UKF: the physics state is not finite")
-        else:
-            fleet.estimator.step(
-                self.thrusts, self.body_torques, self.measured_position, self.measured_quaternion,
-                self.velocity_measured, self.body_rates_measured,
-            )  # fmt: skip
+
+    def physics_steps(self, actions: np.ndarray, count: int) -> None:
+        """``count`` physics steps with (N, 4) clipped normalised actions."""
+        fleet = self.fleet
+        if fleet.state is not self.state:
+            self._adopt()
+        world, noise, estimator, ukf = fleet.world, fleet.noise, fleet.estimator, self._ukf_arguments
+        before = (self.action_type, actions, *self._before)
+        position = self.state.position
+        for _ in range(count):
+            before_world_step(*before)
+            world.step(self.forces, self.torques, position)
+            noise.ready()
+            after_world_step(world.read(), *self._after)
+            if fleet.truth_fed:
+                estimator.observe_truth(self.truth, self.loads)
+            if ukf is not None:  # the compiled UKF directly, skipping its wrapper
+                if not ukf_bank_step(*ukf):
+                    raise ValueError(
+                        "non-finite sensor values reached the UKF: the physics state is not finite"
+                    )
+            else:
+                estimator.step(
+                    self.thrusts, self.body_torques, self.measured_position, self.measured_quaternion,
+                    self.velocity_measured, self.body_rates_measured,
+                )  # fmt: skip

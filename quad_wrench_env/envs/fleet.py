@@ -160,9 +160,11 @@ class Fleet:
     # -- one physics step --------------------------------------------------------------------------
     def step(self, actions: np.ndarray) -> None:
         """One policy step: ``substeps`` physics steps with (N, 4) clipped normalised actions."""
-        step = self._physics_step if self._compiled is None else self._compiled.physics_step
-        for _ in range(self.substeps):
-            step(actions)
+        if self._compiled is not None:
+            self._compiled.physics_steps(actions, self.substeps)
+        else:
+            for _ in range(self.substeps):
+                self._physics_step(actions)
         self.revision += 1
 
     def _physics_step(self, actions: np.ndarray) -> None:
