@@ -4,15 +4,19 @@
                             [--gym-pybullet-drones PATH] [--skip-peers] [--peers-dir DIR]
 
 Tables printed (all measured in this run, best of ``--repeats`` for timings):
-1. floors: one bare PyBullet step of one body with forces applied and its state read, and of a
-   64-body world (per body);
-2. FanTracking per estimator: µs per policy step and per physics step (4 per policy step), the
-   bare-PyBullet step as a share of ours, steps/s, simulated seconds per wall second with resets
-   counted at the default episode length, and the mean reset time;
-3. the cost of each part of one physics step (UKF env), timed in isolation;
-4. peak memory of this process; with ``--soak-minutes`` the rates and memory of the first and last
-   ten simulated minutes of one long run;
-5. the peers, each in a virtual environment of its own under ``--peers-dir`` (created on first use,
+1. floors: one bare PyBullet step of one body with its state read and either four rotor forces
+   applied (the issue's definition of the limit) or one resultant force and torque (what the envs
+   apply), and the same per body in a 64-body world;
+2. the single FanTracking env per estimator and backend (numba kernels, numpy reference): µs per
+   policy step and per physics step (4 per policy step), each floor as a share of ours, policy
+   steps/s, simulated seconds per wall second with resets counted at the default episode length,
+   and the mean reset time;
+3. the vector env of 64 vehicles on one core: µs per vehicle and physics step, its ratio to the
+   64-body floors per body, vehicle-seconds per wall second;
+4. the cost of each part of a step (UKF env, each backend), timed in isolation;
+5. peak memory of this process; with ``--soak-minutes`` the rates and resident memory of the first
+   and last ten simulated minutes of one long run;
+6. the peers, each in a virtual environment of its own under ``--peers-dir`` (created on first use,
    never in this project's dependencies): PyFlyt's QuadX-Hover-v4, RotorPy's simulator and its batched
    torch env with 64 vehicles, and gym-pybullet-drones' HoverAviary when ``--gym-pybullet-drones``
    names a checkout of its source (it is not on the package index). A peer that cannot be installed
@@ -269,6 +273,7 @@ def env_rows(args: argparse.Namespace, floors: dict[str, float]) -> list[list[st
                     f"{step * 1e6:.0f}",
                     f"{physics * 1e6:.1f}",
                     *(f"{floor / physics:.1%}" for floor in floors.values()),
+                    f"{1 / step:.0f}",
                     f"{EPISODE_SECONDS / per_episode:.1f}",
                     f"{reset * 1e3:.2f}",
                 ]
@@ -335,6 +340,7 @@ def main() -> None:
                 "µs/policy step",
                 "µs/physics step",
                 *(f"floor ({floor}) / ours" for floor in FLOORS),
+                "policy steps/s",
                 "sim s per wall s, resets counted",
                 "reset ms",
             ],
