@@ -44,6 +44,8 @@ def test_compiled_flight_equals_the_numpy_reference(case):
             (a, ra, ta, ua, ia), (b, rb, tb, ub, ib) = (env.step(action) for env in envs.values())
             np.testing.assert_allclose(a, b, rtol=1e-5, atol=1e-6)
             np.testing.assert_allclose(ia["wrench_true"], ib["wrench_true"], rtol=1e-7, atol=1e-9)
+            for key in ("axis_error", "jet_axis_y", "fan_position", "wrench_est", "position"):
+                np.testing.assert_allclose(ia[key], ib[key], rtol=1e-7, atol=1e-9)
             assert ra == pytest.approx(rb, rel=1e-7, abs=1e-9) and (ta, ua) == (tb, ub)
             if ta or ua:
                 break

@@ -56,6 +56,8 @@ from quad_wrench_env.envs.base import QuadWrenchEnv
 from quad_wrench_env.envs.config import EnvConfig
 from quad_wrench_env.envs.fleet import Fleet
 from quad_wrench_env.envs.vector import QuadWrenchVectorEnv
+from quad_wrench_env.kernels import resolve_backend
+from quad_wrench_env.kernels.physics import fan_tracking_terms
 from quad_wrench_env.vehicle import VehicleParams
 
 
@@ -91,7 +93,10 @@ class FanTracking:
         self.vehicle = vehicle
         self.fan = FanJet(cfg.fan, count, cfg.backend)
         self._default_motion = self.fan.motion(0)
-        self._axis_errors: tuple[int, np.ndarray, np.ndarray] = (-1, np.zeros(count), np.zeros(count))
+        self._compiled = resolve_backend(cfg.backend) == "numba"
+        r = cfg.reward
+        self._weights = np.array((r.axis_scale, r.effort_weight, r.crash_penalty))
+        self._cache: tuple[int, np.ndarray] = (-1, np.zeros((count, 6)))
 
     def wind_fields(self) -> list[WindField]:
         return [self.fan] if self.cfg.fan.enabled else []
@@ -128,35 +133,45 @@ class FanTracking:
         self.fan.set_motion(index, motion)
         return np.array((cfg.start_distance, start_y, cfg.fan.height)), math.pi
 
-    def axis_errors(self, fleet: Fleet) -> tuple[np.ndarray, np.ndarray]:
-        """(N,) signed ``y - jet axis y`` at each vehicle's x, and ``z - fan height`` (computed once
-        per state of the fleet)."""
-        revision, dy, dz = self._axis_errors
-        if revision != fleet.revision:
-            x, y, z = fleet.state.position.T
-            dy, dz = y - self.fan.axis_y(x, fleet.time), z - self.cfg.fan.height
-            self._axis_errors = (fleet.revision, dy, dz)
-        return dy, dz
+    def _numbers(self, fleet: Fleet, actions: np.ndarray | None, ended: np.ndarray | None) -> np.ndarray:
+        """(N, 6): reward terms tracking, effort, crash; axis error, jet axis y, fan y. Computed once
+        per state of the fleet (the reward's call, with the step's actions, comes first)."""
+        revision, numbers = self._cache
+        if revision == fleet.revision:
+            return numbers
+        count = fleet.count
+        actions = np.zeros((count, 4)) if actions is None else actions
+        ended = np.zeros(count, dtype=bool) if ended is None else ended
+        r, fan = self.cfg.reward, self.fan
+        position, time = fleet.state.position, fleet.time
+        numbers = np.empty((count, 6))
+        if self._compiled:
+            fan_tracking_terms(
+                position, time, actions, ended, fan.motion_tables, fan._u0, fan._core, self.cfg.fan.height,
+                self._weights, numbers,
+            )  # fmt: skip
+        else:
+            dy = position[:, 1] - fan.axis_y(position[:, 0], time)
+            dz = position[:, 2] - self.cfg.fan.height
+            numbers[:, 0] = np.exp(-(dy * dy + dz * dz) / r.axis_scale**2)
+            numbers[:, 1] = (-r.effort_weight / actions.shape[1]) * (actions * actions).sum(axis=1)
+            numbers[:, 2] = -r.crash_penalty * ended
+            numbers[:, 3] = dy
+            numbers[:, 4] = position[:, 1] - dy
+            numbers[:, 5] = fan.fan_y(time)
+        self._cache = (fleet.revision, numbers)
+        return numbers
 
     def reward_terms(self, fleet: Fleet, actions: np.ndarray, ended: np.ndarray) -> dict[str, np.ndarray]:
-        r = self.cfg.reward
-        dy, dz = self.axis_errors(fleet)
-        return {
-            "tracking": np.exp(-(dy * dy + dz * dz) / r.axis_scale**2),
-            "effort": (-r.effort_weight / actions.shape[1]) * (actions * actions).sum(axis=1),
-            "crash": -r.crash_penalty * ended,
-        }
+        numbers = self._numbers(fleet, actions, ended)
+        return {"tracking": numbers[:, 0], "effort": numbers[:, 1], "crash": numbers[:, 2]}
 
     def info(self, fleet: Fleet) -> dict[str, np.ndarray]:
-        axis_error = self.axis_errors(fleet)[0]
-        fan_position = np.zeros((len(axis_error), 3))
-        fan_position[:, 1] = self.fan.fan_y(fleet.time)
+        numbers = self._numbers(fleet, None, None)
+        fan_position = np.zeros((fleet.count, 3))
+        fan_position[:, 1] = numbers[:, 5]
         fan_position[:, 2] = self.cfg.fan.height
-        return {
-            "fan_position": fan_position,
-            "jet_axis_y": fleet.state.position[:, 1] - axis_error,
-            "axis_error": axis_error,
-        }
+        return {"fan_position": fan_position, "jet_axis_y": numbers[:, 4], "axis_error": numbers[:, 3]}
 
 
 class FanTrackingEnv(QuadWrenchEnv):

@@ -25,7 +25,7 @@ from quad_wrench_env.envs.config import EnvConfig
 from quad_wrench_env.envs.noise import NoiseBlocks
 from quad_wrench_env.estimators import OracleBank, make_estimator_bank
 from quad_wrench_env.kernels import resolve_backend
-from quad_wrench_env.kernels.physics import termination_codes
+from quad_wrench_env.kernels.physics import assemble_observations, termination_codes
 from quad_wrench_env.rotations import cross, quat_from_matrix
 from quad_wrench_env.rotors import Rotors
 from quad_wrench_env.sensors import MotionCapture, MotorSpeedSensor
@@ -227,6 +227,9 @@ class Fleet:
         """(N, 23) float32 observations (:data:`OBSERVATION_FIELDS`): the estimators' states and
         wrenches and the last actions (quaternions with ``w >= 0``)."""
         out = np.empty((self.count, OBSERVATION_SIZE), dtype=np.float32)
+        if self._compiled is not None:
+            assemble_observations(self.estimator.states(), self.estimator.wrenches(), last_actions, out)
+            return out
         out[:, :13] = self.estimator.states()
         flipped = out[:, 6] < 0.0
         if flipped.any():

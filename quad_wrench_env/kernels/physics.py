@@ -81,6 +81,26 @@ def jet_axis_y(x, t, motion_tables, u0, core):
 
 
 @njit
+def fan_tracking_terms(position, time, actions, ended, motion_tables, u0, core, height, weights, out):
+    """FanTracking's per-vehicle numbers into ``out`` (N, 6): the reward terms ``tracking``,
+    ``effort`` and ``crash`` (``weights`` = axis scale, effort weight, crash penalty), the signed
+    ``axis_error`` y - jet axis, the jet axis y at the vehicle and the fan's y
+    (``FanTracking.reward_terms`` and ``FanTracking.info``)."""
+    for n in range(position.shape[0]):
+        axis = _motion_y(motion_tables[n], time[n] - _transit_time(position[n, 0], u0, core))
+        dy, dz = position[n, 1] - axis, position[n, 2] - height
+        out[n, 0] = math.exp(-(dy * dy + dz * dz) / weights[0] ** 2)
+        effort = 0.0
+        for i in range(actions.shape[1]):
+            effort += actions[n, i] * actions[n, i]
+        out[n, 1] = (-weights[1] / actions.shape[1]) * effort
+        out[n, 2] = -weights[2] * ended[n]
+        out[n, 3] = dy
+        out[n, 4] = position[n, 1] - dy
+        out[n, 5] = _motion_y(motion_tables[n], time[n])
+
+
+@njit
 def before_world_step(
     action_type, actions, position, velocity, angular_velocity, rotation, time,
     yaw_setpoint, velocity_integral, rate_integral, saturated, speeds, allocations,
@@ -352,3 +372,17 @@ def termination_codes(position, rotation, touching, limits, out):
             out[n] = 3
         else:
             out[n] = 0
+
+
+@njit
+def assemble_observations(states, wrenches, last_actions, out):
+    """``Fleet.observations`` into ``out`` (N, 23, float32): states (N, 13) with ``w >= 0``, wrenches
+    (N, 6) and the last actions (N, 4)."""
+    for n in range(states.shape[0]):
+        sign = -1.0 if states[n, 6] < 0.0 else 1.0
+        for i in range(13):
+            out[n, i] = states[n, i] * sign if 6 <= i < 10 else states[n, i]
+        for i in range(6):
+            out[n, 13 + i] = wrenches[n, i]
+        for i in range(4):
+            out[n, 19 + i] = last_actions[n, i]
