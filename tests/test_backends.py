@@ -6,7 +6,7 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-from quad_wrench_env.estimators.ukf import UnscentedFilterBank
+from quad_wrench_env.estimators import make_estimator_bank
 from quad_wrench_env.kernels import NUMBA_AVAILABLE, resolve_backend
 from quad_wrench_env.rotations import quat_exp, quat_multiply_rows
 from quad_wrench_env.vehicle import GRAVITY, make_vehicle
@@ -55,25 +55,30 @@ def test_compiled_flight_equals_the_numpy_reference(case):
 
 
 @needs_numba
-@pytest.mark.parametrize("count", [1, 5])
-def test_compiled_ukf_bank_equals_the_numpy_bank(count):
-    """400 steps of noisy poses at random attitudes and inputs: means and covariances agree to 1e-10."""
+@pytest.mark.parametrize("name", ["ukf", "ekf", "observer"])
+@pytest.mark.parametrize(("count", "motion"), [(1, False), (5, False), (5, True)])
+def test_compiled_estimator_banks_equal_the_numpy_banks(name, count, motion):
+    """400 steps of noisy poses (and, with ``motion``, velocities and body rates) at random attitudes
+    and inputs: every bank's wrenches and states agree to 1e-9 across the two backends."""
     vehicle = make_vehicle("ardrone2")
-    banks = [UnscentedFilterBank(vehicle, 0.005, None, count, backend=b) for b in ("numpy", "numba")]
+    banks = [make_estimator_bank(name, vehicle, 0.005, count, backend=b) for b in ("numpy", "numba")]
     rng = np.random.default_rng(0)
-    positions, quaternions = rng.normal(size=(count, 3)), quat_exp(rng.normal(size=(count, 3)))
+    positions, quaternions = rng.normal(size=(count, 3)), quat_exp(0.3 * rng.normal(size=(count, 3)))
     for bank in banks:
-        bank.reset(slice(None), positions, quaternions)
+        for i in range(count):
+            bank.reset(i, positions[i], quaternions[i])
     thrusts, torques = np.full(count, vehicle.mass * GRAVITY + 0.1), 1e-3 * rng.normal(size=(count, 3))
     for _ in range(400):
         measured_p = positions + 1e-3 * rng.normal(size=(count, 3))
         measured_q = quat_multiply_rows(quaternions, quat_exp(2e-3 * rng.normal(size=(count, 3))))
+        velocity = 0.01 * rng.normal(size=(count, 3)) if motion else None
+        rates = 0.01 * rng.normal(size=(count, 3)) if motion else None
         for bank in banks:
-            bank.step(thrusts, torques, measured_p, measured_q)
+            bank.step(thrusts, torques, measured_p, measured_q, velocity, rates)
     reference, compiled = banks
-    np.testing.assert_allclose(compiled.rests, reference.rests, atol=1e-10)
-    np.testing.assert_allclose(compiled.quaternions, reference.quaternions, atol=1e-12)
-    np.testing.assert_allclose(compiled.covariances, reference.covariances, atol=1e-14)
+    np.testing.assert_allclose(compiled.wrenches(), reference.wrenches(), atol=1e-9)
+    np.testing.assert_allclose(compiled.states(), reference.states(), atol=1e-9)
+    assert compiled.statuses() == reference.statuses() == ["ok"] * count
     with pytest.raises(ValueError, match="non-finite"):
         compiled.step(thrusts * np.nan, torques, measured_p, measured_q)
 

@@ -93,9 +93,9 @@ def make_estimator_bank(
     if name == "ukf":
         return UnscentedFilterBank(vehicle, dt, _ukf_noise(noise), count, backend)
     if name == "ekf":
-        return ExtendedFilterBank(vehicle, dt, _ekf_noise(noise), count)
+        return ExtendedFilterBank(vehicle, dt, _ekf_noise(noise), count, backend)
     if name == "observer":
-        return ObserverBank(vehicle, dt, _observer_gains(noise), count)
+        return ObserverBank(vehicle, dt, _observer_gains(noise), count, backend)
     return OracleBank(count)
 
 

@@ -34,6 +34,8 @@ import numpy as np
 from quad_wrench_env.estimators.bank import check_finite_batch
 from quad_wrench_env.estimators.base import StateEstimate, WrenchEstimate
 from quad_wrench_env.estimators.noise import EKFNoise
+from quad_wrench_env.kernels import resolve_backend
+from quad_wrench_env.kernels.ekf import ekf_bank_step
 from quad_wrench_env.rotations import (
     cross,
     euler_zyx_from_quat,
@@ -70,9 +72,12 @@ class ExtendedFilterBank:
 
     name = "ekf"
 
-    def __init__(self, vehicle: VehicleParams, dt: float, noise: EKFNoise | None, count: int) -> None:
+    def __init__(
+        self, vehicle: VehicleParams, dt: float, noise: EKFNoise | None, count: int, backend: str = "numpy"
+    ) -> None:
         if count < 1:
             raise ValueError(f"count={count!r} must be at least 1 filter")
+        self.backend = resolve_backend(backend)
         self.vehicle = vehicle
         self.dt = dt
         self.count = count
@@ -88,6 +93,7 @@ class ExtendedFilterBank:
         q_diag[F] = n.force_walk**2
         q_diag[N] = n.torque_walk**2
         self.Q = np.diag(q_diag)
+        self._q_diagonal = q_diag
         initial = (
             n.initial_position, n.initial_velocity, n.initial_attitude,
             n.initial_rates, n.initial_force, n.initial_torque,
@@ -126,10 +132,22 @@ class ExtendedFilterBank:
         """Predict with (N,) thrusts and (N, 3) body torques, correct with the measured (N, 3)
         positions, (N, 4) attitudes and, where measured, (N, 3) velocities and body rates; restart
         any filter whose state became non-finite."""
-        check_finite_batch(
-            self.name, thrusts=thrusts, body_torques=body_torques, positions=positions,
-            quaternions=quaternions, velocities=velocities, body_rates=body_rates,
-        )  # fmt: skip
+        inputs = {
+            "thrusts": thrusts, "body_torques": body_torques, "positions": positions,
+            "quaternions": quaternions, "velocities": velocities, "body_rates": body_rates,
+        }  # fmt: skip
+        if self.backend == "numba":
+            none = np.empty((0, 3))
+            if not ekf_bank_step(
+                self.x, self.P, self.reinitialisations, thrusts, body_torques, positions, quaternions,
+                none if velocities is None else velocities, none if body_rates is None else body_rates,
+                self.dt, self.mass, self.inertia, GRAVITY, self._q_diagonal, self._noise_pose,
+                self._noise_motion, self.P0,
+            ):  # fmt: skip
+                check_finite_batch(self.name, **inputs)
+            self._version += 1
+            return
+        check_finite_batch(self.name, **inputs)
         u = np.column_stack((thrusts, body_torques))
         self.predict(u)
         self.correct(positions, quaternions, velocities, body_rates)

@@ -36,6 +36,8 @@ import numpy as np
 from quad_wrench_env.config import check_numbers
 from quad_wrench_env.estimators.bank import check_finite_batch
 from quad_wrench_env.estimators.base import StateEstimate, WrenchEstimate
+from quad_wrench_env.kernels import resolve_backend
+from quad_wrench_env.kernels.observer import observer_bank_step
 from quad_wrench_env.rotations import (
     cross,
     euler_zyx_from_quat,
@@ -104,9 +106,17 @@ class ObserverBank:
 
     name = "observer"
 
-    def __init__(self, vehicle: VehicleParams, dt: float, gains: ObserverGains | None, count: int) -> None:
+    def __init__(
+        self,
+        vehicle: VehicleParams,
+        dt: float,
+        gains: ObserverGains | None,
+        count: int,
+        backend: str = "numpy",
+    ) -> None:
         if count < 1:
             raise ValueError(f"count={count!r} must be at least 1 observer")
+        self.backend = resolve_backend(backend)
         self.vehicle = vehicle
         self.dt = dt
         self.count = count
@@ -125,27 +135,27 @@ class ObserverBank:
         self.psi_torque = np.zeros((count, 3))
         self.forces = np.zeros((count, 3))
         self.torques_generalised = np.zeros((count, 3))
-        self._attitude_cache: tuple[np.ndarray | None, np.ndarray, np.ndarray] = (
-            None,
-            np.empty(0),
-            np.empty(0),
+        self._kernel_gains = np.array(
+            (g.c_force, g.c_torque, self._force_decay, self._velocity_alpha, self._rate_alpha)
         )
+        self._version = 0
+        self._attitude_cache: tuple[int, np.ndarray, np.ndarray] = (-1, np.empty(0), np.empty(0))
 
     def _attitudes(self) -> tuple[np.ndarray, np.ndarray]:
         """Quaternions (N, 4) and rotation matrices (N, 3, 3) of the measured Euler angles, computed
         once per measurement."""
-        eulers, q, R = self._attitude_cache
-        if eulers is not self.eulers:
+        version, q, R = self._attitude_cache
+        if version != self._version:
             q = quat_from_euler_zyx(self.eulers[:, 0], self.eulers[:, 1], self.eulers[:, 2])
             R = rotation_matrices(q)
-            self._attitude_cache = (self.eulers, q, R)
+            self._attitude_cache = (self._version, q, R)
         return q, R
 
     def reset(self, index: int | np.ndarray, position: np.ndarray, quaternion_wxyz: np.ndarray) -> None:
         """Start the observers ``index`` at rest with zero wrench (``ŵ = Ψ + c q̇ = 0``)."""
         self.positions[index] = position
-        self.eulers = self.eulers.copy()  # a new array: the cached attitudes no longer apply
         self.eulers[index] = euler_zyx_from_quat(np.asarray(quaternion_wxyz, dtype=float))
+        self._version += 1
         for state in (self.velocities, self.euler_rates, self.psi_force, self.psi_torque):
             state[index] = 0.0
         self.forces[index] = 0.0
@@ -160,10 +170,23 @@ class ObserverBank:
         velocities: np.ndarray | None = None,
         body_rates: np.ndarray | None = None,
     ) -> None:
-        check_finite_batch(
-            self.name, thrusts=thrusts, body_torques=body_torques, positions=positions,
-            quaternions=quaternions, velocities=velocities, body_rates=body_rates,
-        )  # fmt: skip
+        inputs = {
+            "thrusts": thrusts, "body_torques": body_torques, "positions": positions,
+            "quaternions": quaternions, "velocities": velocities, "body_rates": body_rates,
+        }  # fmt: skip
+        self._version += 1
+        if self.backend == "numba":
+            none = np.empty((0, 3))
+            if not observer_bank_step(
+                self.positions, self.eulers, self.velocities, self.euler_rates, self.psi_force,
+                self.psi_torque, self.forces, self.torques_generalised, thrusts, body_torques, positions,
+                quaternions, none if velocities is None else velocities,
+                none if body_rates is None else body_rates,
+                self.dt, self.mass, self.inertia, GRAVITY, self._kernel_gains,
+            ):  # fmt: skip
+                check_finite_batch(self.name, **inputs)
+            return
+        check_finite_batch(self.name, **inputs)
         self._measure(positions, quaternions, velocities, body_rates)
         g, dt = self.gains, self.dt
         roll, pitch = self.eulers[:, 0], self.eulers[:, 1]

@@ -1,0 +1,236 @@
+"""The step of a bank of extended Kalman wrench filters, compiled: the arithmetic of
+:class:`quad_wrench_env.estimators.ekf.ExtendedFilterBank` (paper 003 Sec. III-A), filter by filter."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from quad_wrench_env.kernels import njit
+from quad_wrench_env.kernels.quaternions import matrix
+
+
+@njit
+def euler_from_quaternion(w, x, y, z):
+    """ZYX ``(roll, pitch, yaw)`` (``rotations.euler_zyx_from_quat``)."""
+    roll = math.atan2(2.0 * (w * x + y * z), 1.0 - 2.0 * (x * x + y * y))
+    pitch = math.asin(min(1.0, max(-1.0, 2.0 * (w * y - z * x))))
+    yaw = math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+    return roll, pitch, yaw
+
+
+@njit
+def quaternion_from_euler(roll, pitch, yaw):
+    """``rotations.quat_from_euler_zyx``."""
+    cr, sr = math.cos(0.5 * roll), math.sin(0.5 * roll)
+    cp, sp = math.cos(0.5 * pitch), math.sin(0.5 * pitch)
+    cy, sy = math.cos(0.5 * yaw), math.sin(0.5 * yaw)
+    return (
+        cr * cp * cy + sr * sp * sy,
+        sr * cp * cy - cr * sp * sy,
+        cr * sp * cy + sr * cp * sy,
+        cr * cp * sy - sr * sp * cy,
+    )
+
+
+@njit
+def wrap(angle):
+    """``rotations.wrap_angle``."""
+    return (angle + math.pi) % (2.0 * math.pi) - math.pi
+
+
+@njit
+def _solve_spd(s, rhs, root, out):
+    """``out = s⁻¹ rhs`` for a symmetric positive definite ``s`` (k, k) and ``rhs`` (k, m) by Cholesky;
+    False when ``s`` is not positive definite."""
+    k = s.shape[0]
+    for j in range(k):
+        total = s[j, j]
+        for i in range(j):
+            total -= root[j, i] * root[j, i]
+        if not total > 0.0:
+            return False
+        d = math.sqrt(total)
+        root[j, j] = d
+        for i in range(j + 1, k):
+            t = s[i, j]
+            for m in range(j):
+                t -= root[i, m] * root[j, m]
+            root[i, j] = t / d
+    for c in range(rhs.shape[1]):
+        for j in range(k):
+            t = rhs[j, c]
+            for m in range(j):
+                t -= root[j, m] * out[m, c]
+            out[j, c] = t / root[j, j]
+        for j in range(k - 1, -1, -1):
+            t = out[j, c]
+            for m in range(j + 1, k):
+                t -= root[m, j] * out[m, c]
+            out[j, c] = t / root[j, j]
+    return True
+
+
+@njit
+def ekf_bank_step(
+    x, p, reinitialisations, thrusts, body_torques, positions, quaternions, velocities, body_rates,
+    dt, mass, inertia, gravity, q_diagonal, noise_pose, noise_motion, p0,
+):  # fmt: skip
+    """One predict-correct step of every filter, in place; ``velocities`` and ``body_rates`` are
+    (N, 3) where measured, else (0, 3). Returns False, touching nothing, when an input is not finite."""
+    count = x.shape[0]
+    with_velocity, with_rates = velocities.shape[0] > 0, body_rates.shape[0] > 0
+    for n in range(count):
+        total = thrusts[n]
+        for i in range(3):
+            total += body_torques[n, i] + positions[n, i]
+            if with_velocity:
+                total += velocities[n, i]
+            if with_rates:
+                total += body_rates[n, i]
+        for i in range(4):
+            total += quaternions[n, i]
+        if not math.isfinite(total):
+            return False
+    size = 6 + 3 * with_velocity + 3 * with_rates
+    measured = np.empty(size, dtype=np.int64)
+    noise = np.empty(size)
+    for i in range(3):
+        measured[i], measured[3 + i] = i, 6 + i
+        noise[i], noise[3 + i] = noise_pose[i], noise_pose[3 + i]
+    k = 6
+    if with_velocity:
+        for i in range(3):
+            measured[k + i], noise[k + i] = 3 + i, noise_motion[i]
+        k += 3
+    if with_rates:
+        for i in range(3):
+            measured[k + i], noise[k + i] = 9 + i, noise_motion[3 + i]
+    a = np.zeros((18, 18))
+    fp = np.empty((18, 18))
+    r = np.empty((3, 3))
+    residual = np.empty(size)
+    pht = np.empty((18, size))
+    s = np.empty((size, size))
+    s_root = np.zeros((size, size))
+    gain_t = np.empty((size, 18))
+    jx, jy, jz = inertia[0], inertia[1], inertia[2]
+    for n in range(count):
+        xn, pn = x[n], p[n]
+        # -- predict: F = I + T A at the prior state, then the forward-Euler step (transition) --
+        roll, pitch, yaw = xn[6], xn[7], xn[8]
+        p_, q_, r_ = xn[9], xn[10], xn[11]
+        qw, qx, qy, qz = quaternion_from_euler(roll, pitch, yaw)
+        matrix(qw, qx, qy, qz, r)
+        sr, cr = math.sin(roll), math.cos(roll)
+        sp, cp, tp = math.sin(pitch), math.cos(pitch), math.tan(pitch)
+        sy, cy = math.sin(yaw), math.cos(yaw)
+        c = thrusts[n] / mass
+        a[:, :] = 0.0
+        for i in range(3):
+            a[i, 3 + i] = 1.0
+            a[3 + i, 12 + i] = 1.0 / mass
+            a[9 + i, 15 + i] = 1.0 / inertia[i]
+        a[3, 6], a[4, 6], a[5, 6] = (-cy * sp * sr + sy * cr) * c, (-sy * sp * sr - cy * cr) * c, -cp * sr * c
+        a[3, 7], a[4, 7], a[5, 7] = cy * cp * cr * c, sy * cp * cr * c, -sp * cr * c
+        a[3, 8], a[4, 8] = (-sy * sp * cr + cy * sr) * c, (cy * sp * cr + sy * sr) * c
+        a[6, 6], a[6, 7] = cr * tp * q_ - sr * tp * r_, (sr * q_ + cr * r_) / cp**2
+        a[7, 6] = -sr * q_ - cr * r_
+        a[8, 6], a[8, 7] = (cr * q_ - sr * r_) / cp, (sr * q_ + cr * r_) * sp / cp**2
+        a[6, 9], a[6, 10], a[6, 11] = 1.0, sr * tp, cr * tp
+        a[7, 10], a[7, 11] = cr, -sr
+        a[8, 10], a[8, 11] = sr / cp, cr / cp
+        a[9, 10], a[9, 11] = (jy - jz) / jx * r_, (jy - jz) / jx * q_
+        a[10, 9], a[10, 11] = (jz - jx) / jy * r_, (jz - jx) / jy * p_
+        a[11, 9], a[11, 10] = (jx - jy) / jz * q_, (jx - jy) / jz * p_
+        for i in range(18):
+            for j in range(18):
+                a[i, j] *= dt
+            a[i, i] += 1.0
+        # P' = F P Fᵀ + Q
+        for i in range(18):
+            for j in range(18):
+                t = 0.0
+                for m in range(18):
+                    t += a[i, m] * pn[m, j]
+                fp[i, j] = t
+        for i in range(18):
+            for j in range(18):
+                t = 0.0
+                for m in range(18):
+                    t += fp[i, m] * a[j, m]
+                pn[i, j] = t + (q_diagonal[i] if i == j else 0.0)
+        # x' (transition): p, v, Euler angles, rates
+        accel0 = (r[0, 2] * thrusts[n] + xn[12]) / mass
+        accel1 = (r[1, 2] * thrusts[n] + xn[13]) / mass
+        accel2 = (r[2, 2] * thrusts[n] + xn[14]) / mass - gravity
+        euler_rate0 = p_ + sr * tp * q_ + cr * tp * r_
+        euler_rate1 = cr * q_ - sr * r_
+        euler_rate2 = sr / cp * q_ + cr / cp * r_
+        c0 = q_ * (jz * r_) - r_ * (jy * q_)
+        c1 = r_ * (jx * p_) - p_ * (jz * r_)
+        c2 = p_ * (jy * q_) - q_ * (jx * p_)
+        for i in range(3):
+            xn[i] += dt * xn[3 + i]
+        xn[3] += dt * accel0
+        xn[4] += dt * accel1
+        xn[5] += dt * accel2
+        xn[6] += dt * euler_rate0
+        xn[7] += dt * euler_rate1
+        xn[8] += dt * euler_rate2
+        xn[9] += dt * (body_torques[n, 0] + xn[15] - c0) / jx
+        xn[10] += dt * (body_torques[n, 1] + xn[16] - c1) / jy
+        xn[11] += dt * (body_torques[n, 2] + xn[17] - c2) / jz
+        # -- correct (Kalman update with the measured components) --
+        mroll, mpitch, myaw = euler_from_quaternion(
+            quaternions[n, 0], quaternions[n, 1], quaternions[n, 2], quaternions[n, 3]
+        )
+        for i in range(3):
+            residual[i] = positions[n, i] - xn[i]
+        residual[3], residual[4], residual[5] = wrap(mroll - xn[6]), wrap(mpitch - xn[7]), wrap(myaw - xn[8])
+        k = 6
+        if with_velocity:
+            for i in range(3):
+                residual[k + i] = velocities[n, i] - xn[3 + i]
+            k += 3
+        if with_rates:
+            for i in range(3):
+                residual[k + i] = body_rates[n, i] - xn[9 + i]
+        for i in range(18):
+            for j in range(size):
+                pht[i, j] = pn[i, measured[j]]
+        for i in range(size):
+            for j in range(size):
+                s[i, j] = pht[measured[i], j]
+            s[i, i] += noise[i]
+        ok = _solve_spd(s, pht.T, s_root, gain_t)  # Kᵀ = S⁻¹ (P Hᵀ)ᵀ
+        for i in range(18):
+            t = 0.0
+            for j in range(size):
+                t += gain_t[j, i] * residual[j]
+            xn[i] += t
+        for i in range(6, 9):
+            xn[i] = wrap(xn[i])
+        for i in range(18):
+            for j in range(i, 18):
+                t, u = 0.0, 0.0
+                for m in range(size):
+                    t += gain_t[m, i] * pht[j, m]
+                    u += gain_t[m, j] * pht[i, m]
+                value = 0.5 * ((pn[i, j] - t) + (pn[j, i] - u))
+                pn[i, j] = value
+                pn[j, i] = value
+        finite = ok
+        for i in range(18):
+            finite = finite and math.isfinite(xn[i])
+            for j in range(18):
+                finite = finite and math.isfinite(pn[i, j])
+        if not finite:  # restart from the measured pose at rest
+            xn[:] = 0.0
+            for i in range(3):
+                xn[i] = positions[n, i]
+            xn[6], xn[7], xn[8] = mroll, mpitch, myaw
+            pn[:, :] = p0
+            reinitialisations[n] += 1
+    return True
