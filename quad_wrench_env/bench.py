@@ -180,10 +180,12 @@ def filter_bank_step_seconds(
     return (time.perf_counter() - start) / steps
 
 
-def estimator_step_seconds(name: str, steps: int, seed: int = 0, dt: float = 0.005) -> float:
+def estimator_step_seconds(
+    name: str, steps: int, seed: int = 0, dt: float = 0.005, backend: str = "numpy"
+) -> float:
     """Seconds per ``step`` of estimator ``name`` fed a hovering vehicle's noisy pose (0.5 mm, 2 mrad)."""
     vehicle = make_vehicle("ardrone2")
-    est = make_estimator(name, vehicle, dt)
+    est = make_estimator(name, vehicle, dt, backend)
     rng = np.random.default_rng(seed)
     position, q = np.array((0.0, 0.0, 1.0)), np.array((1.0, 0.0, 0.0, 0.0))
     positions = position + 5e-4 * rng.standard_normal((steps, 3))

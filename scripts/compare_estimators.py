@@ -24,6 +24,7 @@ from agents.evaluate import run_episode
 from quad_wrench_env.bench import bare_pybullet_step_seconds, estimator_step_seconds
 from quad_wrench_env.config import load_yaml
 from quad_wrench_env.estimators import OracleBank, make_estimator
+from quad_wrench_env.kernels import NUMBA_AVAILABLE
 from quad_wrench_env.vehicle import make_vehicle
 
 LABELS = ("f_x", "f_y", "f_z", "tau_x", "tau_y", "tau_z")
@@ -84,7 +85,7 @@ def record(config: dict, seed: int, **env_kwargs: Any) -> Stream:
 
 def replay(name: str, vehicle: str, stream: Stream, settings: dict) -> np.ndarray:
     """(steps, 6) wrench estimates of estimator ``name`` on the recorded stream."""
-    estimator = make_estimator(name, make_vehicle(vehicle), stream.dt, **settings)
+    estimator = make_estimator(name, make_vehicle(vehicle), stream.dt, "auto", **settings)
     _, _, position, quaternion = stream.inputs[0]
     estimator.reset(position, quaternion)
     out = np.empty((len(stream.inputs), 6))
@@ -224,24 +225,27 @@ def fig4_yuksel(config: dict, out: Path) -> list[str]:
 def cost(config: dict, out: Path) -> list[str]:
     c = config["cost"]
     bare = min(bare_pybullet_step_seconds(c["steps"]) for _ in range(c["repeats"]))
-    times = {
-        n: min(estimator_step_seconds(n, c["steps"]) for _ in range(c["repeats"]))
-        for n in config["estimators"]
-    }
+    backends = ("numpy", "numba") if NUMBA_AVAILABLE else ("numpy",)
+    times = {}
+    for backend in backends:
+        for n in config["estimators"]:
+            estimator_step_seconds(n, 2, backend=backend)  # compiled code loads on first use
+            times[n, backend] = min(
+                estimator_step_seconds(n, c["steps"], backend=backend) for _ in range(c["repeats"])
+            )
     lines = [
         "## Paper 003 Sec. V-C: cost per step on this machine (best of repeats)",
         "",
-        "| what | µs per step |",
-        "|---|---|",
-        f"| bare PyBullet step | {bare * 1e6:.1f} |",
+        "| what | " + " | ".join(f"µs per step, {b}" for b in backends) + " |",
+        "|---|" + "---|" * len(backends),
+        f"| bare PyBullet step (four rotor forces) | {bare * 1e6:.1f} |" + " |" * (len(backends) - 1),
     ]
-    lines += [f"| {name} | {seconds * 1e6:.1f} |" for name, seconds in times.items()]
-    return [
-        *lines,
-        "",
-        f"UKF/EKF cost ratio: {times['ukf'] / times['ekf']:.2f} "
-        "(paper 003 measured 2.5 on its flight computer)",
+    lines += [
+        f"| {n} | " + " | ".join(f"{times[n, b] * 1e6:.1f}" for b in backends) + " |"
+        for n in config["estimators"]
     ]
+    ratios = ", ".join(f"{times['ukf', b] / times['ekf', b]:.2f} ({b})" for b in backends)
+    return [*lines, "", f"UKF/EKF cost ratio: {ratios} (paper 003 measured 2.5 on its flight computer)"]
 
 
 def _measurement_noise(sensors: dict) -> dict:

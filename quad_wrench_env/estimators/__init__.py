@@ -20,7 +20,7 @@ MEASUREMENT_NOISE_KEYS = ("position", "attitude", "velocity", "body_rate")
 """Noise settings the env fills from its sensor config; an estimator drops those it does not use."""
 
 
-def _oracle(vehicle: VehicleParams, dt: float, **noise: Any) -> Estimator:
+def _oracle(vehicle: VehicleParams, dt: float, backend: str, **noise: Any) -> Estimator:
     return OracleEstimator()
 
 
@@ -29,16 +29,16 @@ def _ukf_noise(noise: dict[str, Any]) -> FilterNoise:
     return build(FilterNoise, noise, prefix="estimator_params.")
 
 
-def _ukf(vehicle: VehicleParams, dt: float, **noise: Any) -> Estimator:
-    return UnscentedWrenchEstimator(vehicle, dt, _ukf_noise(noise))
+def _ukf(vehicle: VehicleParams, dt: float, backend: str, **noise: Any) -> Estimator:
+    return UnscentedWrenchEstimator(vehicle, dt, _ukf_noise(noise), backend)
 
 
 def _ekf_noise(noise: dict[str, Any]) -> EKFNoise:
     return build(EKFNoise, noise, prefix="estimator_params.")
 
 
-def _ekf(vehicle: VehicleParams, dt: float, **noise: Any) -> Estimator:
-    return ExtendedWrenchEstimator(vehicle, dt, _ekf_noise(noise))
+def _ekf(vehicle: VehicleParams, dt: float, backend: str, **noise: Any) -> Estimator:
+    return ExtendedWrenchEstimator(vehicle, dt, _ekf_noise(noise), backend)
 
 
 def _observer_gains(settings: dict[str, Any]) -> ObserverGains:
@@ -46,8 +46,8 @@ def _observer_gains(settings: dict[str, Any]) -> ObserverGains:
     return build(ObserverGains, gains, prefix="estimator_params.")
 
 
-def _observer(vehicle: VehicleParams, dt: float, **settings: Any) -> Estimator:
-    return NonlinearWrenchObserver(vehicle, dt, _observer_gains(settings))
+def _observer(vehicle: VehicleParams, dt: float, backend: str, **settings: Any) -> Estimator:
+    return NonlinearWrenchObserver(vehicle, dt, _observer_gains(settings), backend)
 
 
 FACTORIES: dict[str, Callable[..., Estimator]] = {
@@ -71,22 +71,25 @@ def _check(name: str, dt: float, noise: dict[str, Any]) -> None:
             raise ValueError(f"the oracle takes no noise settings, got {unknown}")
 
 
-def make_estimator(name: str, vehicle: VehicleParams, dt: float, **noise: Any) -> Estimator:
+def make_estimator(
+    name: str, vehicle: VehicleParams, dt: float, backend: str = "numpy", **noise: Any
+) -> Estimator:
     """Build the estimator called ``name`` for ``vehicle``, stepped every ``dt`` seconds.
 
     ``noise`` holds the estimator's settings: for the UKF the fields of :class:`FilterNoise`, for the
     EKF those of :class:`EKFNoise`, for the observer those of :class:`ObserverGains`; the observer
-    and the oracle ignore the measurement-noise keys, which the env always passes.
+    and the oracle ignore the measurement-noise keys, which the env always passes. ``backend``
+    picks the arithmetic (numpy reference or compiled, see :mod:`quad_wrench_env.kernels`).
     """
     _check(name, dt, noise)
-    return FACTORIES[name](vehicle, dt, **noise)
+    return FACTORIES[name](vehicle, dt, backend, **noise)
 
 
 def make_estimator_bank(
     name: str, vehicle: VehicleParams, dt: float, count: int, backend: str = "numpy", **noise: Any
 ) -> EstimatorBank:
-    """``count`` estimators called ``name`` (settings as :func:`make_estimator`), stepped together;
-    ``backend`` picks the UKF's arithmetic (see :mod:`quad_wrench_env.kernels`)."""
+    """``count`` estimators called ``name`` (settings and ``backend`` as :func:`make_estimator`),
+    stepped together as one batched computation."""
     _check(name, dt, noise)
     if not (isinstance(count, int) and count >= 1):
         raise ValueError(f"count={count!r} must be an integer >= 1")

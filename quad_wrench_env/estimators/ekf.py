@@ -284,8 +284,10 @@ class ExtendedWrenchEstimator:
 
     name = "ekf"
 
-    def __init__(self, vehicle: VehicleParams, dt: float, noise: EKFNoise | None = None) -> None:
-        self.bank = ExtendedFilterBank(vehicle, dt, noise, count=1)
+    def __init__(
+        self, vehicle: VehicleParams, dt: float, noise: EKFNoise | None = None, backend: str = "numpy"
+    ) -> None:
+        self.bank = ExtendedFilterBank(vehicle, dt, noise, count=1, backend=backend)
         self.noise, self.mass, self.inertia, self.Q = (
             self.bank.noise,
             self.bank.mass,

@@ -259,8 +259,10 @@ class NonlinearWrenchObserver:
     name = "observer"
     status = "ok"
 
-    def __init__(self, vehicle: VehicleParams, dt: float, gains: ObserverGains | None = None) -> None:
-        self.bank = ObserverBank(vehicle, dt, gains, count=1)
+    def __init__(
+        self, vehicle: VehicleParams, dt: float, gains: ObserverGains | None = None, backend: str = "numpy"
+    ) -> None:
+        self.bank = ObserverBank(vehicle, dt, gains, count=1, backend=backend)
         self.gains, self.mass, self.inertia = self.bank.gains, self.bank.mass, self.bank.inertia
 
     def reset(self, position: np.ndarray, quaternion_wxyz: np.ndarray) -> None:

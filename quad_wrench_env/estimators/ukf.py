@@ -297,8 +297,10 @@ class UnscentedWrenchEstimator:
 
     name = "ukf"
 
-    def __init__(self, vehicle: VehicleParams, dt: float, noise: FilterNoise | None = None) -> None:
-        self.bank = UnscentedFilterBank(vehicle, dt, noise, count=1)
+    def __init__(
+        self, vehicle: VehicleParams, dt: float, noise: FilterNoise | None = None, backend: str = "numpy"
+    ) -> None:
+        self.bank = UnscentedFilterBank(vehicle, dt, noise, count=1, backend=backend)
         b = self.bank
         self.noise, self.mass, self.L, self.spread = b.noise, b.mass, b.L, b.spread
         self.weight_centre, self.weight_other, self.Q, self.G = b.weight_centre, b.weight_other, b.Q, b.G
