@@ -95,15 +95,30 @@ class Autopilot:
         self._w2_min = vehicle.min_rotor_speed**2
         self._w2_max = vehicle.max_rotor_speed**2
         self.yaw_setpoint = np.zeros(count)
-        self._velocity_integral = np.zeros((count, 3))
-        self._rate_integral = np.zeros((count, 3))
+        self.velocity_integral = np.zeros((count, 3))
+        self.rate_integral = np.zeros((count, 3))
         self.saturated = np.zeros(count, dtype=bool)
+
+    def kernel_parameters(self) -> np.ndarray:
+        """The gains and limits as the compiled kernel reads them
+        (:func:`quad_wrench_env.kernels.physics.before_world_step`): velocity P (3) and I (3), set-point
+        weight, tan(max tilt), attitude P (3), max rate, max yaw error, rate P and I, mass, g, dt,
+        squared speed limits (2), inertia (3)."""
+        g = self.gains
+        return np.concatenate(
+            (
+                self._velocity_p, self._velocity_i, (g.setpoint_weight, math.tan(g.max_tilt)),
+                self._attitude_p,
+                (g.max_rate, g.max_yaw_error, g.rate_p, g.rate_i, self.vehicle.mass, GRAVITY, self.dt),
+                (self._w2_min, self._w2_max), self._inertia,
+            )
+        )  # fmt: skip
 
     def reset(self, index: np.ndarray, yaw: np.ndarray) -> None:
         """Zero the integrators of vehicles ``index`` and hold their ``yaw`` (rad)."""
         self.yaw_setpoint[index] = yaw
-        self._velocity_integral[index] = 0.0
-        self._rate_integral[index] = 0.0
+        self.velocity_integral[index] = 0.0
+        self.rate_integral[index] = 0.0
         self.saturated[index] = False
 
     def trim(self, index: np.ndarray, rotation: np.ndarray, rotor_speeds: np.ndarray) -> None:
@@ -112,9 +127,9 @@ class Autopilot:
         vehicle that has been hovering in equilibrium (used at the start of an episode)."""
         g = self.gains
         command = (rotor_speeds * rotor_speeds) @ self.mixer.allocation.T
-        self._rate_integral[index] = command[:, 1:] / (self._inertia * g.rate_i)
+        self.rate_integral[index] = command[:, 1:] / (self._inertia * g.rate_i)
         thrust_vector = command[:, :1] * rotation[:, :, 2]
-        self._velocity_integral[index] = (
+        self.velocity_integral[index] = (
             thrust_vector / self.vehicle.mass - GRAVITY * _E_Z
         ) / self._velocity_i
 
@@ -125,11 +140,11 @@ class Autopilot:
         """(N, 4) motor speeds that track (N, 3) world-frame velocities (m/s) and (N,) yaw rates (rad/s)."""
         error = velocity - state.velocity
         proportional = self.gains.setpoint_weight * velocity - state.velocity
-        accel = self._velocity_p * proportional + self._velocity_i * self._velocity_integral
+        accel = self._velocity_p * proportional + self._velocity_i * self.velocity_integral
         thrust_vector = self.vehicle.mass * (accel + GRAVITY * _E_Z)
         thrust_vector, tilt_limited = self._limit_tilt(thrust_vector)
         integrate = ~(tilt_limited | self.saturated)
-        self._velocity_integral += (error * self.dt) * integrate[:, None]
+        self.velocity_integral += (error * self.dt) * integrate[:, None]
         self._advance_yaw(state, yaw_rate)
         desired = attitude_from_thrust(thrust_vector, self.yaw_setpoint)
         thrust = np.einsum("ni,ni->n", thrust_vector, state.rotation[:, :, 2])
@@ -187,8 +202,8 @@ class Autopilot:
         g = self.gains
         omega = state.body_rates
         error = rates - omega
-        self._rate_integral += (error * self.dt) * ~self.saturated[:, None]
-        angular_accel = g.rate_p * error + g.rate_i * self._rate_integral
+        self.rate_integral += (error * self.dt) * ~self.saturated[:, None]
+        angular_accel = g.rate_p * error + g.rate_i * self.rate_integral
         torque = self._inertia * angular_accel + cross(omega, self._inertia * omega)
         return self._mix(np.column_stack((thrust, torque)))
 

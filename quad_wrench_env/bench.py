@@ -115,7 +115,7 @@ def component_seconds(calls: int, **env_kwargs) -> dict[str, float]:
         fleet = base.fleet
         action = np.zeros((1, 4))
         base.step(action[0])
-        compiled = fleet._compiled
+        compiled = fleet.compiled
         if compiled is None:
             state = fleet.state
             loads = fleet.external_loads(state, slice(None))
@@ -143,7 +143,7 @@ def component_seconds(calls: int, **env_kwargs) -> dict[str, float]:
         out = {f"physics step: {name}": _time(call, calls) for name, call in parts.items()}
         if compiled is not None:  # the whole compiled step, less what is timed on its own
             whole = out.pop("physics step: compiled: autopilot, motors, disturbances")
-            ukf = compiled._ukf_arguments
+            ukf = compiled.ukf_arguments
             estimator = _time(lambda: ukf_bank_step(*ukf), calls) if ukf is not None else 0.0
             pybullet = out["physics step: PyBullet apply + step"] + out["physics step: PyBullet read"]
             out["physics step: kernels (autopilot, motors, disturbances, sensors) + glue"] = (

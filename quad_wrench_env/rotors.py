@@ -40,6 +40,13 @@ class Rotors:
         self.inverses[index] = mixer.inverse
         self.speeds[index] = self.vehicle.hover_rotor_speed
 
+    def kernel_parameters(self) -> np.ndarray:
+        """Motor lag gains up and down, speed limits and the rotor drag coefficient, for the kernels."""
+        v = self.vehicle
+        return np.array(
+            (self._alpha_up, self._alpha_down, v.min_rotor_speed, v.max_rotor_speed, self._drag_coefficient)
+        )
+
     def step(self, commanded: np.ndarray) -> np.ndarray:
         """Advance the motors one physics step towards (N, 4) ``commanded`` speeds (limited to their
         range)."""

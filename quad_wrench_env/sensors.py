@@ -110,8 +110,8 @@ class MotorSpeedSensor:
     """Motor speeds as the vehicle reports them: rounded to ``bits`` bits over [0, max_speed]."""
 
     def __init__(self, max_speed: float, bits: int) -> None:
-        self._levels = float(2**bits - 1)
-        self._step = max_speed / self._levels
+        self.levels = float(2**bits - 1)
+        self.step = max_speed / self.levels
 
     def measure(self, speeds: np.ndarray) -> np.ndarray:
-        return np.clip(np.round(speeds / self._step), 0.0, self._levels) * self._step
+        return np.clip(np.round(speeds / self.step), 0.0, self.levels) * self.step

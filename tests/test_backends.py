@@ -36,7 +36,7 @@ def test_compiled_flight_equals_the_numpy_reference(case):
     wrench to 1e-9 N (the two sum in different orders; nothing else differs)."""
     envs = {b: gym.make(FAN_TRACKING, backend=b, **CASES[case]) for b in ("numpy", "numba")}
     try:
-        assert envs["numba"].unwrapped.fleet._compiled is not None
+        assert envs["numba"].unwrapped.fleet.compiled is not None
         first = {b: env.reset(seed=3) for b, env in envs.items()}
         np.testing.assert_array_equal(first["numpy"][0], first["numba"][0])
         actions = np.random.default_rng(3).uniform(-0.6, 0.6, (100, 4))

@@ -19,10 +19,11 @@ class QuadraticDrag:
     def __init__(self, drag_area: float, num_points: int, air_density: float = AIR_DENSITY) -> None:
         if drag_area < 0 or num_points < 1:
             raise ValueError(f"drag_area={drag_area} must be >= 0 and num_points={num_points} >= 1")
-        self._coefficient = 0.5 * air_density * drag_area / num_points
+        self.coefficient = 0.5 * air_density * drag_area / num_points
+        """``½ ρ C_d A / N`` of each point (kg/m)."""
 
     def forces(self, relative_air_velocity: np.ndarray) -> np.ndarray:
         """(..., P, 3) world forces for (..., P, 3) air velocities relative to the points (wind - point
         velocity)."""
         speed = np.sqrt((relative_air_velocity * relative_air_velocity).sum(axis=-1))
-        return (self._coefficient * speed)[..., None] * relative_air_velocity
+        return (self.coefficient * speed)[..., None] * relative_air_velocity

@@ -227,6 +227,14 @@ class FanJet:
         return y
 
     # -- the field --------------------------------------------------------------------------------
+    def kernel_parameters(self) -> np.ndarray:
+        """The jet as the kernels read it: on (1), outlet speed, core length, outlet radius², spread,
+        height, turbulence intensity (each vehicle's motion is in :attr:`motion_tables`)."""
+        c = self.config
+        return np.array(
+            (1.0, c.outlet_speed, self._core, self._radius2, c.spread, c.height, c.turbulence_intensity)
+        )
+
     def reset(self, index: int, rng: np.random.Generator) -> None:
         self.noise[index] = rng.standard_normal(3)  # the stationary distribution of the OU process
 

@@ -46,6 +46,11 @@ class Payload:
         self._point = np.array(config.point, dtype=float)
         self._weight = np.array((0.0, 0.0, -config.mass * GRAVITY))
 
+    def kernel_parameters(self) -> np.ndarray:
+        """Mass, attachment point (3), weight along z, attach and release times, for the kernels."""
+        c = self.config
+        return np.array((c.mass, *self._point, self._weight[2], c.attach_time, c.release_time))
+
     def attached(self, t: np.ndarray) -> np.ndarray:
         """Whether the mass hangs at times ``t`` (array)."""
         c = self.config

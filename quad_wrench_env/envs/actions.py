@@ -61,6 +61,17 @@ class ActionMap:
         )
         self._max_speed = vehicle.max_rotor_speed
 
+    def kernel_parameters(self) -> tuple[int, np.ndarray]:
+        """The action type's index in :data:`ACTION_TYPES` and the scales as the compiled kernel
+        reads them: velocity (3), yaw rate, tilt, hover thrust, torque (3), max rotor speed."""
+        scales = np.concatenate(
+            (
+                self._velocity_scale, (self._yaw_rate_scale, self._tilt_scale, self._hover_thrust),
+                self._torque_scale, (self._max_speed,),
+            )
+        )  # fmt: skip
+        return ACTION_TYPES.index(self.action_type), scales
+
     def motor_command(self, action: np.ndarray, state: RigidBodyState) -> np.ndarray:
         """(N, 4) rotor speed commands (rad/s) for one physics step of N vehicles, actions (N, 4)."""
         a = action

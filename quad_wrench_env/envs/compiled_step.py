@@ -8,17 +8,14 @@ and compared at any step.
 
 from __future__ import annotations
 
-import math
 from typing import TYPE_CHECKING
 
 import numpy as np
 
 from quad_wrench_env.disturbances.fan import FanJet
-from quad_wrench_env.envs.actions import ACTION_TYPES
 from quad_wrench_env.estimators.ukf import UnscentedFilterBank
 from quad_wrench_env.kernels.physics import after_world_step, before_world_step
 from quad_wrench_env.kernels.ukf import ukf_bank_step
-from quad_wrench_env.vehicle import GRAVITY
 from quad_wrench_env.world import RigidBodyState
 
 if TYPE_CHECKING:
@@ -39,57 +36,22 @@ class CompiledStep:
 
     def __init__(self, fleet: Fleet) -> None:
         self.fleet = fleet
-        v, ap, g = fleet.vehicle, fleet.autopilot, fleet.autopilot.gains
-        actions, rotors = fleet.actions, fleet.rotors
-        self.action_type = ACTION_TYPES.index(actions.action_type)
-        self.autopilot = np.concatenate(
-            (
-                ap._velocity_p, ap._velocity_i, (g.setpoint_weight, math.tan(g.max_tilt)),
-                ap._attitude_p, (g.max_rate, g.max_yaw_error, g.rate_p, g.rate_i, v.mass, GRAVITY, fleet.dt),
-                (ap._w2_min, ap._w2_max), ap._inertia,
-            )
-        )  # fmt: skip
-        self.scales = np.concatenate(
-            (
-                actions._velocity_scale,
-                (actions._yaw_rate_scale, actions._tilt_scale, actions._hover_thrust),
-                actions._torque_scale, (actions._max_speed,),
-            )
-        )  # fmt: skip
+        ap = fleet.autopilot
+        self.action_type, self.scales = fleet.actions.kernel_parameters()
+        self.autopilot = ap.kernel_parameters()
         self.inverse = ap.mixer.inverse.copy()
         self.nominal_allocation = ap.mixer.allocation.copy()
-        self.motors = np.array(
-            (
-                rotors._alpha_up, rotors._alpha_down, v.min_rotor_speed, v.max_rotor_speed,
-                rotors._drag_coefficient, fleet.drag._coefficient,
-            )
-        )  # fmt: skip
+        self.motors = np.append(fleet.rotors.kernel_parameters(), fleet.drag.coefficient)
         self.fan: FanJet | None = fleet.wind_fields[0] if fleet.wind_fields else None
-        if self.fan is not None:
-            c = self.fan.config
-            self.fan_parameters = np.array(
-                (
-                    1.0,
-                    c.outlet_speed,
-                    self.fan._core,
-                    self.fan._radius2,
-                    c.spread,
-                    c.height,
-                    c.turbulence_intensity,
-                )
-            )
-        else:
-            self.fan_parameters = np.zeros(7)
+        self.fan_parameters = np.zeros(7) if self.fan is None else self.fan.kernel_parameters()
         payload, profile = fleet.point_loads
-        p = payload.config
-        self.payload = np.array((p.mass, *p.point, -p.mass * GRAVITY, p.attach_time, p.release_time))
+        self.payload = payload.kernel_parameters()
         self.segments = profile.segments
         sensors = fleet.cfg.sensors
-        motor_sensor = fleet.motor_sensor
         self.sensing = np.array(
             (
-                motor_sensor._levels, motor_sensor._step, sensors.position_noise, sensors.attitude_noise,
-                sensors.velocity_noise, sensors.body_rate_noise,
+                fleet.motor_sensor.levels, fleet.motor_sensor.step, sensors.position_noise,
+                sensors.attitude_noise, sensors.velocity_noise, sensors.body_rate_noise,
             )
         )  # fmt: skip
         count = fleet.count
@@ -106,10 +68,10 @@ class CompiledStep:
         self.velocity_measured = self.motion[:, :3] if len(self.motion) else None
         self.body_rates_measured = self.motion[:, 3:] if len(self.motion) else None
         self.state = RigidBodyState.at_rest(np.zeros((count, 3)), np.tile((1.0, 0.0, 0.0, 0.0), (count, 1)))
-        self._ukf_arguments = None
+        self.ukf_arguments = None
         bank = fleet.estimator
         if isinstance(bank, UnscentedFilterBank) and bank.backend == "numba":
-            self._ukf_arguments = (
+            self.ukf_arguments = (
                 bank.quaternions, bank.rests, bank.covariances, bank.reinitialisations,
                 self.thrusts, self.body_torques, self.measured_position, self.measured_quaternion,
                 *bank.kernel_parameters(),
@@ -130,7 +92,7 @@ class CompiledStep:
         s, ap, noise = mine, fleet.autopilot, fleet.noise
         self._before = (
             s.position, s.velocity, s.angular_velocity, s.rotation, fleet.time,
-            ap.yaw_setpoint, ap._velocity_integral, ap._rate_integral, ap.saturated,
+            ap.yaw_setpoint, ap.velocity_integral, ap.rate_integral, ap.saturated,
             fleet.rotors.speeds, fleet.rotors.allocations, self.autopilot, self.scales, self.inverse,
             self.motors, fleet.drag_points, self.fan_parameters, self._fan_noise, self._motion_tables,
             self.payload, self.segments, self.forces, self.torques, self.loads,
@@ -148,7 +110,7 @@ class CompiledStep:
         fleet = self.fleet
         if fleet.state is not self.state:
             self._adopt()
-        world, noise, estimator, ukf = fleet.world, fleet.noise, fleet.estimator, self._ukf_arguments
+        world, noise, estimator, ukf = fleet.world, fleet.noise, fleet.estimator, self.ukf_arguments
         before = (self.action_type, actions, *self._before)
         position = self.state.position
         for _ in range(count):

@@ -96,6 +96,7 @@ class FanTracking:
         self._compiled = resolve_backend(cfg.backend) == "numba"
         r = cfg.reward
         self._weights = np.array((r.axis_scale, r.effort_weight, r.crash_penalty))
+        self._jet = self.fan.kernel_parameters()
         self._cache: tuple[int, np.ndarray] = (-1, np.zeros((count, 6)))
 
     def wind_fields(self) -> list[WindField]:
@@ -147,8 +148,8 @@ class FanTracking:
         numbers = np.empty((count, 6))
         if self._compiled:
             fan_tracking_terms(
-                position, time, actions, ended, fan.motion_tables, fan._u0, fan._core, self.cfg.fan.height,
-                self._weights, numbers,
+                position, time, actions, ended, fan.motion_tables, self._jet[1], self._jet[2],
+                self.cfg.fan.height, self._weights, numbers,
             )  # fmt: skip
         else:
             dy = position[:, 1] - fan.axis_y(position[:, 0], time)

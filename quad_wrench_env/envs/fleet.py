@@ -103,7 +103,9 @@ class Fleet:
         self.time = np.zeros(count)
         self.state: RigidBodyState | None = None
         self.wrench_true = np.zeros((count, 6))
-        self._compiled = CompiledStep(self) if self.backend == "numba" and supports(self) else None
+        self.compiled = CompiledStep(self) if self.backend == "numba" and supports(self) else None
+        """The physics step on the compiled kernels, or None (numpy reference, or a setting the
+        kernels do not cover: motion-capture latency, a wind field other than one fan jet)."""
         arena = cfg.arena
         self._limits = np.array(
             (cfg.crash_height, self._flip_cos, arena.x_min, arena.x_max, arena.y_half_width, arena.z_max)
@@ -160,8 +162,8 @@ class Fleet:
     # -- one physics step --------------------------------------------------------------------------
     def step(self, actions: np.ndarray) -> None:
         """One policy step: ``substeps`` physics steps with (N, 4) clipped normalised actions."""
-        if self._compiled is not None:
-            self._compiled.physics_steps(actions, self.substeps)
+        if self.compiled is not None:
+            self.compiled.physics_steps(actions, self.substeps)
         else:
             for _ in range(self.substeps):
                 self._physics_step(actions)
@@ -227,7 +229,7 @@ class Fleet:
         """(N, 23) float32 observations (:data:`OBSERVATION_FIELDS`): the estimators' states and
         wrenches and the last actions (quaternions with ``w >= 0``)."""
         out = np.empty((self.count, OBSERVATION_SIZE), dtype=np.float32)
-        if self._compiled is not None:
+        if self.compiled is not None:
             assemble_observations(self.estimator.states(), self.estimator.wrenches(), last_actions, out)
             return out
         out[:, :13] = self.estimator.states()
@@ -242,7 +244,7 @@ class Fleet:
         """(N,) codes into :data:`TERMINATION_REASONS`: crash (below ``crash_height`` or touching the
         ground), flip (tilt beyond ``flip_tilt_deg``), out_of_arena; 0 while the episode goes on."""
         s, cfg, arena = self.state, self.cfg, self.cfg.arena
-        if self._compiled is not None:
+        if self.compiled is not None:
             codes = np.empty(self.count, dtype=np.int64)
             termination_codes(s.position, s.rotation, self.world.ground_contacts(), self._limits, codes)
             return codes
