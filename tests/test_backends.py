@@ -89,3 +89,14 @@ def test_backend_names_are_checked():
     with pytest.raises(ValueError, match="backend='fortran'"):
         gym.make(FAN_TRACKING, backend="fortran")
     assert resolve_backend("auto") == ("numba" if NUMBA_AVAILABLE else "numpy")
+
+
+def test_settings_the_kernels_do_not_cover_fall_back_to_numpy():
+    env = gym.make(FAN_TRACKING, backend="auto", sensors={"latency_steps": 2})
+    try:
+        assert env.unwrapped.fleet.compiled is None
+        env.reset(seed=0)
+        _, _, terminated, _, _ = env.step(np.zeros(4, dtype=np.float32))
+        assert not terminated
+    finally:
+        env.close()
