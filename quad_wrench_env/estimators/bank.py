@@ -13,6 +13,8 @@ from typing import Protocol, runtime_checkable
 
 import numpy as np
 
+from quad_wrench_env.estimators.base import StateEstimate, WrenchEstimate
+
 
 @runtime_checkable
 class EstimatorBank(Protocol):
@@ -39,6 +41,9 @@ class EstimatorBank(Protocol):
 
     def wrenches(self) -> np.ndarray:
         """(N, 6) estimated ``[f, τ]``, world frame."""
+
+    def wrench_covariances(self) -> np.ndarray:
+        """(N, 6, 6) covariance of ``[f, τ]`` (zeros where an estimator carries none)."""
 
     def states(self) -> np.ndarray:
         """(N, 13) estimated position, velocity, quaternion ``[w, x, y, z]`` and body rates."""
@@ -83,8 +88,55 @@ class OracleBank:
     def wrenches(self) -> np.ndarray:
         return self._wrenches
 
+    def wrench_covariances(self) -> np.ndarray:
+        return np.zeros((self.count, 6, 6))
+
     def states(self) -> np.ndarray:
         return self._states
 
     def statuses(self) -> list[str]:
         return ["ok"] * self.count
+
+
+class BankOfOne:
+    """A single-vehicle estimator (the :class:`~quad_wrench_env.estimators.base.Estimator` protocol)
+    run on a bank of one, so that each algorithm has one implementation; subclasses set ``bank``."""
+
+    bank: EstimatorBank
+
+    def reset(self, position: np.ndarray, quaternion_wxyz: np.ndarray) -> None:
+        self.bank.reset(0, position, quaternion_wxyz)
+
+    def step(
+        self,
+        thrust: float,
+        body_torque: np.ndarray,
+        position: np.ndarray,
+        quaternion_wxyz: np.ndarray,
+        velocity: np.ndarray | None = None,
+        body_rates: np.ndarray | None = None,
+    ) -> WrenchEstimate:
+        """One step of the bank with these inputs as its one row (see :class:`EstimatorBank`)."""
+
+        def row(value):
+            return None if value is None else np.asarray(value, dtype=float)[None, :]
+
+        self.bank.step(
+            np.array((thrust,), dtype=float), row(body_torque), row(position), row(quaternion_wxyz),
+            row(velocity), row(body_rates),
+        )  # fmt: skip
+        return self.estimate
+
+    @property
+    def estimate(self) -> WrenchEstimate:
+        w = self.bank.wrenches()[0]
+        return WrenchEstimate(w[:3].copy(), w[3:].copy(), self.bank.wrench_covariances()[0])
+
+    @property
+    def state(self) -> StateEstimate:
+        s = self.bank.states()[0]
+        return StateEstimate(s[0:3].copy(), s[3:6].copy(), s[6:10].copy(), s[10:13].copy())
+
+    @property
+    def status(self) -> str:
+        return self.bank.statuses()[0]

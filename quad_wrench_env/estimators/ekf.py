@@ -31,8 +31,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from quad_wrench_env.estimators.bank import check_finite_batch
-from quad_wrench_env.estimators.base import StateEstimate, WrenchEstimate
+from quad_wrench_env.estimators.bank import BankOfOne, check_finite_batch
 from quad_wrench_env.estimators.noise import EKFNoise
 from quad_wrench_env.kernels import resolve_backend
 from quad_wrench_env.kernels.ekf import ekf_bank_step
@@ -279,7 +278,7 @@ class ExtendedFilterBank:
         self.P = 0.5 * (P_new + P_new.transpose(0, 2, 1))
 
 
-class ExtendedWrenchEstimator:
+class ExtendedWrenchEstimator(BankOfOne):
     """Paper 003's EKF for one vehicle: a bank of one filter."""
 
     name = "ekf"
@@ -288,12 +287,8 @@ class ExtendedWrenchEstimator:
         self, vehicle: VehicleParams, dt: float, noise: EKFNoise | None = None, backend: str = "numpy"
     ) -> None:
         self.bank = ExtendedFilterBank(vehicle, dt, noise, count=1, backend=backend)
-        self.noise, self.mass, self.inertia, self.Q = (
-            self.bank.noise,
-            self.bank.mass,
-            self.bank.inertia,
-            self.bank.Q,
-        )
+        b = self.bank
+        self.noise, self.mass, self.inertia, self.Q = b.noise, b.mass, b.inertia, b.Q
 
     @property
     def x(self) -> np.ndarray:
@@ -305,43 +300,8 @@ class ExtendedWrenchEstimator:
         return self.bank.P[0]
 
     @property
-    def status(self) -> str:
-        return self.bank.statuses()[0]
-
-    def reset(self, position: np.ndarray, quaternion_wxyz: np.ndarray) -> None:
-        self.bank.reset(0, position, quaternion_wxyz)
-
-    def step(
-        self,
-        thrust: float,
-        body_torque: np.ndarray,
-        position: np.ndarray,
-        quaternion_wxyz: np.ndarray,
-        velocity: np.ndarray | None = None,
-        body_rates: np.ndarray | None = None,
-    ) -> WrenchEstimate:
-        def row(value):
-            return None if value is None else np.asarray(value, dtype=float)[None, :]
-
-        self.bank.step(
-            np.array((thrust,), dtype=float), row(body_torque), row(position), row(quaternion_wxyz),
-            row(velocity), row(body_rates),
-        )  # fmt: skip
-        return self.estimate
-
-    @property
-    def estimate(self) -> WrenchEstimate:
-        w = self.bank.wrenches()[0]
-        return WrenchEstimate(w[:3], w[3:], self.bank.wrench_covariances()[0])
-
-    @property
     def quaternion(self) -> np.ndarray:
         return self.bank.quaternions()[0]
-
-    @property
-    def state(self) -> StateEstimate:
-        s = self.bank.states()[0]
-        return StateEstimate(s[0:3], s[3:6], s[6:10], s[10:13])
 
     def transition(self, x: np.ndarray, u: np.ndarray) -> np.ndarray:
         return self.bank.transition(x[None], u[None])[0]

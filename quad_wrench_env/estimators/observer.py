@@ -34,8 +34,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from quad_wrench_env.config import check_numbers
-from quad_wrench_env.estimators.bank import check_finite_batch
-from quad_wrench_env.estimators.base import StateEstimate, WrenchEstimate
+from quad_wrench_env.estimators.bank import BankOfOne, check_finite_batch
 from quad_wrench_env.kernels import resolve_backend
 from quad_wrench_env.kernels.observer import observer_bank_step
 from quad_wrench_env.rotations import (
@@ -46,9 +45,6 @@ from quad_wrench_env.rotations import (
     wrap_angle,
 )
 from quad_wrench_env.vehicle import GRAVITY, VehicleParams
-
-_NO_COVARIANCE = np.zeros((6, 6))
-_NO_COVARIANCE.flags.writeable = False
 
 
 @dataclass
@@ -249,52 +245,24 @@ class ObserverBank:
         body_rates = _apply(euler_kinematics(self.eulers[:, 0], self.eulers[:, 1]), self.euler_rates)
         return np.concatenate((self.positions, self.velocities, self.quaternions(), body_rates), axis=1)
 
+    def wrench_covariances(self) -> np.ndarray:
+        """The observer carries no covariance: zeros."""
+        return np.zeros((self.count, 6, 6))
+
     def statuses(self) -> list[str]:
         return ["ok"] * self.count
 
 
-class NonlinearWrenchObserver:
+class NonlinearWrenchObserver(BankOfOne):
     """Paper 001's observer for one vehicle: a bank of one."""
 
     name = "observer"
-    status = "ok"
 
     def __init__(
         self, vehicle: VehicleParams, dt: float, gains: ObserverGains | None = None, backend: str = "numpy"
     ) -> None:
         self.bank = ObserverBank(vehicle, dt, gains, count=1, backend=backend)
         self.gains, self.mass, self.inertia = self.bank.gains, self.bank.mass, self.bank.inertia
-
-    def reset(self, position: np.ndarray, quaternion_wxyz: np.ndarray) -> None:
-        self.bank.reset(0, position, quaternion_wxyz)
-
-    def step(
-        self,
-        thrust: float,
-        body_torque: np.ndarray,
-        position: np.ndarray,
-        quaternion_wxyz: np.ndarray,
-        velocity: np.ndarray | None = None,
-        body_rates: np.ndarray | None = None,
-    ) -> WrenchEstimate:
-        def row(value):
-            return None if value is None else np.asarray(value, dtype=float)[None, :]
-
-        self.bank.step(
-            np.array((thrust,), dtype=float), row(body_torque), row(position), row(quaternion_wxyz),
-            row(velocity), row(body_rates),
-        )  # fmt: skip
-        return self.estimate
-
-    @property
-    def estimate(self) -> WrenchEstimate:
-        w = self.bank.wrenches()[0]
-        return WrenchEstimate(w[:3], w[3:], _NO_COVARIANCE)
-
-    @property
-    def state(self) -> StateEstimate:
-        s = self.bank.states()[0]
-        return StateEstimate(s[0:3], s[3:6], s[6:10], s[10:13])
 
 
 def _alpha(dt: float, time_constant: float) -> float:

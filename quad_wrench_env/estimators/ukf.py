@@ -51,8 +51,7 @@ import math
 
 import numpy as np
 
-from quad_wrench_env.estimators.bank import check_finite_batch
-from quad_wrench_env.estimators.base import StateEstimate, WrenchEstimate
+from quad_wrench_env.estimators.bank import BankOfOne, check_finite_batch
 from quad_wrench_env.estimators.noise import FilterNoise, mrp_std
 from quad_wrench_env.kernels import resolve_backend
 from quad_wrench_env.kernels.ukf import ukf_bank_step
@@ -188,6 +187,10 @@ class UnscentedFilterBank:
         r = self.rests
         return np.concatenate((r[:, 3:9], self.quaternions, r[:, 0:3]), axis=1)
 
+    def wrench_covariances(self) -> np.ndarray:
+        """(N, 6, 6) covariance of ``[f_e, τ_e]``."""
+        return self.covariances[:, _WRENCH_BLOCK[0], _WRENCH_BLOCK[1]]
+
     def statuses(self) -> list[str]:
         return ["ok" if k == 0 else "reinitialised" for k in self.reinitialisations.tolist()]
 
@@ -292,8 +295,9 @@ class UnscentedFilterBank:
         self.rests = self.rests + delta[:, 3:]
 
 
-class UnscentedWrenchEstimator:
-    """USQUE-based external wrench estimator of one vehicle (paper 000): a bank of one filter."""
+class UnscentedWrenchEstimator(BankOfOne):
+    """USQUE-based external wrench estimator of one vehicle (paper 000): a bank of one filter.
+    Paper 000's filter measures the pose only: ``step`` ignores ``velocity`` and ``body_rates``."""
 
     name = "ukf"
 
@@ -323,43 +327,6 @@ class UnscentedWrenchEstimator:
     @property
     def reinitialisations(self) -> int:
         return int(self.bank.reinitialisations[0])
-
-    @property
-    def status(self) -> str:
-        return "ok" if self.reinitialisations == 0 else "reinitialised"
-
-    # -- interface -------------------------------------------------------------------------------
-    def reset(self, position: np.ndarray, quaternion_wxyz: np.ndarray) -> None:
-        self.bank.reset(0, position, quaternion_wxyz)
-
-    def step(
-        self,
-        thrust: float,
-        body_torque: np.ndarray,
-        position: np.ndarray,
-        quaternion_wxyz: np.ndarray,
-        velocity: np.ndarray | None = None,
-        body_rates: np.ndarray | None = None,
-    ) -> WrenchEstimate:
-        """Predict and correct with the measured pose; paper 000's filter measures nothing else, so
-        ``velocity`` and ``body_rates`` are not used."""
-        self.bank.step(
-            np.array((thrust,), dtype=float),
-            np.asarray(body_torque, dtype=float)[None, :],
-            np.asarray(position, dtype=float)[None, :],
-            np.asarray(quaternion_wxyz, dtype=float)[None, :],
-        )
-        return self.estimate
-
-    @property
-    def estimate(self) -> WrenchEstimate:
-        r = self.rest
-        return WrenchEstimate(r[12:15].copy(), r[9:12].copy(), self.covariance[_WRENCH_BLOCK])
-
-    @property
-    def state(self) -> StateEstimate:
-        r = self.rest
-        return StateEstimate(r[3:6].copy(), r[6:9].copy(), self.quaternion.copy(), r[0:3].copy())
 
     # -- single-filter views of the bank's steps (used by the tests of the algebra) ---------------
     def state_sigma_points(self) -> np.ndarray:

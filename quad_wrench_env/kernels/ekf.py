@@ -8,6 +8,7 @@ import math
 import numpy as np
 
 from quad_wrench_env.kernels import njit
+from quad_wrench_env.kernels.linalg import cholesky, cholesky_solve, inputs_finite
 from quad_wrench_env.kernels.quaternions import matrix
 
 
@@ -41,38 +42,6 @@ def wrap(angle):
 
 
 @njit
-def _solve_spd(s, rhs, root, out):
-    """``out = s⁻¹ rhs`` for a symmetric positive definite ``s`` (k, k) and ``rhs`` (k, m) by Cholesky;
-    False when ``s`` is not positive definite."""
-    k = s.shape[0]
-    for j in range(k):
-        total = s[j, j]
-        for i in range(j):
-            total -= root[j, i] * root[j, i]
-        if not total > 0.0:
-            return False
-        d = math.sqrt(total)
-        root[j, j] = d
-        for i in range(j + 1, k):
-            t = s[i, j]
-            for m in range(j):
-                t -= root[i, m] * root[j, m]
-            root[i, j] = t / d
-    for c in range(rhs.shape[1]):
-        for j in range(k):
-            t = rhs[j, c]
-            for m in range(j):
-                t -= root[j, m] * out[m, c]
-            out[j, c] = t / root[j, j]
-        for j in range(k - 1, -1, -1):
-            t = out[j, c]
-            for m in range(j + 1, k):
-                t -= root[m, j] * out[m, c]
-            out[j, c] = t / root[j, j]
-    return True
-
-
-@njit
 def ekf_bank_step(
     x, p, reinitialisations, thrusts, body_torques, positions, quaternions, velocities, body_rates,
     dt, mass, inertia, gravity, q_diagonal, noise_pose, noise_motion, p0,
@@ -81,18 +50,8 @@ def ekf_bank_step(
     (N, 3) where measured, else (0, 3). Returns False, touching nothing, when an input is not finite."""
     count = x.shape[0]
     with_velocity, with_rates = velocities.shape[0] > 0, body_rates.shape[0] > 0
-    for n in range(count):
-        total = thrusts[n]
-        for i in range(3):
-            total += body_torques[n, i] + positions[n, i]
-            if with_velocity:
-                total += velocities[n, i]
-            if with_rates:
-                total += body_rates[n, i]
-        for i in range(4):
-            total += quaternions[n, i]
-        if not math.isfinite(total):
-            return False
+    if not inputs_finite(thrusts, body_torques, positions, quaternions, velocities, body_rates):
+        return False
     size = 6 + 3 * with_velocity + 3 * with_rates
     measured = np.empty(size, dtype=np.int64)
     noise = np.empty(size)
@@ -204,7 +163,9 @@ def ekf_bank_step(
             for j in range(size):
                 s[i, j] = pht[measured[i], j]
             s[i, i] += noise[i]
-        ok = _solve_spd(s, pht.T, s_root, gain_t)  # Kᵀ = S⁻¹ (P Hᵀ)ᵀ
+        ok = cholesky(s, s_root)
+        if ok:
+            cholesky_solve(s_root, pht.T, gain_t)  # Kᵀ = S⁻¹ (P Hᵀ)ᵀ
         for i in range(18):
             t = 0.0
             for j in range(size):

@@ -9,6 +9,7 @@ import numpy as np
 
 from quad_wrench_env.kernels import njit
 from quad_wrench_env.kernels.ekf import euler_from_quaternion, quaternion_from_euler, wrap
+from quad_wrench_env.kernels.linalg import inputs_finite
 from quad_wrench_env.kernels.quaternions import matrix
 
 
@@ -60,18 +61,8 @@ def observer_bank_step(
     filter gain. Returns False, touching nothing, when an input is not finite."""
     count = positions.shape[0]
     with_velocity, with_rates = velocities.shape[0] > 0, body_rates.shape[0] > 0
-    for n in range(count):
-        total = thrusts[n]
-        for i in range(3):
-            total += body_torques[n, i] + positions[n, i]
-            if with_velocity:
-                total += velocities[n, i]
-            if with_rates:
-                total += body_rates[n, i]
-        for i in range(4):
-            total += quaternions[n, i]
-        if not math.isfinite(total):
-            return False
+    if not inputs_finite(thrusts, body_torques, positions, quaternions, velocities, body_rates):
+        return False
     c_force, c_torque, decay, velocity_alpha, rate_alpha = gains[0], gains[1], gains[2], gains[3], gains[4]
     kin = np.empty((3, 3))
     kin_dot = np.empty((3, 3))

@@ -9,32 +9,11 @@ import math
 import numpy as np
 
 from quad_wrench_env.kernels import njit
+from quad_wrench_env.kernels.linalg import cholesky, cholesky_solve, inputs_finite
 from quad_wrench_env.kernels.quaternions import exp, from_mrp, matrix, qmul, to_mrp
 
 _MEASURED = np.array((6, 7, 8, 0, 1, 2))
 """Error-state indices of the measurement ``(x, δρ)``."""
-
-
-@njit
-def cholesky(a, out):
-    """Lower Cholesky factor of ``a`` into ``out``; False when ``a`` is not positive definite."""
-    n = a.shape[0]
-    for j in range(n):
-        s = a[j, j]
-        for k in range(j):
-            s -= out[j, k] * out[j, k]
-        if not s > 0.0:
-            return False
-        d = math.sqrt(s)
-        out[j, j] = d
-        for i in range(j + 1, n):
-            t = a[i, j]
-            for k in range(j):
-                t -= out[i, k] * out[j, k]
-            out[i, j] = t / d
-        for i in range(j):
-            out[i, j] = 0.0
-    return True
 
 
 @njit
@@ -46,14 +25,9 @@ def ukf_bank_step(
     """One predict-correct step of every filter, in place (see the module docstring); returns False,
     touching nothing, when an input is not finite."""
     count = quaternions.shape[0]
-    for n in range(count):
-        total = thrusts[n]
-        for i in range(3):
-            total += body_torques[n, i] + positions[n, i]
-        for i in range(4):
-            total += measured_quaternions[n, i]
-        if not math.isfinite(total):
-            return False
+    unmeasured = np.empty((0, 3))
+    if not inputs_finite(thrusts, body_torques, positions, measured_quaternions, unmeasured, unmeasured):
+        return False
     n_points = 2 * 18 + 1
     root = np.zeros((18, 18))
     q_points = np.zeros((n_points, 4))
@@ -68,7 +42,6 @@ def ukf_bank_step(
     s_root = np.zeros((6, 6))
     gain = np.zeros((18, 6))
     innovation = np.zeros(6)
-    column = np.zeros(6)
     e = np.zeros(18)
     accel = np.zeros(3)
     torque = np.zeros(3)
@@ -168,17 +141,7 @@ def ukf_bank_step(
                 s[c, d] = pht[_MEASURED[c], d]
             s[c, c] += g_diagonal[c]
         cholesky(s, s_root)
-        for a in range(18):  # gain row a solves S k = (P Hᵀ)[a]
-            for c in range(6):
-                t = pht[a, c]
-                for k in range(c):
-                    t -= s_root[c, k] * column[k]
-                column[c] = t / s_root[c, c]
-            for c in range(5, -1, -1):
-                t = column[c]
-                for k in range(c + 1, 6):
-                    t -= s_root[k, c] * gain[a, k]
-                gain[a, c] = t / s_root[c, c]
+        cholesky_solve(s_root, pht.T, gain.T)  # Kᵀ = S⁻¹ (P Hᵀ)ᵀ
         for i in range(3):
             innovation[i] = positions[n, i] - rests[n, 3 + i]
         mw, mx, my, mz = (

@@ -1,0 +1,66 @@
+"""Small dense linear algebra and input checks shared by the compiled estimator kernels."""
+
+from __future__ import annotations
+
+import math
+
+from quad_wrench_env.kernels import njit
+
+
+@njit
+def cholesky(a, out):
+    """Lower Cholesky factor of ``a`` into ``out``; False when ``a`` is not positive definite."""
+    n = a.shape[0]
+    for j in range(n):
+        s = a[j, j]
+        for k in range(j):
+            s -= out[j, k] * out[j, k]
+        if not s > 0.0:
+            return False
+        d = math.sqrt(s)
+        out[j, j] = d
+        for i in range(j + 1, n):
+            t = a[i, j]
+            for k in range(j):
+                t -= out[i, k] * out[j, k]
+            out[i, j] = t / d
+        for i in range(j):
+            out[i, j] = 0.0
+    return True
+
+
+@njit
+def cholesky_solve(root, rhs, out):
+    """``out = (L Lᵀ)⁻¹ rhs`` for the lower factor ``root`` (k, k) and ``rhs`` (k, m)."""
+    k = root.shape[0]
+    for c in range(rhs.shape[1]):
+        for j in range(k):
+            t = rhs[j, c]
+            for m in range(j):
+                t -= root[j, m] * out[m, c]
+            out[j, c] = t / root[j, j]
+        for j in range(k - 1, -1, -1):
+            t = out[j, c]
+            for m in range(j + 1, k):
+                t -= root[m, j] * out[m, c]
+            out[j, c] = t / root[j, j]
+
+
+@njit
+def inputs_finite(thrusts, body_torques, positions, quaternions, velocities, body_rates):
+    """Whether every estimator input is finite (one sum per vehicle: NaN and inf propagate);
+    ``velocities`` and ``body_rates`` are (0, 3) when not measured."""
+    with_velocity, with_rates = velocities.shape[0] > 0, body_rates.shape[0] > 0
+    for n in range(thrusts.shape[0]):
+        total = thrusts[n]
+        for i in range(3):
+            total += body_torques[n, i] + positions[n, i]
+            if with_velocity:
+                total += velocities[n, i]
+            if with_rates:
+                total += body_rates[n, i]
+        for i in range(4):
+            total += quaternions[n, i]
+        if not math.isfinite(total):
+            return False
+    return True
