@@ -36,8 +36,12 @@ def resolve_backend(backend: str) -> str:
     return backend
 
 
-def njit(function):
-    """``numba.njit(cache=True)`` (IEEE arithmetic, no fast-math), or the function unchanged without numba."""
+def njit(function=None, *, inline: bool = False):
+    """``numba.njit(cache=True)`` (IEEE arithmetic, no fast-math), or the function unchanged without
+    numba; ``inline=True`` inlines a small helper into its callers (a call across modules otherwise
+    costs more than a short loop)."""
+    if function is None:
+        return lambda f: njit(f, inline=inline)
     if _numba is None:
         return function
-    return _numba.njit(cache=True, error_model="numpy")(function)
+    return _numba.njit(cache=True, error_model="numpy", inline="always" if inline else "never")(function)

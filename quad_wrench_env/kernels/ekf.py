@@ -8,7 +8,7 @@ import math
 import numpy as np
 
 from quad_wrench_env.kernels import njit
-from quad_wrench_env.kernels.linalg import cholesky, cholesky_solve, inputs_finite
+from quad_wrench_env.kernels.linalg import cholesky, cholesky_solve_rows, inputs_finite
 from quad_wrench_env.kernels.quaternions import matrix
 
 
@@ -73,7 +73,7 @@ def ekf_bank_step(
     pht = np.empty((18, size))
     s = np.empty((size, size))
     s_root = np.zeros((size, size))
-    gain_t = np.empty((size, 18))
+    gain = np.empty((18, size))
     jx, jy, jz = inertia[0], inertia[1], inertia[2]
     for n in range(count):
         xn, pn = x[n], p[n]
@@ -165,11 +165,11 @@ def ekf_bank_step(
             s[i, i] += noise[i]
         ok = cholesky(s, s_root)
         if ok:
-            cholesky_solve(s_root, pht.T, gain_t)  # Kᵀ = S⁻¹ (P Hᵀ)ᵀ
+            cholesky_solve_rows(s_root, pht, gain)  # K = P Hᵀ S⁻¹
         for i in range(18):
             t = 0.0
             for j in range(size):
-                t += gain_t[j, i] * residual[j]
+                t += gain[i, j] * residual[j]
             xn[i] += t
         for i in range(6, 9):
             xn[i] = wrap(xn[i])
@@ -177,8 +177,8 @@ def ekf_bank_step(
             for j in range(i, 18):
                 t, u = 0.0, 0.0
                 for m in range(size):
-                    t += gain_t[m, i] * pht[j, m]
-                    u += gain_t[m, j] * pht[i, m]
+                    t += gain[i, m] * pht[j, m]
+                    u += gain[j, m] * pht[i, m]
                 value = 0.5 * ((pn[i, j] - t) + (pn[j, i] - u))
                 pn[i, j] = value
                 pn[j, i] = value

@@ -29,21 +29,22 @@ def cholesky(a, out):
     return True
 
 
-@njit
-def cholesky_solve(root, rhs, out):
-    """``out = (L Lᵀ)⁻¹ rhs`` for the lower factor ``root`` (k, k) and ``rhs`` (k, m)."""
+@njit(inline=True)
+def cholesky_solve_rows(root, rows, out):
+    """``out[r] = (L Lᵀ)⁻¹ rows[r]`` for every row of ``rows`` (m, k), with the lower factor ``root``
+    (k, k) of a symmetric matrix: the Kalman gain ``K = P Hᵀ S⁻¹`` row by row from ``rows = P Hᵀ``."""
     k = root.shape[0]
-    for c in range(rhs.shape[1]):
-        for j in range(k):
-            t = rhs[j, c]
-            for m in range(j):
-                t -= root[j, m] * out[m, c]
-            out[j, c] = t / root[j, j]
-        for j in range(k - 1, -1, -1):
-            t = out[j, c]
-            for m in range(j + 1, k):
-                t -= root[m, j] * out[m, c]
-            out[j, c] = t / root[j, j]
+    for r in range(rows.shape[0]):
+        for c in range(k):
+            t = rows[r, c]
+            for m in range(c):
+                t -= root[c, m] * out[r, m]
+            out[r, c] = t / root[c, c]
+        for c in range(k - 1, -1, -1):
+            t = out[r, c]
+            for m in range(c + 1, k):
+                t -= root[m, c] * out[r, m]
+            out[r, c] = t / root[c, c]
 
 
 @njit

@@ -9,7 +9,7 @@ import math
 import numpy as np
 
 from quad_wrench_env.kernels import njit
-from quad_wrench_env.kernels.linalg import cholesky, cholesky_solve, inputs_finite
+from quad_wrench_env.kernels.linalg import cholesky, cholesky_solve_rows, inputs_finite
 from quad_wrench_env.kernels.quaternions import exp, from_mrp, matrix, qmul, to_mrp
 
 _MEASURED = np.array((6, 7, 8, 0, 1, 2))
@@ -141,7 +141,7 @@ def ukf_bank_step(
                 s[c, d] = pht[_MEASURED[c], d]
             s[c, c] += g_diagonal[c]
         cholesky(s, s_root)
-        cholesky_solve(s_root, pht.T, gain.T)  # Kᵀ = S⁻¹ (P Hᵀ)ᵀ
+        cholesky_solve_rows(s_root, pht, gain)  # K = P Hᵀ S⁻¹ (29)
         for i in range(3):
             innovation[i] = positions[n, i] - rests[n, 3 + i]
         mw, mx, my, mz = (
