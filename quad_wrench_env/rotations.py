@@ -42,14 +42,14 @@ __all__ = [
 ]
 
 
-def to_pybullet(q_wxyz: np.ndarray) -> tuple[float, float, float, float]:
-    """Project ``[w, x, y, z]`` -> PyBullet ``(x, y, z, w)``."""
-    return (float(q_wxyz[1]), float(q_wxyz[2]), float(q_wxyz[3]), float(q_wxyz[0]))
+def to_pybullet(q_wxyz: np.ndarray) -> np.ndarray:
+    """Project ``[w, x, y, z]`` -> PyBullet ``[x, y, z, w]``; row-wise on (..., 4) arrays."""
+    return np.asarray(q_wxyz, dtype=float)[..., [1, 2, 3, 0]]
 
 
 def from_pybullet(q_xyzw) -> np.ndarray:
-    """PyBullet ``(x, y, z, w)`` -> project ``[w, x, y, z]``."""
-    return np.array((q_xyzw[3], q_xyzw[0], q_xyzw[1], q_xyzw[2]), dtype=float)
+    """PyBullet ``[x, y, z, w]`` -> project ``[w, x, y, z]``; row-wise on (..., 4) arrays."""
+    return np.asarray(q_xyzw, dtype=float)[..., [3, 0, 1, 2]]
 
 
 def quat_multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 import pybullet as p
 
-from quad_wrench_env.rotations import rotation_matrices
+from quad_wrench_env.rotations import from_pybullet, rotation_matrices, to_pybullet
 from quad_wrench_env.vehicle import GRAVITY, VehicleParams
 
 _GROUND_GROUP, _VEHICLE_GROUP = 1, 2
@@ -54,7 +54,7 @@ class RigidBodyState:
     def from_pybullet(cls, raw: np.ndarray) -> RigidBodyState:
         """States from (N, 13) rows ``[position, quaternion (x, y, z, w), velocity, angular velocity]``
         as PyBullet reports them."""
-        return cls.from_motion(raw[:, 0:3], raw[:, [6, 3, 4, 5]], raw[:, 7:10], raw[:, 10:13])
+        return cls.from_motion(raw[:, 0:3], from_pybullet(raw[:, 3:7]), raw[:, 7:10], raw[:, 10:13])
 
     @classmethod
     def at_rest(cls, position: np.ndarray, quaternion: np.ndarray) -> RigidBodyState:
@@ -140,7 +140,7 @@ class World:
         if not self.built:
             self.build()
         cid = self.client
-        xyzw = np.asarray(quaternions)[:, [1, 2, 3, 0]].tolist()
+        xyzw = to_pybullet(quaternions).tolist()
         for i, position, orientation in zip(
             np.asarray(index).tolist(), positions.tolist(), xyzw, strict=True
         ):
@@ -163,11 +163,6 @@ class World:
     def state(self) -> RigidBodyState:
         """The true states of all vehicles."""
         return RigidBodyState.from_pybullet(self.read())
-
-    def set_velocity(self, index: int, velocity: np.ndarray, angular_velocity: np.ndarray) -> None:
-        p.resetBaseVelocity(
-            self.bodies[index], tuple(velocity), tuple(angular_velocity), physicsClientId=self.client
-        )
 
     def step(self, forces: np.ndarray, torques: np.ndarray, centres_of_mass: np.ndarray) -> None:
         """Apply (N, 3) world-frame forces at the centres of mass (their current world positions) and

@@ -67,15 +67,6 @@ class Estimator(Protocol):
         """``"ok"``, or what the estimator had to do to stay sound (e.g. ``"reinitialised"``)."""
 
 
-def check_finite_inputs(estimator: str, **inputs: float | np.ndarray | None) -> None:
-    """Refuse non-finite estimator inputs (None = not measured) with a message naming them all:
-    nothing non-finite may enter a filter."""
-    given = [np.atleast_1d(v) for v in inputs.values() if v is not None]
-    if not np.all(np.isfinite(np.concatenate(given))):
-        listed = ", ".join(f"{k}={v!r}" for k, v in inputs.items())
-        raise ValueError(f"{estimator} step got a non-finite input ({listed}); allowed: finite numbers")
-
-
 @runtime_checkable
 class TruthFed(Protocol):
     """An estimator that is handed the truth before each step (only the ``oracle``)."""
