@@ -14,6 +14,7 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 
 from quad_wrench_env.estimators.base import StateEstimate, WrenchEstimate
+from quad_wrench_env.rotations import quat_from_euler_zyx, rotation_matrices
 
 
 @runtime_checkable
@@ -58,6 +59,76 @@ def check_finite_batch(name: str, **inputs: np.ndarray | None) -> None:
     if not np.isfinite(sum(float(np.sum(value)) for value in given.values())):
         bad = [key for key, value in given.items() if not np.all(np.isfinite(value))]
         raise ValueError(f"{name} bank step got non-finite input(s) {bad}; allowed: finite numbers")
+
+
+_UNMEASURED = np.empty((0, 3))
+"""What the kernels get for a velocity or body-rate measurement the sensors do not make."""
+
+
+class FilterBank:
+    """What the UKF, EKF and observer banks share: one ``step`` that runs the compiled kernel or the
+    numpy reference (``backend``), refuses non-finite inputs by name before anything enters a
+    filter, and counts ``version``, the changes of the bank's state (a key for cached values).
+    Subclasses implement ``_compiled_step`` (returns False, changing nothing, on a non-finite
+    input) and ``_numpy_step``."""
+
+    name: str
+    backend: str
+    version: int = 0
+
+    def step(
+        self,
+        thrusts: np.ndarray,
+        body_torques: np.ndarray,
+        positions: np.ndarray,
+        quaternions: np.ndarray,
+        velocities: np.ndarray | None = None,
+        body_rates: np.ndarray | None = None,
+    ) -> None:
+        """One step of every filter (see :class:`EstimatorBank`)."""
+        inputs = (thrusts, body_torques, positions, quaternions, velocities, body_rates)
+        if self.backend == "numba":
+            measured = (_UNMEASURED if v is None else v for v in (velocities, body_rates))
+            if not self._compiled_step(thrusts, body_torques, positions, quaternions, *measured):
+                self._refuse(*inputs)
+        else:
+            self._refuse(*inputs)
+            self._numpy_step(*inputs)
+        self.version += 1
+
+    def _refuse(self, thrusts, body_torques, positions, quaternions, velocities, body_rates) -> None:
+        check_finite_batch(
+            self.name, thrusts=thrusts, body_torques=body_torques, positions=positions,
+            quaternions=quaternions, velocities=velocities, body_rates=body_rates,
+        )  # fmt: skip
+
+    def _compiled_step(self, thrusts, body_torques, positions, quaternions, velocities, body_rates) -> bool:
+        raise NotImplementedError
+
+    def _numpy_step(self, thrusts, body_torques, positions, quaternions, velocities, body_rates) -> None:
+        raise NotImplementedError
+
+
+class EulerAttitudes:
+    """For the banks that hold ZYX Euler angles (EKF, observer): their quaternions and rotation
+    matrices, computed once per ``version`` of the bank's state. Subclasses give ``euler_angles``."""
+
+    version: int
+    _attitude_cache: tuple[int, np.ndarray, np.ndarray] = (-1, np.empty(0), np.empty(0))
+
+    def euler_angles(self) -> np.ndarray:
+        """(N, 3) roll, pitch, yaw."""
+        raise NotImplementedError
+
+    def attitudes(self) -> tuple[np.ndarray, np.ndarray]:
+        """Quaternions (N, 4) and body -> world rotation matrices (N, 3, 3)."""
+        version, q, R = self._attitude_cache
+        if version != self.version:
+            angles = self.euler_angles()
+            q = quat_from_euler_zyx(angles[:, 0], angles[:, 1], angles[:, 2])
+            R = rotation_matrices(q)
+            self._attitude_cache = (self.version, q, R)
+        return q, R
 
 
 class OracleBank:

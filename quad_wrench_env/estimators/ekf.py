@@ -31,7 +31,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from quad_wrench_env.estimators.bank import BankOfOne, check_finite_batch
+from quad_wrench_env.estimators.bank import BankOfOne, EulerAttitudes, FilterBank
 from quad_wrench_env.estimators.noise import EKFNoise
 from quad_wrench_env.kernels import resolve_backend
 from quad_wrench_env.kernels.ekf import ekf_bank_step
@@ -63,7 +63,7 @@ def euler_rate_matrix(roll: np.ndarray, pitch: np.ndarray, out: np.ndarray | Non
     return out
 
 
-class ExtendedFilterBank:
+class ExtendedFilterBank(FilterBank, EulerAttitudes):
     """N Euler-angle EKFs with random-walk external force and torque (paper 003), stepped together.
 
     State arrays: ``x`` (N, 18) and ``P`` (N, 18, 18).
@@ -103,8 +103,7 @@ class ExtendedFilterBank:
         self.x = np.zeros((count, STATE_DIM))
         self.P = np.tile(self.P0, (count, 1, 1))
         self.reinitialisations = np.zeros(count, dtype=int)
-        self._version = 0
-        self._attitude_cache: tuple[int, np.ndarray, np.ndarray] = (-1, np.empty(0), np.empty(0))
+        self.version = 0
 
     # -- bank interface ----------------------------------------------------------------------------
     def reset(self, index: int | np.ndarray, position: np.ndarray, quaternion_wxyz: np.ndarray) -> None:
@@ -117,61 +116,36 @@ class ExtendedFilterBank:
         self.x[index, P] = position
         self.x[index, E] = euler_zyx_from_quat(np.asarray(quaternion_wxyz, dtype=float))
         self.P[index] = self.P0
-        self._version += 1
+        self.version += 1
 
-    def step(
-        self,
-        thrusts: np.ndarray,
-        body_torques: np.ndarray,
-        positions: np.ndarray,
-        quaternions: np.ndarray,
-        velocities: np.ndarray | None = None,
-        body_rates: np.ndarray | None = None,
-    ) -> None:
+    def _compiled_step(self, thrusts, body_torques, positions, quaternions, velocities, body_rates) -> bool:
+        return ekf_bank_step(
+            self.x, self.P, self.reinitialisations, thrusts, body_torques, positions, quaternions,
+            velocities, body_rates, self.dt, self.mass, self.inertia, GRAVITY, self._q_diagonal,
+            self._noise_pose, self._noise_motion, self.P0,
+        )  # fmt: skip
+
+    def _numpy_step(self, thrusts, body_torques, positions, quaternions, velocities, body_rates) -> None:
         """Predict with (N,) thrusts and (N, 3) body torques, correct with the measured (N, 3)
         positions, (N, 4) attitudes and, where measured, (N, 3) velocities and body rates; restart
         any filter whose state became non-finite."""
-        inputs = {
-            "thrusts": thrusts, "body_torques": body_torques, "positions": positions,
-            "quaternions": quaternions, "velocities": velocities, "body_rates": body_rates,
-        }  # fmt: skip
-        if self.backend == "numba":
-            none = np.empty((0, 3))
-            if not ekf_bank_step(
-                self.x, self.P, self.reinitialisations, thrusts, body_torques, positions, quaternions,
-                none if velocities is None else velocities, none if body_rates is None else body_rates,
-                self.dt, self.mass, self.inertia, GRAVITY, self._q_diagonal, self._noise_pose,
-                self._noise_motion, self.P0,
-            ):  # fmt: skip
-                check_finite_batch(self.name, **inputs)
-            self._version += 1
-            return
-        check_finite_batch(self.name, **inputs)
-        u = np.column_stack((thrusts, body_torques))
-        self.predict(u)
+        self.predict(np.column_stack((thrusts, body_torques)))
         self.correct(positions, quaternions, velocities, body_rates)
-        self._version += 1
         broken = ~(np.isfinite(self.x).all(axis=1) & np.isfinite(self.P).all(axis=(1, 2)))
         if np.any(broken):
             self._restart(broken, positions[broken], quaternions[broken])
             self.reinitialisations[broken] += 1
 
-    def _attitudes(self) -> tuple[np.ndarray, np.ndarray]:
-        """Quaternions (N, 4) and rotation matrices (N, 3, 3) of the estimated Euler angles, computed
-        once per state."""
-        version, q, R = self._attitude_cache
-        if version != self._version:
-            q = quat_from_euler_zyx(self.x[:, 6], self.x[:, 7], self.x[:, 8])
-            R = rotation_matrices(q)
-            self._attitude_cache = (self._version, q, R)
-        return q, R
+    def euler_angles(self) -> np.ndarray:
+        """(N, 3) the estimated roll, pitch, yaw."""
+        return self.x[:, 6:9]
 
     def rotations(self) -> np.ndarray:
         """(N, 3, 3) body -> world matrices of the estimated attitudes."""
-        return self._attitudes()[1]
+        return self.attitudes()[1]
 
     def quaternions(self) -> np.ndarray:
-        return self._attitudes()[0]
+        return self.attitudes()[0]
 
     def wrenches(self) -> np.ndarray:
         """(N, 6) estimated ``[f_ext, R η_ext]``, world frame."""

@@ -34,14 +34,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from quad_wrench_env.config import check_numbers
-from quad_wrench_env.estimators.bank import BankOfOne, check_finite_batch
+from quad_wrench_env.estimators.bank import BankOfOne, EulerAttitudes, FilterBank
 from quad_wrench_env.kernels import resolve_backend
 from quad_wrench_env.kernels.observer import observer_bank_step
 from quad_wrench_env.rotations import (
     cross,
     euler_zyx_from_quat,
-    quat_from_euler_zyx,
-    rotation_matrices,
     wrap_angle,
 )
 from quad_wrench_env.vehicle import GRAVITY, VehicleParams
@@ -97,7 +95,7 @@ def _apply_transposed(matrices: np.ndarray, vectors: np.ndarray) -> np.ndarray:
     return np.einsum("nji,nj->ni", matrices, vectors)
 
 
-class ObserverBank:
+class ObserverBank(FilterBank, EulerAttitudes):
     """N momentum-type observers without acceleration (paper 001 eqs. 9-15), stepped together."""
 
     name = "observer"
@@ -134,59 +132,35 @@ class ObserverBank:
         self._kernel_gains = np.array(
             (g.c_force, g.c_torque, self._force_decay, self._velocity_alpha, self._rate_alpha)
         )
-        self._version = 0
-        self._attitude_cache: tuple[int, np.ndarray, np.ndarray] = (-1, np.empty(0), np.empty(0))
+        self.version = 0
 
-    def _attitudes(self) -> tuple[np.ndarray, np.ndarray]:
-        """Quaternions (N, 4) and rotation matrices (N, 3, 3) of the measured Euler angles, computed
-        once per measurement."""
-        version, q, R = self._attitude_cache
-        if version != self._version:
-            q = quat_from_euler_zyx(self.eulers[:, 0], self.eulers[:, 1], self.eulers[:, 2])
-            R = rotation_matrices(q)
-            self._attitude_cache = (self._version, q, R)
-        return q, R
+    def euler_angles(self) -> np.ndarray:
+        """(N, 3) the measured roll, pitch, yaw."""
+        return self.eulers
 
     def reset(self, index: int | np.ndarray, position: np.ndarray, quaternion_wxyz: np.ndarray) -> None:
         """Start the observers ``index`` at rest with zero wrench (``ŵ = Ψ + c q̇ = 0``)."""
         self.positions[index] = position
         self.eulers[index] = euler_zyx_from_quat(np.asarray(quaternion_wxyz, dtype=float))
-        self._version += 1
+        self.version += 1
         for state in (self.velocities, self.euler_rates, self.psi_force, self.psi_torque):
             state[index] = 0.0
         self.forces[index] = 0.0
         self.torques_generalised[index] = 0.0
 
-    def step(
-        self,
-        thrusts: np.ndarray,
-        body_torques: np.ndarray,
-        positions: np.ndarray,
-        quaternions: np.ndarray,
-        velocities: np.ndarray | None = None,
-        body_rates: np.ndarray | None = None,
-    ) -> None:
-        inputs = {
-            "thrusts": thrusts, "body_torques": body_torques, "positions": positions,
-            "quaternions": quaternions, "velocities": velocities, "body_rates": body_rates,
-        }  # fmt: skip
-        self._version += 1
-        if self.backend == "numba":
-            none = np.empty((0, 3))
-            if not observer_bank_step(
-                self.positions, self.eulers, self.velocities, self.euler_rates, self.psi_force,
-                self.psi_torque, self.forces, self.torques_generalised, thrusts, body_torques, positions,
-                quaternions, none if velocities is None else velocities,
-                none if body_rates is None else body_rates,
-                self.dt, self.mass, self.inertia, GRAVITY, self._kernel_gains,
-            ):  # fmt: skip
-                check_finite_batch(self.name, **inputs)
-            return
-        check_finite_batch(self.name, **inputs)
+    def _compiled_step(self, thrusts, body_torques, positions, quaternions, velocities, body_rates) -> bool:
+        return observer_bank_step(
+            self.positions, self.eulers, self.velocities, self.euler_rates, self.psi_force,
+            self.psi_torque, self.forces, self.torques_generalised, thrusts, body_torques, positions,
+            quaternions, velocities, body_rates, self.dt, self.mass, self.inertia, GRAVITY,
+            self._kernel_gains,
+        )  # fmt: skip
+
+    def _numpy_step(self, thrusts, body_torques, positions, quaternions, velocities, body_rates) -> None:
         self._measure(positions, quaternions, velocities, body_rates)
         g, dt = self.gains, self.dt
         roll, pitch = self.eulers[:, 0], self.eulers[:, 1]
-        R = self._attitudes()[1]
+        R = self.attitudes()[1]
         # force block (eq. 13 with L = c/m): Ψ' = e^{-cT/m} Ψ + (1 - e^{-cT/m}) (m g e_z - ρ R e_z - c ẋ)
         drive = -np.asarray(thrusts, dtype=float)[:, None] * R[:, :, 2] - g.c_force * self.velocities
         drive[:, 2] += self.mass * GRAVITY
@@ -230,15 +204,16 @@ class ObserverBank:
             self.euler_rates = self.euler_rates + self._rate_alpha * (raw - self.euler_rates)
         self.positions = np.array(positions, dtype=float)
         self.eulers = euler
+        self.version += 1  # the cached attitudes belong to the old angles
 
     def quaternions(self) -> np.ndarray:
-        return self._attitudes()[0]
+        return self.attitudes()[0]
 
     def wrenches(self) -> np.ndarray:
         """(N, 6) estimated ``[f, R T⁻ᵀ τ̂_gen]``, world frame."""
         kinematics = euler_kinematics(self.eulers[:, 0], self.eulers[:, 1])
         body = np.linalg.solve(kinematics.transpose(0, 2, 1), self.torques_generalised[:, :, None])[:, :, 0]
-        return np.concatenate((self.forces, _apply(self._attitudes()[1], body)), axis=1)
+        return np.concatenate((self.forces, _apply(self.attitudes()[1], body)), axis=1)
 
     def states(self) -> np.ndarray:
         """(N, 13) position, velocity, quaternion and body rates ``T η̇``."""

@@ -51,7 +51,7 @@ import math
 
 import numpy as np
 
-from quad_wrench_env.estimators.bank import BankOfOne, check_finite_batch
+from quad_wrench_env.estimators.bank import BankOfOne, FilterBank
 from quad_wrench_env.estimators.noise import FilterNoise, mrp_std
 from quad_wrench_env.kernels import resolve_backend
 from quad_wrench_env.kernels.ukf import ukf_bank_step
@@ -75,7 +75,7 @@ _WRENCH_BLOCK = np.ix_(np.r_[15:18, 12:15], np.r_[15:18, 12:15])
 """Error-state block of ``[f_e, τ_e]`` (the order of :class:`WrenchEstimate`'s covariance)."""
 
 
-class UnscentedFilterBank:
+class UnscentedFilterBank(FilterBank):
     """N unscented wrench filters of one vehicle model, stepped together (paper 000, Sec. II).
 
     State arrays: ``quaternions`` (N, 4), ``rests`` (N, 15) = (ω, x, ẋ, τ_e, f_e) at their mean, and
@@ -135,26 +135,16 @@ class UnscentedFilterBank:
         self.rests[index, 3:6] = positions
         self.covariances[index] = self.P0
 
-    def step(
-        self,
-        thrusts: np.ndarray,
-        body_torques: np.ndarray,
-        positions: np.ndarray,
-        quaternions: np.ndarray,
-        velocities: np.ndarray | None = None,
-        body_rates: np.ndarray | None = None,
-    ) -> None:
+    def _compiled_step(self, thrusts, body_torques, positions, quaternions, velocities, body_rates) -> bool:
+        """Paper 000's filter measures the pose only: ``velocities`` and ``body_rates`` are unused."""
+        return ukf_bank_step(
+            self.quaternions, self.rests, self.covariances, self.reinitialisations,
+            thrusts, body_torques, positions, quaternions, *self.kernel_parameters(),
+        )  # fmt: skip
+
+    def _numpy_step(self, thrusts, body_torques, positions, quaternions, velocities, body_rates) -> None:
         """Predict with (N,) thrusts and (N, 3) body torques, correct with (N, 3) positions and (N, 4)
-        quaternions; restart any filter whose state became non-finite. Paper 000's filter measures
-        nothing else: ``velocities`` and ``body_rates`` are not used."""
-        if self.backend == "numba":
-            if not ukf_bank_step(
-                self.quaternions, self.rests, self.covariances, self.reinitialisations,
-                thrusts, body_torques, positions, quaternions, *self.kernel_parameters(),
-            ):  # fmt: skip
-                self._refuse_non_finite(thrusts, body_torques, positions, quaternions)
-            return
-        self._refuse_non_finite(thrusts, body_torques, positions, quaternions)
+        quaternions; restart any filter whose state became non-finite."""
         self.predict(thrusts, body_torques)
         self.correct(positions, quaternions)
         broken = ~(np.isfinite(self.rests).all(axis=1) & np.isfinite(self.covariances).all(axis=(1, 2)))
@@ -168,15 +158,6 @@ class UnscentedFilterBank:
             self.dt, self.mass, self.inertia, GRAVITY, self.spread, self.mean_weights,
             self._q_diagonal, self._g_diagonal, self.P0, self._B,
         )  # fmt: skip
-
-    def _refuse_non_finite(self, thrusts, body_torques, positions, quaternions) -> None:
-        check_finite_batch(
-            self.name,
-            thrusts=thrusts,
-            body_torques=body_torques,
-            positions=positions,
-            quaternions=quaternions,
-        )
 
     def wrenches(self) -> np.ndarray:
         """(N, 6) estimated ``[f_e, τ_e]``, world frame."""
