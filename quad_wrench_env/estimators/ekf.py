@@ -261,8 +261,6 @@ class ExtendedWrenchEstimator(BankOfOne):
         self, vehicle: VehicleParams, dt: float, noise: EKFNoise | None = None, backend: str = "numpy"
     ) -> None:
         self.bank = ExtendedFilterBank(vehicle, dt, noise, count=1, backend=backend)
-        b = self.bank
-        self.noise, self.mass, self.inertia, self.Q = b.noise, b.mass, b.inertia, b.Q
 
     @property
     def x(self) -> np.ndarray:

@@ -237,7 +237,6 @@ class NonlinearWrenchObserver(BankOfOne):
         self, vehicle: VehicleParams, dt: float, gains: ObserverGains | None = None, backend: str = "numpy"
     ) -> None:
         self.bank = ObserverBank(vehicle, dt, gains, count=1, backend=backend)
-        self.gains, self.mass, self.inertia = self.bank.gains, self.bank.mass, self.bank.inertia
 
 
 def _alpha(dt: float, time_constant: float) -> float:
