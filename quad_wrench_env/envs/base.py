@@ -13,6 +13,7 @@ pose, the reward and the task's ``info``.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any, ClassVar
@@ -77,23 +78,28 @@ def clip_actions(action: Any, shape: tuple[int, ...]) -> np.ndarray:
         a = a.reshape(-1)
     if a.shape != shape:
         raise ValueError(f"action {action!r} must have shape {shape}, got {a.shape}")
-    if not np.isfinite(a).all():
+    if not all(map(math.isfinite, a.ravel().tolist())):
         raise ValueError(f"action {action!r} contains NaN or infinity; allowed: finite values in [-1, 1]")
     return np.minimum(np.maximum(a, -1.0), 1.0)
 
 
-def info_entries(fleet: Fleet, task: Task) -> dict[str, Any]:
-    """The info of every vehicle, each entry with a leading vehicle axis (ARCHITECTURE.md keys)."""
-    state = fleet.state
-    info = {
-        "time": fleet.time.copy(),
-        "position": state.position.copy(),
-        "velocity": state.velocity.copy(),
-        "wrench_true": fleet.wrench_true.copy(),
-        "wrench_est": fleet.estimator.wrenches().copy(),
-        "estimator_status": np.array(fleet.estimator.statuses(), dtype=object),
+def info_entries(fleet: Fleet, task: Task, vehicle: int | None = None) -> dict[str, Any]:
+    """The info of every vehicle, each entry with a leading vehicle axis (ARCHITECTURE.md keys); with
+    ``vehicle``, that vehicle's entries alone (floats and strings for its scalars)."""
+    rows = slice(None) if vehicle is None else vehicle
+    state, statuses = fleet.state, fleet.estimator.statuses()
+    entries = {
+        "time": fleet.time[rows],
+        "position": state.position[rows],
+        "velocity": state.velocity[rows],
+        "wrench_true": fleet.wrench_true[rows],
+        "wrench_est": fleet.estimator.wrenches()[rows],
+        **{key: value[rows] for key, value in task.info(fleet).items()},
     }
-    info.update(task.info(fleet))
+    info: dict[str, Any] = {
+        key: value.copy() if value.ndim else value.item() for key, value in entries.items()
+    }
+    info["estimator_status"] = np.array(statuses, dtype=object) if vehicle is None else statuses[vehicle]
     return info
 
 
@@ -199,8 +205,4 @@ class QuadWrenchEnv(gym.Env, EzPickle):
         super().close()
 
     def _info(self) -> dict[str, Any]:
-        info = {}
-        for key, value in info_entries(self.fleet, self.task).items():
-            first = value[0]
-            info[key] = first.item() if isinstance(first, np.generic) else first
-        return info
+        return info_entries(self.fleet, self.task, vehicle=0)

@@ -30,9 +30,9 @@ def cholesky(a, out):
 
 
 @njit(inline=True)
-def cholesky_solve_rows(root, rows, out):
-    """``out[r] = (L Lᵀ)⁻¹ rows[r]`` for every row of ``rows`` (m, k), with the lower factor ``root``
-    (k, k) of a symmetric matrix: the Kalman gain ``K = P Hᵀ S⁻¹`` row by row from ``rows = P Hᵀ``."""
+def forward_solve_rows(root, rows, out):
+    """``out[r] = L⁻¹ rows[r]`` for every row of ``rows`` (m, k), ``root`` the lower factor ``L``
+    (k, k) of ``S = L Lᵀ``: with ``rows = P Hᵀ``, ``out`` is ``M = P Hᵀ L⁻ᵀ``, and ``K S Kᵀ = M Mᵀ``."""
     k = root.shape[0]
     for r in range(rows.shape[0]):
         for c in range(k):
@@ -40,6 +40,15 @@ def cholesky_solve_rows(root, rows, out):
             for m in range(c):
                 t -= root[c, m] * out[r, m]
             out[r, c] = t / root[c, c]
+
+
+@njit(inline=True)
+def cholesky_solve_rows(root, rows, out):
+    """``out[r] = (L Lᵀ)⁻¹ rows[r]`` for every row of ``rows`` (m, k), with the lower factor ``root``
+    (k, k) of a symmetric matrix: the Kalman gain ``K = P Hᵀ S⁻¹`` row by row from ``rows = P Hᵀ``."""
+    k = root.shape[0]
+    forward_solve_rows(root, rows, out)
+    for r in range(rows.shape[0]):
         for c in range(k - 1, -1, -1):
             t = out[r, c]
             for m in range(c + 1, k):

@@ -27,11 +27,10 @@ def _cross(a0, a1, a2, b0, b1, b2):
 
 
 @njit
-def _mix(thrust, t0, t1, t2, inverse, w2_min, w2_max, out):
+def _mix(thrust, t0, t1, t2, inverse, w2_min, w2_max, out, without):
     """Rotor speeds into ``out`` for ``[c_t, τ]``, yaw given up first (``Autopilot._mix``); returns
-    whether the mixer saturated."""
+    whether the mixer saturated (``without``: 4 floats of scratch space)."""
     scale = 1.0
-    without = np.empty(4)
     for i in range(4):
         without[i] = inverse[i, 0] * thrust + inverse[i, 1] * t0 + inverse[i, 2] * t1
         d = inverse[i, 3] * t2
@@ -127,8 +126,9 @@ def before_world_step(
         motors[3],
         motors[4],
     )
-    command = np.empty(4)
+    command, scratch, body = np.empty(4), np.empty(4), np.empty(4)
     desired = np.empty((3, 3))
+    tv, rates, om, torque, w = np.empty(3), np.empty(3), np.empty(3), np.empty(3), np.empty(6)
     n_points = drag_points.shape[0]
     for n in range(actions.shape[0]):
         r = rotation[n]
@@ -140,11 +140,10 @@ def before_world_step(
         elif action_type == WRENCH:
             saturated[n] = _mix(
                 (1.0 + a[0]) * scales[5], a[1] * scales[6], a[2] * scales[7], a[3] * scales[8],
-                inverse, w2_min, w2_max, command,
+                inverse, w2_min, w2_max, command, scratch,
             )  # fmt: skip
         else:
             if action_type == VELOCITY:
-                tv = np.empty(3)
                 for i in range(3):
                     v_cmd = a[i] * scales[i]
                     error = v_cmd - velocity[n, i]
@@ -191,7 +190,6 @@ def before_world_step(
                 )  # fmt: skip
                 thrust = (1.0 + a[3]) * scales[5]
             # attitude loop: e = R_dᵀR - RᵀR_d
-            rates = np.empty(3)
             for k, (i, j) in enumerate(((2, 1), (0, 2), (1, 0))):
                 dtr, rtd = 0.0, 0.0
                 for m in range(3):
@@ -199,14 +197,12 @@ def before_world_step(
                     rtd += r[m, i] * desired[m, j]
                 rates[k] = min(max_rate, max(-max_rate, -att_p[k] * (0.5 * (dtr - rtd))))
             # rate loop
-            om = np.empty(3)
             for i in range(3):
                 om[i] = (
                     r[0, i] * angular_velocity[n, 0]
                     + r[1, i] * angular_velocity[n, 1]
                     + r[2, i] * angular_velocity[n, 2]
                 )
-            torque = np.empty(3)
             for i in range(3):
                 error = rates[i] - om[i]
                 if not saturated[n]:
@@ -216,14 +212,15 @@ def before_world_step(
                 om[0], om[1], om[2], inertia[0] * om[0], inertia[1] * om[1], inertia[2] * om[2]
             )
             saturated[n] = _mix(
-                thrust, torque[0] + c0, torque[1] + c1, torque[2] + c2, inverse, w2_min, w2_max, command
-            )
+                thrust, torque[0] + c0, torque[1] + c1, torque[2] + c2, inverse, w2_min, w2_max,
+                command, scratch,
+            )  # fmt: skip
         # -- motors (Rotors.step, thrust_and_torque) --
         for i in range(4):
             target = min(max(command[i], min_speed), max_speed)
             error = target - speeds[n, i]
             speeds[n, i] += (alpha_up if error >= 0.0 else alpha_down) * error
-        body = np.zeros(4)
+        body[:] = 0.0
         for k in range(4):
             for i in range(4):
                 body[k] += allocations[n, k, i] * (speeds[n, i] * speeds[n, i])
@@ -273,7 +270,7 @@ def before_world_step(
             f2 += payload[4]
             t0, t1, t2 = t0 + c0, t1 + c1, t2 + c2
         if segments.shape[0] > 0:  # WrenchProfile.point_load
-            w = np.zeros(6)
+            w[:] = 0.0
             for k in range(segments.shape[0]):
                 if segments[k, 0] <= time[n] < segments[k, 1]:
                     for i in range(6):

@@ -1,6 +1,18 @@
-"""The step of a bank of unscented wrench filters, compiled: the arithmetic of
+"""The step of a bank of unscented wrench filters, compiled: the filter of
 :class:`quad_wrench_env.estimators.ukf.UnscentedFilterBank` (paper 000 eqs. 18-37), filter by filter,
-with the same shortcuts (noise-only sigma points as ``B Q Bᵀ``, correction as a Kalman update)."""
+with its shortcuts (noise-only sigma points as ``B Q Bᵀ``, correction as a Kalman update) and two
+more rewrites that are exact in real arithmetic (``tests/test_backends.py`` holds the kernel to the
+numpy reference, which does neither, to 1e-9):
+
+* Sigma points are ``x ± √(L+κ) Lₚ[:, c]`` with ``Lₚ`` the lower Cholesky factor, so a column
+  ``c ≥ 6`` leaves the attitude and the rates (error state 0-5) at the mean. Given those, the model
+  (eqs. 2-5, 11-14) is affine in the rest of the state, so the pair ``±c`` moves to the propagated
+  centre ``± A Lₚ[:, c]`` with ``A`` its linear map: only the centre and the 12 points along columns
+  0-5 go through the model; a pair adds ``2w`` times the centre to the mean and
+  ``2w (c₀ c₀ᵀ + δ δᵀ)`` to the covariance (``c₀`` the centre's deviation from the mean).
+* With ``S = L Lᵀ`` (eq. 31) and ``M = P Hᵀ L⁻ᵀ``, the gain is ``K = M L⁻¹`` (29), the update
+  ``K ν = M (L⁻¹ ν)`` and ``P - K S Kᵀ = P - M Mᵀ`` (30, 37), symmetric by construction.
+"""
 
 from __future__ import annotations
 
@@ -9,11 +21,13 @@ import math
 import numpy as np
 
 from quad_wrench_env.kernels import njit
-from quad_wrench_env.kernels.linalg import cholesky, cholesky_solve_rows, inputs_finite
+from quad_wrench_env.kernels.linalg import cholesky, forward_solve_rows, inputs_finite
 from quad_wrench_env.kernels.quaternions import exp, from_mrp, matrix, qmul, to_mrp
 
 _MEASURED = np.array((6, 7, 8, 0, 1, 2))
 """Error-state indices of the measurement ``(x, δρ)``."""
+_NONLINEAR = 6
+"""Columns of the lower Cholesky factor that move the attitude or the rates (error state 0-5)."""
 
 
 @njit
@@ -28,11 +42,12 @@ def ukf_bank_step(
     unmeasured = np.empty((0, 3))
     if not inputs_finite(thrusts, body_torques, positions, measured_quaternions, unmeasured, unmeasured):
         return False
-    n_points = 2 * 18 + 1
+    n_points = 1 + 2 * _NONLINEAR
     root = np.zeros((18, 18))
     q_points = np.zeros((n_points, 4))
     rest_points = np.zeros((n_points, 15))
     errors = np.zeros((n_points, 18))
+    shifts = np.zeros((18 - _NONLINEAR, 18))
     mean = np.zeros(18)
     rotation = np.zeros((3, 3))
     rotation0 = np.zeros((3, 3))
@@ -40,12 +55,14 @@ def ukf_bank_step(
     pht = np.zeros((18, 6))
     s = np.zeros((6, 6))
     s_root = np.zeros((6, 6))
-    gain = np.zeros((18, 6))
+    whitened = np.zeros((18, 6))
     innovation = np.zeros(6)
     e = np.zeros(18)
     accel = np.zeros(3)
     torque = np.zeros(3)
     delta = np.zeros(18)
+    w = weights[1]  # every sigma point but the centre has this weight
+    linear_pairs = 2 * (18 - _NONLINEAR)
     for n in range(count):
         p = covariances[n]
         if not cholesky(p, root):  # lost positive definiteness: keep the mean, restart the covariance
@@ -54,13 +71,14 @@ def ukf_bank_step(
             cholesky(p, root)
         qw, qx, qy, qz = quaternions[n, 0], quaternions[n, 1], quaternions[n, 2], quaternions[n, 3]
         thrust = thrusts[n]
-        # -- sigma points through the motion model (eqs. 19-24, 2-5, 11-14) --
+        # -- the centre and the sigma points along columns 0-5 through the motion model
+        # (eqs. 19-24, 2-5, 11-14) --
         for j in range(n_points):
             e[:] = 0.0
             if j > 0:
-                sign = 1.0 if j <= 18 else -1.0
-                col = (j - 1) % 18
-                for i in range(18):
+                sign = 1.0 if j <= _NONLINEAR else -1.0
+                col = (j - 1) % _NONLINEAR
+                for i in range(col, 18):
                     e[i] = sign * spread * root[i, col]
             dw, dx, dy, dz = from_mrp(e[0], e[1], e[2])
             pw, px, py, pz = qmul(qw, qx, qy, qz, dw, dx, dy, dz)
@@ -89,7 +107,26 @@ def ukf_bank_step(
             q_points[j, 0], q_points[j, 1], q_points[j, 2], q_points[j, 3] = qmul(
                 pw, px, py, pz, ew, ex, ey, ez
             )
-        # -- recombination (eqs. 25-27) --
+        # -- the points along columns 6-17 move the centre's by ±(the model's linear map of the
+        # column), exactly (module docstring) --
+        for k in range(18 - _NONLINEAR):
+            col = _NONLINEAR + k
+            shift = shifts[k]
+            e[:] = 0.0
+            for i in range(col, 18):
+                e[i] = spread * root[i, col]
+            for i in range(3):
+                shift[i] = 0.0
+                shift[3 + i] = (dt / inertia[i]) * (
+                    rotation0[0, i] * e[12] + rotation0[1, i] * e[13] + rotation0[2, i] * e[14]
+                )
+                force = e[15 + i] / mass
+                shift[6 + i] = e[6 + i] + dt * e[9 + i] + (0.5 * dt * dt) * force
+                shift[9 + i] = e[9 + i] + dt * force
+                shift[12 + i] = e[12 + i]
+                shift[15 + i] = e[15 + i]
+        # -- recombination (eqs. 25-27); a ± pair of the linear points adds 2w (centre) to the mean
+        # and 2w (δ δᵀ + c cᵀ) to the covariance, c the centre's deviation --
         cw, cx, cy, cz = q_points[0, 0], -q_points[0, 1], -q_points[0, 2], -q_points[0, 3]
         mean[:] = 0.0
         for j in range(n_points):
@@ -98,17 +135,25 @@ def ukf_bank_step(
             )
             errors[j, 0], errors[j, 1], errors[j, 2] = to_mrp(rw, rx, ry, rz)
             errors[j, 3:] = rest_points[j]
+            weight = weights[0] + linear_pairs * w if j == 0 else w
             for i in range(18):
-                mean[i] += weights[j] * errors[j, i]
+                mean[i] += weight * errors[j, i]
         for j in range(n_points):
             for i in range(18):
                 errors[j, i] -= mean[i]
         p[:, :] = 0.0
         for j in range(n_points):
+            weight = weights[0] + linear_pairs * w if j == 0 else w
             for a in range(18):
-                w = weights[j] * errors[j, a]
+                f = weight * errors[j, a]
                 for c in range(a, 18):
-                    p[a, c] += w * errors[j, c]
+                    p[a, c] += f * errors[j, c]
+        for k in range(18 - _NONLINEAR):
+            shift = shifts[k]
+            for a in range(3, 18):
+                f = 2.0 * w * shift[a]
+                for c in range(a, 18):
+                    p[a, c] += f * shift[c]
         for a in range(18):
             for c in range(a + 1, 18):
                 p[c, a] = p[a, c]
@@ -141,7 +186,8 @@ def ukf_bank_step(
                 s[c, d] = pht[_MEASURED[c], d]
             s[c, c] += g_diagonal[c]
         cholesky(s, s_root)
-        cholesky_solve_rows(s_root, pht, gain)  # K = P Hᵀ S⁻¹ (29)
+        # with S = L Lᵀ and M = P Hᵀ L⁻ᵀ: K = M L⁻¹ (29), K ν = M (L⁻¹ ν) (36), K S Kᵀ = M Mᵀ (30)
+        forward_solve_rows(s_root, pht, whitened)
         for i in range(3):
             innovation[i] = positions[n, i] - rests[n, 3 + i]
         mw, mx, my, mz = (
@@ -150,20 +196,22 @@ def ukf_bank_step(
         )  # fmt: skip
         rw, rx, ry, rz = qmul(qw, -qx, -qy, -qz, mw, mx, my, mz)
         innovation[3], innovation[4], innovation[5] = to_mrp(rw, rx, ry, rz)
+        for c in range(6):
+            t = innovation[c]
+            for m in range(c):
+                t -= s_root[c, m] * innovation[m]
+            innovation[c] = t / s_root[c, c]
         for a in range(18):
             t = 0.0
             for c in range(6):
-                t += gain[a, c] * innovation[c]
+                t += whitened[a, c] * innovation[c]
             delta[a] = t
         for a in range(18):
             for c in range(a, 18):
                 t = 0.0
                 for k in range(6):
-                    t += gain[a, k] * pht[c, k]
-                u = 0.0
-                for k in range(6):
-                    u += gain[c, k] * pht[a, k]
-                value = 0.5 * ((p[a, c] - t) + (p[c, a] - u))
+                    t += whitened[a, k] * whitened[c, k]
+                value = p[a, c] - t
                 p[a, c] = value
                 p[c, a] = value
         dw, dx, dy, dz = from_mrp(delta[0], delta[1], delta[2])
@@ -174,13 +222,13 @@ def ukf_bank_step(
         )  # fmt: skip
         for i in range(15):
             rests[n, i] += delta[3 + i]
-        finite = True
+        total = 0.0  # NaN or an infinity in any term makes the sum non-finite
         for i in range(15):
-            finite = finite and math.isfinite(rests[n, i])
+            total += rests[n, i]
         for a in range(18):
             for c in range(18):
-                finite = finite and math.isfinite(p[a, c])
-        if not finite:  # restart from the measured pose at rest
+                total += p[a, c]
+        if not math.isfinite(total):  # restart from the measured pose at rest
             quaternions[n] = measured_quaternions[n]
             rests[n] = 0.0
             rests[n, 3:6] = positions[n]
