@@ -9,6 +9,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 import gymnasium as gym
@@ -124,3 +125,15 @@ def evaluate(
     finally:
         env.close()
     return Evaluation(env_id, seeds, [score(e) for e in episodes], episodes)
+
+
+def write_report(out: Path, header: list[str], parts: Mapping[str, Callable[[], list[str]]]) -> str:
+    """A markdown report: ``header``, then the lines of each part in turn (printing ``done: name`` as
+    each finishes), written to ``out / "table.md"``; returns its text."""
+    lines = list(header)
+    for name, part in parts.items():
+        lines += [*part(), ""]
+        print(f"done: {name}", flush=True)
+    table = "\n".join(lines)
+    (out / "table.md").write_text(table)
+    return table

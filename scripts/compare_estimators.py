@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 from dataclasses import dataclass, field
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -20,7 +21,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 
 from agents import make_agent
-from agents.evaluate import run_episode
+from agents.evaluate import run_episode, write_report
 from quad_wrench_env.bench import bare_pybullet_step_seconds, estimator_step_seconds
 from quad_wrench_env.config import load_yaml
 from quad_wrench_env.estimators import OracleBank, make_estimator
@@ -279,12 +280,8 @@ def main() -> None:
     out = Path(config.get("output", "results/compare_estimators"))
     out.mkdir(parents=True, exist_ok=True)
     lines = [f"# Estimator comparison: config {args.config}, seeds {config['seeds']}", ""]
-    for name in args.only or PARTS:
-        lines += [*PARTS[name](config, out), ""]
-        print(f"done: {name}", flush=True)
-    table = "\n".join(lines)
-    (out / "table.md").write_text(table)
-    print(table)
+    chosen = {name: partial(PARTS[name], config, out) for name in args.only or PARTS}
+    print(write_report(out, lines, chosen))
 
 
 if __name__ == "__main__":

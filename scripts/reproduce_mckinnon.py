@@ -6,6 +6,7 @@ python scripts/reproduce_mckinnon.py --config configs/reproduce_mckinnon.yaml [-
 from __future__ import annotations
 
 import argparse
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -17,7 +18,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 
 from agents import make_agent
-from agents.evaluate import Episode, fan_tracking_metrics, run_episode
+from agents.evaluate import Episode, fan_tracking_metrics, run_episode, write_report
 from quad_wrench_env.config import load_yaml
 
 LABELS = ("f_x", "f_y", "f_z", "tau_x", "tau_y", "tau_z")
@@ -33,6 +34,14 @@ def _episode(config: dict, policy, seed: int, options: dict | None = None, **env
 
 def _hold(config: dict) -> Any:
     return make_agent("hold", **config["hold"])
+
+
+def _hover(config: dict, seed: int, payload: dict, seconds: float, **env_overrides: Any) -> Episode:
+    """The hold agent hovering on the fan's axis with the fan off, carrying ``payload``."""
+    return _episode(
+        config, _hold(config), seed, {"offset_y": 0.0}, fan={"enabled": False}, payload=payload,
+        episode_seconds=seconds, **env_overrides,
+    )  # fmt: skip
 
 
 def rise_time(t: np.ndarray, signal: np.ndarray, start: float, before: float, step: float) -> float:
@@ -63,16 +72,7 @@ def fig3(config: dict, out: Path) -> list[str]:
         for case, point in c["cases"].items():
             payload = {"mass": 0.0} if point is None else {"mass": c["test_mass"], "point": point}
             for seed in config["seeds"]:
-                ep = _episode(
-                    config,
-                    _hold(config),
-                    seed,
-                    {"offset_y": 0.0},
-                    fan={"enabled": False},
-                    payload=payload,
-                    episode_seconds=c["seconds"],
-                    kf_spread=spread,
-                )
+                ep = _hover(config, seed, payload, c["seconds"], kf_spread=spread)
                 keep = ep.trace["time"] >= c["settle"]
                 est, true = ep.trace["wrench_est"][keep], ep.trace["wrench_true"][keep].mean(axis=0)
                 mean, sd = est.mean(axis=0), est.std(axis=0)
@@ -106,15 +106,7 @@ def fig4(config: dict, out: Path) -> list[str]:
     fig, axes = plt.subplots(2, 1, figsize=(7, 5), sharex=True)
     payload = {"mass": c["test_mass"], "point": c["point"], "attach_time": c["attach_time"]}
     for seed in config["seeds"]:
-        ep = _episode(
-            config,
-            _hold(config),
-            seed,
-            {"offset_y": 0.0},
-            fan={"enabled": False},
-            payload=payload,
-            episode_seconds=c["seconds"],
-        )
+        ep = _hover(config, seed, payload, c["seconds"])
         t, est, true = ep.trace["time"], ep.trace["wrench_est"], ep.trace["wrench_true"]
         before = est[(t > c["attach_time"] - 2.0) & (t < c["attach_time"])].mean(axis=0)
         step = true[-1] - true[0]
@@ -240,12 +232,8 @@ def main() -> None:
         f"estimator {env.get('estimator')}, seeds {config['seeds']}",
         "",
     ]
-    for name in args.only or FIGURES:
-        lines += [*FIGURES[name](config, out), ""]
-        print(f"done: {name}", flush=True)
-    table = "\n".join(lines)
-    (out / "table.md").write_text(table)
-    print(table)
+    chosen = {name: partial(FIGURES[name], config, out) for name in args.only or FIGURES}
+    print(write_report(out, lines, chosen))
 
 
 if __name__ == "__main__":

@@ -32,7 +32,8 @@ def cholesky(a, out):
 @njit(inline=True)
 def forward_solve_rows(root, rows, out):
     """``out[r] = L⁻¹ rows[r]`` for every row of ``rows`` (m, k), ``root`` the lower factor ``L``
-    (k, k) of ``S = L Lᵀ``: with ``rows = P Hᵀ``, ``out`` is ``M = P Hᵀ L⁻ᵀ``, and ``K S Kᵀ = M Mᵀ``."""
+    (k, k) of ``S = L Lᵀ``: with ``rows = P Hᵀ``, ``out`` is ``M = P Hᵀ L⁻ᵀ``, and ``K S Kᵀ = M Mᵀ``.
+    ``out`` may be ``rows`` (each entry is read before it is written)."""
     k = root.shape[0]
     for r in range(rows.shape[0]):
         for c in range(k):

@@ -56,13 +56,13 @@ def ukf_bank_step(
     s = np.zeros((6, 6))
     s_root = np.zeros((6, 6))
     whitened = np.zeros((18, 6))
-    innovation = np.zeros(6)
+    innovation = np.zeros((1, 6))
     e = np.zeros(18)
     accel = np.zeros(3)
     torque = np.zeros(3)
     delta = np.zeros(18)
     w = weights[1]  # every sigma point but the centre has this weight
-    linear_pairs = 2 * (18 - _NONLINEAR)
+    w_centre = weights[0] + 2 * (18 - _NONLINEAR) * w  # with the linear pairs' share (module doc)
     for n in range(count):
         p = covariances[n]
         if not cholesky(p, root):  # lost positive definiteness: keep the mean, restart the covariance
@@ -135,7 +135,7 @@ def ukf_bank_step(
             )
             errors[j, 0], errors[j, 1], errors[j, 2] = to_mrp(rw, rx, ry, rz)
             errors[j, 3:] = rest_points[j]
-            weight = weights[0] + linear_pairs * w if j == 0 else w
+            weight = w_centre if j == 0 else w
             for i in range(18):
                 mean[i] += weight * errors[j, i]
         for j in range(n_points):
@@ -143,7 +143,7 @@ def ukf_bank_step(
                 errors[j, i] -= mean[i]
         p[:, :] = 0.0
         for j in range(n_points):
-            weight = weights[0] + linear_pairs * w if j == 0 else w
+            weight = w_centre if j == 0 else w
             for a in range(18):
                 f = weight * errors[j, a]
                 for c in range(a, 18):
@@ -189,22 +189,18 @@ def ukf_bank_step(
         # with S = L Lᵀ and M = P Hᵀ L⁻ᵀ: K = M L⁻¹ (29), K ν = M (L⁻¹ ν) (36), K S Kᵀ = M Mᵀ (30)
         forward_solve_rows(s_root, pht, whitened)
         for i in range(3):
-            innovation[i] = positions[n, i] - rests[n, 3 + i]
+            innovation[0, i] = positions[n, i] - rests[n, 3 + i]
         mw, mx, my, mz = (
             measured_quaternions[n, 0], measured_quaternions[n, 1],
             measured_quaternions[n, 2], measured_quaternions[n, 3],
         )  # fmt: skip
         rw, rx, ry, rz = qmul(qw, -qx, -qy, -qz, mw, mx, my, mz)
-        innovation[3], innovation[4], innovation[5] = to_mrp(rw, rx, ry, rz)
-        for c in range(6):
-            t = innovation[c]
-            for m in range(c):
-                t -= s_root[c, m] * innovation[m]
-            innovation[c] = t / s_root[c, c]
+        innovation[0, 3], innovation[0, 4], innovation[0, 5] = to_mrp(rw, rx, ry, rz)
+        forward_solve_rows(s_root, innovation, innovation)  # L⁻¹ ν, in place
         for a in range(18):
             t = 0.0
             for c in range(6):
-                t += whitened[a, c] * innovation[c]
+                t += whitened[a, c] * innovation[0, c]
             delta[a] = t
         for a in range(18):
             for c in range(a, 18):
