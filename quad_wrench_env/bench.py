@@ -11,7 +11,6 @@ import pybullet as p
 import quad_wrench_env  # noqa: F401  (registers the env ids)
 from quad_wrench_env.estimators import TruthFed, make_estimator
 from quad_wrench_env.estimators.ukf import UnscentedFilterBank
-from quad_wrench_env.kernels.ukf import ukf_bank_step
 from quad_wrench_env.rotations import quat_exp, quat_multiply
 from quad_wrench_env.vehicle import GRAVITY, make_vehicle
 
@@ -143,8 +142,14 @@ def component_seconds(calls: int, **env_kwargs) -> dict[str, float]:
         out = {f"physics step: {name}": _time(call, calls) for name, call in parts.items()}
         if compiled is not None:  # the whole compiled step, less what is timed on its own
             whole = out.pop("physics step: compiled: autopilot, motors, disturbances")
-            ukf = compiled.ukf_arguments
-            estimator = _time(lambda: ukf_bank_step(*ukf), calls) if ukf is not None else 0.0
+            c = compiled
+            estimator = _time(
+                lambda: fleet.estimator.step(
+                    c.thrusts, c.body_torques, c.measured_position, c.measured_quaternion,
+                    c.velocity_measured, c.body_rates_measured,
+                ),
+                calls,
+            )  # fmt: skip
             pybullet = out["physics step: PyBullet apply + step"] + out["physics step: PyBullet read"]
             out["physics step: kernels (autopilot, motors, disturbances, sensors) + glue"] = (
                 whole - pybullet - estimator

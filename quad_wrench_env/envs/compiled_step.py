@@ -13,9 +13,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from quad_wrench_env.disturbances.fan import FanJet
-from quad_wrench_env.estimators.ukf import UnscentedFilterBank
 from quad_wrench_env.kernels.physics import after_world_step, before_world_step
-from quad_wrench_env.kernels.ukf import ukf_bank_step
 from quad_wrench_env.world import RigidBodyState
 
 if TYPE_CHECKING:
@@ -68,14 +66,6 @@ class CompiledStep:
         self.velocity_measured = self.motion[:, :3] if len(self.motion) else None
         self.body_rates_measured = self.motion[:, 3:] if len(self.motion) else None
         self.state = RigidBodyState.at_rest(np.zeros((count, 3)), np.tile((1.0, 0.0, 0.0, 0.0), (count, 1)))
-        self.ukf_arguments = None
-        bank = fleet.estimator
-        if isinstance(bank, UnscentedFilterBank) and bank.backend == "numba":
-            self.ukf_arguments = (
-                bank.quaternions, bank.rests, bank.covariances, bank.reinitialisations,
-                self.thrusts, self.body_torques, self.measured_position, self.measured_quaternion,
-                *bank.kernel_parameters(),
-            )  # fmt: skip
         self._fan_noise = np.zeros((count, 3)) if self.fan is None else self.fan.noise
         self._motion_tables = np.zeros((count, 4)) if self.fan is None else self.fan.motion_tables
 
@@ -110,7 +100,7 @@ class CompiledStep:
         fleet = self.fleet
         if fleet.state is not self.state:
             self._adopt()
-        world, noise, estimator, ukf = fleet.world, fleet.noise, fleet.estimator, self.ukf_arguments
+        world, noise, estimator = fleet.world, fleet.noise, fleet.estimator
         before = (self.action_type, actions, *self._before)
         position = self.state.position
         for _ in range(count):
@@ -120,13 +110,7 @@ class CompiledStep:
             after_world_step(world.read(), *self._after)
             if fleet.truth_fed:
                 estimator.observe_truth(self.truth, self.loads)
-            if ukf is not None:  # the compiled UKF directly, skipping its wrapper
-                if not ukf_bank_step(*ukf):
-                    raise ValueError(
-                        "non-finite sensor values reached the UKF: the physics state is not finite"
-                    )
-            else:
-                estimator.step(
-                    self.thrusts, self.body_torques, self.measured_position, self.measured_quaternion,
-                    self.velocity_measured, self.body_rates_measured,
-                )  # fmt: skip
+            estimator.step(
+                self.thrusts, self.body_torques, self.measured_position, self.measured_quaternion,
+                self.velocity_measured, self.body_rates_measured,
+            )  # fmt: skip

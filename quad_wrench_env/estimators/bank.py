@@ -86,14 +86,16 @@ class FilterBank:
         body_rates: np.ndarray | None = None,
     ) -> None:
         """One step of every filter (see :class:`EstimatorBank`)."""
-        inputs = (thrusts, body_torques, positions, quaternions, velocities, body_rates)
         if self.backend == "numba":
-            measured = (_UNMEASURED if v is None else v for v in (velocities, body_rates))
-            if not self._compiled_step(thrusts, body_torques, positions, quaternions, *measured):
-                self._refuse(*inputs)
+            if not self._compiled_step(
+                thrusts, body_torques, positions, quaternions,
+                _UNMEASURED if velocities is None else velocities,
+                _UNMEASURED if body_rates is None else body_rates,
+            ):  # fmt: skip
+                self._refuse(thrusts, body_torques, positions, quaternions, velocities, body_rates)
         else:
-            self._refuse(*inputs)
-            self._numpy_step(*inputs)
+            self._refuse(thrusts, body_torques, positions, quaternions, velocities, body_rates)
+            self._numpy_step(thrusts, body_torques, positions, quaternions, velocities, body_rates)
         self.version += 1
 
     def _refuse(self, thrusts, body_torques, positions, quaternions, velocities, body_rates) -> None:

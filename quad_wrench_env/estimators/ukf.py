@@ -54,7 +54,7 @@ import numpy as np
 from quad_wrench_env.estimators.bank import BankOfOne, FilterBank
 from quad_wrench_env.estimators.noise import FilterNoise, mrp_std
 from quad_wrench_env.kernels import resolve_backend
-from quad_wrench_env.kernels.ukf import ukf_bank_step
+from quad_wrench_env.kernels.ukf import ukf_bank_step, ukf_constants
 from quad_wrench_env.rotations import (
     cross,
     mrp_from_quat,
@@ -114,7 +114,11 @@ class UnscentedFilterBank(FilterBank):
         self._B[TORQUE, 3:6] = np.eye(3)
         self._B[FORCE, 9:12] = np.eye(3)
         self._q_diagonal = np.diag(self.Q).copy()
-        self._g_diagonal = np.diag(self.G).copy()
+        self.kernel_constants = ukf_constants(
+            dt, self.mass, self.inertia, GRAVITY, self.spread, self.mean_weights[0], self.weight_other,
+            self._q_diagonal, np.diag(self.G), self.P0,
+        )  # fmt: skip
+        """The compiled step's constants (:func:`~quad_wrench_env.kernels.ukf.ukf_constants`)."""
         self.quaternions = np.tile((1.0, 0.0, 0.0, 0.0), (count, 1))
         self.rests = np.zeros((count, STATE_DIM - 3))
         self.covariances = np.tile(self.P0, (count, 1, 1))
@@ -139,7 +143,7 @@ class UnscentedFilterBank(FilterBank):
         """Paper 000's filter measures the pose only: ``velocities`` and ``body_rates`` are unused."""
         return ukf_bank_step(
             self.quaternions, self.rests, self.covariances, self.reinitialisations,
-            thrusts, body_torques, positions, quaternions, *self.kernel_parameters(),
+            thrusts, body_torques, positions, quaternions, self.kernel_constants,
         )  # fmt: skip
 
     def _numpy_step(self, thrusts, body_torques, positions, quaternions, velocities, body_rates) -> None:
@@ -151,13 +155,6 @@ class UnscentedFilterBank(FilterBank):
         if np.any(broken):
             self._restart(broken, positions[broken], quaternions[broken])
             self.reinitialisations[broken] += 1
-
-    def kernel_parameters(self) -> tuple:
-        """The constant arguments of :func:`~quad_wrench_env.kernels.ukf.ukf_bank_step`."""
-        return (
-            self.dt, self.mass, self.inertia, GRAVITY, self.spread, self.mean_weights,
-            self._q_diagonal, self._g_diagonal, self.P0, self._B,
-        )  # fmt: skip
 
     def wrenches(self) -> np.ndarray:
         """(N, 6) estimated ``[f_e, τ_e]``, world frame."""

@@ -30,18 +30,35 @@ _NONLINEAR = 6
 """Columns of the lower Cholesky factor that move the attitude or the rates (error state 0-5)."""
 
 
+def ukf_constants(
+    dt, mass, inertia, gravity, spread, weight_centre, weight_other, q_diagonal, g_diagonal, p0
+):
+    """:func:`ukf_bank_step`'s constants in one array, in the order it reads them: ``dt``, ``mass``,
+    ``inertia`` (3), ``gravity``, ``spread`` (``√(L+κ)``), the centre's mean weight (the noise-only
+    points' included) and every other point's, the diagonals of ``Q`` (12) and ``G`` (6), ``P₀`` (18, 18)."""
+    head = (dt, mass, *inertia, gravity, spread, weight_centre, weight_other)
+    return np.concatenate((head, q_diagonal, g_diagonal, np.ravel(p0))).astype(float)
+
+
 @njit
 def ukf_bank_step(
     quaternions, rests, covariances, reinitialisations,
-    thrusts, body_torques, positions, measured_quaternions,
-    dt, mass, inertia, gravity, spread, weights, q_diagonal, g_diagonal, p0, b_base,
+    thrusts, body_torques, positions, measured_quaternions, constants,
 ):  # fmt: skip
-    """One predict-correct step of every filter, in place (see the module docstring); returns False,
-    touching nothing, when an input is not finite."""
+    """One predict-correct step of every filter, in place (see the module docstring), with the
+    constants of :func:`ukf_constants`; returns False, touching nothing, when an input is not finite."""
     count = quaternions.shape[0]
     unmeasured = np.empty((0, 3))
     if not inputs_finite(thrusts, body_torques, positions, measured_quaternions, unmeasured, unmeasured):
         return False
+    dt, mass, inertia, gravity, spread = (
+        constants[0],
+        constants[1],
+        constants[2:5],
+        constants[5],
+        constants[6],
+    )
+    q_diagonal, g_diagonal, p0 = constants[9:21], constants[21:27], constants[27:].reshape((18, 18))
     n_points = 1 + 2 * _NONLINEAR
     root = np.zeros((18, 18))
     q_points = np.zeros((n_points, 4))
@@ -51,7 +68,7 @@ def ukf_bank_step(
     mean = np.zeros(18)
     rotation = np.zeros((3, 3))
     rotation0 = np.zeros((3, 3))
-    b = b_base.copy()
+    b = np.zeros((18, 12))
     pht = np.zeros((18, 6))
     s = np.zeros((6, 6))
     s_root = np.zeros((6, 6))
@@ -61,8 +78,8 @@ def ukf_bank_step(
     accel = np.zeros(3)
     torque = np.zeros(3)
     delta = np.zeros(18)
-    w = weights[1]  # every sigma point but the centre has this weight
-    w_centre = weights[0] + 2 * (18 - _NONLINEAR) * w  # with the linear pairs' share (module doc)
+    w = constants[8]  # every sigma point but the centre has this weight
+    w_centre = constants[7] + 2 * (18 - _NONLINEAR) * w  # with the linear pairs' share (module doc)
     for n in range(count):
         p = covariances[n]
         if not cholesky(p, root):  # lost positive definiteness: keep the mean, restart the covariance
@@ -163,7 +180,8 @@ def ukf_bank_step(
         # -- process noise: + B Q Bᵀ, B at the prior mean attitude; B is block sparse: diagonal blocks
         # for the rates, the torque and the force, and [T²/2m; T/m]·R for position and velocity --
         for i in range(3):
-            p[3 + i, 3 + i] += b[3 + i, i] * q_diagonal[i] * b[3 + i, i]
+            rate_gain = dt / inertia[i]
+            p[3 + i, 3 + i] += rate_gain * q_diagonal[i] * rate_gain
             p[12 + i, 12 + i] += q_diagonal[3 + i]
             p[15 + i, 15 + i] += q_diagonal[9 + i]
             for k in range(3):
