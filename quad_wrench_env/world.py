@@ -26,6 +26,13 @@ from quad_wrench_env.vehicle import GRAVITY, VehicleParams
 
 _GROUND_GROUP, _VEHICLE_GROUP = 1, 2
 
+_CONTACT_THRESHOLD = 0.02
+"""Bullet's contact breaking threshold (m): the farthest a reported contact point can be apart."""
+
+_MAX_FALL_SPEED = 20.0
+"""Vertical speed (m/s) no vehicle reaches in the arenas here (a free fall from 20 m): bounds how far
+a body can have moved between PyBullet's collision detection and the pose read after the step."""
+
 
 @dataclass(frozen=True)
 class RigidBodyState:
@@ -95,6 +102,13 @@ class World:
         self.bodies: list[int] = []
         self.plane = -1
         self._index_of: dict[int, int] = {}
+        self.half_extents = (vehicle.arm + vehicle.rotor_radius,) * 2 + (0.5 * vehicle.hull_height,)
+        """Half extents (m) of each vehicle's collision box."""
+        self.clear_height = (
+            float(np.linalg.norm(self.half_extents)) + _CONTACT_THRESHOLD + _MAX_FALL_SPEED * dt
+        )
+        """Height (m) of a body's centre above which it cannot touch the ground: its box's bounding
+        radius, the contact threshold and one step's fall. The envs ask for contacts only below it."""
 
     @property
     def built(self) -> bool:
@@ -111,8 +125,7 @@ class World:
         plane_shape = p.createCollisionShape(p.GEOM_PLANE, physicsClientId=cid)
         self.plane = p.createMultiBody(0.0, plane_shape, physicsClientId=cid)
         p.setCollisionFilterGroupMask(self.plane, -1, _GROUND_GROUP, _VEHICLE_GROUP, physicsClientId=cid)
-        v = self.vehicle
-        half_extents = (v.arm + v.rotor_radius, v.arm + v.rotor_radius, 0.5 * v.hull_height)
+        v, half_extents = self.vehicle, self.half_extents
         hull = p.createCollisionShape(p.GEOM_BOX, halfExtents=half_extents, physicsClientId=cid)
         visual = p.createVisualShape(
             p.GEOM_BOX, halfExtents=half_extents, rgbaColor=(0.2, 0.2, 0.25, 1.0), physicsClientId=cid

@@ -8,6 +8,13 @@ import pytest
 
 from quad_wrench_env.estimators import make_estimator_bank
 from quad_wrench_env.kernels import NUMBA_AVAILABLE, resolve_backend
+from quad_wrench_env.kernels.physics import (
+    STEP_FIELDS,
+    STEP_WIDTH,
+    physics_constants,
+    step_views,
+    unpack_constants,
+)
 from quad_wrench_env.rotations import quat_exp, quat_multiply_rows
 from quad_wrench_env.vehicle import GRAVITY, make_vehicle
 from tests.conftest import FAN_TRACKING
@@ -100,3 +107,64 @@ def test_settings_the_kernels_do_not_cover_fall_back_to_numpy():
         assert not terminated
     finally:
         env.close()
+
+
+def _descend_until_terminated(backend: str) -> tuple[int, float]:
+    """Fly straight down with no crash height until the episode ends; return the step and height.
+    Checks on the way that no contact is reported above ``World.clear_height``."""
+    env = gym.make(FAN_TRACKING, backend=backend, crash_height=-1.0, fan={"enabled": False})
+    try:
+        env.reset(seed=0, options={"offset_y": 0.0})
+        world = env.unwrapped.world
+        for step in range(1500):
+            _, _, terminated, _, info = env.step(np.array((0.0, 0.0, -1.0, 0.0), dtype=np.float32))
+            if world.ground_contacts().any():
+                assert info["position"][2] < world.clear_height
+            if terminated:
+                assert info["termination_reason"] == "crash"
+                return step, float(info["position"][2])
+        raise AssertionError("the descent never touched the ground")
+    finally:
+        env.close()
+
+
+def test_touching_the_ground_is_a_crash_on_both_backends():
+    """With no crash height only the contact PyBullet reports ends a descent: the vehicle rests on
+    its hull (box half height above the ground), and the compiled path, which asks for contacts only
+    below ``World.clear_height``, ends it at the same step."""
+    step, height = _descend_until_terminated("numpy")
+    half_height = make_vehicle("ardrone2").hull_height / 2
+    assert height < half_height + 0.02
+    if NUMBA_AVAILABLE:
+        assert _descend_until_terminated("numba") == pytest.approx((step, height), rel=1e-9, abs=1e-9)
+
+
+@pytest.mark.parametrize("count", [1, 3])
+def test_step_views_cut_the_buffer_as_step_fields_say(count):
+    """The kernels' per-vehicle arrays are C-ordered views of one flat buffer in STEP_FIELDS order."""
+    buffer = np.arange(count * STEP_WIDTH, dtype=float)
+    start = 0
+    for (name, width), view in zip(STEP_FIELDS, step_views(buffer, count), strict=True):
+        np.testing.assert_array_equal(view.ravel(), buffer[start : start + count * width], err_msg=name)
+        assert view.shape[0] == count and view.flags.c_contiguous and np.shares_memory(view, buffer), name
+        start += count * width
+    assert start == buffer.size
+    with pytest.raises(ValueError, match="STEP_WIDTH"):
+        step_views(buffer[:-1], count)
+
+
+def test_physics_constants_unpack_into_their_parts():
+    rng = np.random.default_rng(0)
+    parts = {
+        "action_type": 2, "scales": rng.random(10), "autopilot": rng.random(23),
+        "inverse": rng.random((4, 4)), "motors": rng.random(6), "fan": rng.random(7),
+        "payload": rng.random(7), "sensing": rng.random(7),
+        "nominal_allocation": rng.random((4, 4)), "dt": 0.005, "drag_points": rng.random((9, 3)),
+        "segments": rng.random((2, 8)),
+    }  # fmt: skip
+    for name, expected, got in zip(
+        parts, parts.values(), unpack_constants(physics_constants(**parts)), strict=True
+    ):
+        np.testing.assert_array_equal(got, expected, err_msg=name)
+    with pytest.raises(ValueError, match="fan has 6 numbers; the kernels read 7"):
+        physics_constants(**{**parts, "fan": rng.random(6)})

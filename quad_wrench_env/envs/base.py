@@ -71,16 +71,19 @@ def check_options(options: Mapping[str, Any] | None, allowed: tuple[str, ...]) -
 
 
 def clip_actions(action: Any, shape: tuple[int, ...]) -> np.ndarray:
-    """Actions as floats of ``shape`` (a flat action of the right size is accepted for one vehicle),
-    clipped to [-1, 1]; other shapes and non-finite values are refused."""
-    a = np.asarray(action, dtype=float)
+    """Actions as a new float array of ``shape`` (a flat action of the right size is accepted for
+    one vehicle), clipped to [-1, 1]; other shapes and non-finite values are refused."""
+    a = np.array(action, dtype=float)
     if len(shape) == 1 and a.ndim != 1:
         a = a.reshape(-1)
     if a.shape != shape:
         raise ValueError(f"action {action!r} must have shape {shape}, got {a.shape}")
-    if not all(map(math.isfinite, a.ravel().tolist())):
+    values = a.ravel().tolist()
+    if not all(map(math.isfinite, values)):
         raise ValueError(f"action {action!r} contains NaN or infinity; allowed: finite values in [-1, 1]")
-    return np.minimum(np.maximum(a, -1.0), 1.0)
+    if max(values) > 1.0 or min(values) < -1.0:
+        np.clip(a, -1.0, 1.0, out=a)
+    return a
 
 
 def info_entries(fleet: Fleet, task: Task, vehicle: int | None = None) -> dict[str, Any]:
@@ -93,7 +96,7 @@ def info_entries(fleet: Fleet, task: Task, vehicle: int | None = None) -> dict[s
         "position": state.position[rows],
         "velocity": state.velocity[rows],
         "wrench_true": fleet.wrench_true[rows],
-        "wrench_est": fleet.estimator.wrenches()[rows],
+        "wrench_est": fleet.estimates()[1][rows],
         **{key: value[rows] for key, value in task.info(fleet).items()},
     }
     info: dict[str, Any] = {

@@ -97,7 +97,7 @@ class FanTracking:
         r = cfg.reward
         self._weights = np.array((r.axis_scale, r.effort_weight, r.crash_penalty))
         self._jet = self.fan.kernel_parameters()
-        self._cache: tuple[int, np.ndarray] = (-1, np.zeros((count, 6)))
+        self._cache: tuple[int, np.ndarray] = (-1, np.zeros((count, 8)))
 
     def wind_fields(self) -> list[WindField]:
         return [self.fan] if self.cfg.fan.enabled else []
@@ -135,8 +135,8 @@ class FanTracking:
         return np.array((cfg.start_distance, start_y, cfg.fan.height)), math.pi
 
     def _numbers(self, fleet: Fleet, actions: np.ndarray | None, ended: np.ndarray | None) -> np.ndarray:
-        """(N, 6): reward terms tracking, effort, crash; axis error, jet axis y, fan y. Computed once
-        per state of the fleet (the reward's call, with the step's actions, comes first)."""
+        """(N, 8): reward terms tracking, effort, crash; axis error, jet axis y, fan position (3).
+        Computed once per state of the fleet (the reward's call, with the step's actions, comes first)."""
         revision, numbers = self._cache
         if revision == fleet.revision:
             return numbers
@@ -145,7 +145,7 @@ class FanTracking:
         ended = np.zeros(count, dtype=bool) if ended is None else ended
         r, fan = self.cfg.reward, self.fan
         position, time = fleet.state.position, fleet.time
-        numbers = np.empty((count, 6))
+        numbers = np.empty((count, 8))
         if self._compiled:
             fan_tracking_terms(
                 position, time, actions, ended, fan.motion_tables, self._jet[1], self._jet[2],
@@ -159,7 +159,9 @@ class FanTracking:
             numbers[:, 2] = -r.crash_penalty * ended
             numbers[:, 3] = dy
             numbers[:, 4] = position[:, 1] - dy
-            numbers[:, 5] = fan.fan_y(time)
+            numbers[:, 5] = 0.0
+            numbers[:, 6] = fan.fan_y(time)
+            numbers[:, 7] = self.cfg.fan.height
         self._cache = (fleet.revision, numbers)
         return numbers
 
@@ -169,10 +171,7 @@ class FanTracking:
 
     def info(self, fleet: Fleet) -> dict[str, np.ndarray]:
         numbers = self._numbers(fleet, None, None)
-        fan_position = np.zeros((fleet.count, 3))
-        fan_position[:, 1] = numbers[:, 5]
-        fan_position[:, 2] = self.cfg.fan.height
-        return {"fan_position": fan_position, "jet_axis_y": numbers[:, 4], "axis_error": numbers[:, 3]}
+        return {"fan_position": numbers[:, 5:8], "jet_axis_y": numbers[:, 4], "axis_error": numbers[:, 3]}
 
 
 class FanTrackingEnv(QuadWrenchEnv):

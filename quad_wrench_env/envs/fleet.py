@@ -108,10 +108,14 @@ class Fleet:
         kernels do not cover: motion-capture latency, a wind field other than one fan jet)."""
         arena = cfg.arena
         self._limits = np.array(
-            (cfg.crash_height, self._flip_cos, arena.x_min, arena.x_max, arena.y_half_width, arena.z_max)
-        )
+            (
+                cfg.crash_height, self._flip_cos, arena.x_min, arena.x_max, arena.y_half_width, arena.z_max,
+                self.world.clear_height,
+            )
+        )  # fmt: skip
         self.revision = 0
         """Counts the changes of the fleet's state (steps and resets): a key for what tasks cache."""
+        self._estimates: tuple[int, np.ndarray, np.ndarray] = (-1, np.empty(0), np.empty(0))
 
     # -- episodes ----------------------------------------------------------------------------------
     def reset_vehicle(self, index: int, rng: np.random.Generator, position: np.ndarray, yaw: float) -> None:
@@ -225,18 +229,26 @@ class Fleet:
             self.estimator.observe_truth(truth, self.wrench_true)
 
     # -- what the envs read ------------------------------------------------------------------------
+    def estimates(self) -> tuple[np.ndarray, np.ndarray]:
+        """The estimators' (N, 13) states and (N, 6) wrenches (see
+        :class:`~quad_wrench_env.estimators.bank.EstimatorBank`), read once per :attr:`revision`."""
+        if self._estimates[0] != self.revision:
+            self._estimates = (self.revision, self.estimator.states(), self.estimator.wrenches())
+        return self._estimates[1], self._estimates[2]
+
     def observations(self, last_actions: np.ndarray) -> np.ndarray:
         """(N, 23) float32 observations (:data:`OBSERVATION_FIELDS`): the estimators' states and
         wrenches and the last actions (quaternions with ``w >= 0``)."""
         out = np.empty((self.count, OBSERVATION_SIZE), dtype=np.float32)
+        states, wrenches = self.estimates()
         if self.compiled is not None:
-            assemble_observations(self.estimator.states(), self.estimator.wrenches(), last_actions, out)
+            assemble_observations(states, wrenches, last_actions, out)
             return out
-        out[:, :13] = self.estimator.states()
+        out[:, :13] = states
         flipped = out[:, 6] < 0.0
         if flipped.any():
             out[flipped, 6:10] *= -1.0
-        out[:, 13:19] = self.estimator.wrenches()
+        out[:, 13:19] = wrenches
         out[:, 19:23] = last_actions
         return out
 
@@ -246,7 +258,8 @@ class Fleet:
         s, cfg, arena = self.state, self.cfg, self.cfg.arena
         if self.compiled is not None:
             codes = np.empty(self.count, dtype=np.int64)
-            termination_codes(s.position, s.rotation, self.world.ground_contacts(), self._limits, codes)
+            if termination_codes(s.position, s.rotation, self._limits, codes):
+                codes[self.world.ground_contacts()] = 1
             return codes
         x, y, z = s.position[:, 0], s.position[:, 1], s.position[:, 2]
         codes = np.zeros(self.count, dtype=int)

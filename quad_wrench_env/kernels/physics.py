@@ -14,11 +14,93 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numpy.lib.stride_tricks import as_strided
 
 from quad_wrench_env.kernels import njit
+from quad_wrench_env.kernels.linalg import rows_view
 from quad_wrench_env.kernels.quaternions import exp, matrix, qmul
 
 VELOCITY, ATTITUDE, WRENCH, MOTORS = 0, 1, 2, 3
+
+STEP_FIELDS: tuple[tuple[str, int], ...] = (
+    ("time", 1), ("position", 3), ("quaternion", 4), ("velocity", 3), ("angular_velocity", 3),
+    ("rotation", 9), ("body_rates", 3), ("forces", 3), ("torques", 3), ("loads", 6), ("thrusts", 1),
+    ("body_torques", 3), ("measured_position", 3), ("measured_quaternion", 4), ("motion", 6), ("truth", 13),
+)  # fmt: skip
+"""The per-vehicle arrays the kernels read and write, in the order :func:`step_views` cuts them out of
+one flat buffer (widths per vehicle): one array argument instead of sixteen, as numba's cost per call
+grows with the number of array arguments."""
+
+STEP_WIDTH = sum(width for _, width in STEP_FIELDS)
+
+
+@njit(inline=True)
+def step_views(buffer, n):
+    """The :data:`STEP_FIELDS` of ``n`` vehicles as views of the flat ``buffer`` (``n * STEP_WIDTH``
+    floats): time (n,), position (n, 3), quaternion (n, 4), velocity, angular velocity (n, 3),
+    rotation (n, 3, 3), body rates (n, 3); the world-frame forces and torques PyBullet applies and
+    the external loads (n, 6); the measured thrusts (n,) and body torques (n, 3), the motion-capture
+    position (n, 3) and quaternion (n, 4), velocity and body rates (n, 6) and the truth (n, 13)."""
+    if buffer.shape[0] != n * STEP_WIDTH:
+        raise ValueError("the step buffer must hold n * STEP_WIDTH floats")
+    time, position, quaternion = buffer[0:n], rows_view(buffer, n, n, 3), rows_view(buffer, 4 * n, n, 4)
+    velocity, angular_velocity = rows_view(buffer, 8 * n, n, 3), rows_view(buffer, 11 * n, n, 3)
+    rotation = as_strided(buffer[14 * n : 23 * n], shape=(n, 3, 3), strides=(72, 24, 8))
+    body_rates, forces = rows_view(buffer, 23 * n, n, 3), rows_view(buffer, 26 * n, n, 3)
+    torques, loads = rows_view(buffer, 29 * n, n, 3), rows_view(buffer, 32 * n, n, 6)
+    thrusts, body_torques = buffer[38 * n : 39 * n], rows_view(buffer, 39 * n, n, 3)
+    measured_position, measured_quaternion = rows_view(buffer, 42 * n, n, 3), rows_view(buffer, 45 * n, n, 4)
+    motion, truth = rows_view(buffer, 49 * n, n, 6), rows_view(buffer, 55 * n, n, 13)
+    return (
+        time, position, quaternion, velocity, angular_velocity, rotation, body_rates, forces, torques,
+        loads, thrusts, body_torques, measured_position, measured_quaternion, motion, truth,
+    )  # fmt: skip
+
+
+def physics_constants(
+    action_type: int, scales: np.ndarray, autopilot: np.ndarray, inverse: np.ndarray, motors: np.ndarray,
+    fan: np.ndarray, payload: np.ndarray, sensing: np.ndarray, nominal_allocation: np.ndarray, dt: float,
+    drag_points: np.ndarray, segments: np.ndarray,
+) -> np.ndarray:  # fmt: skip
+    """The kernels' constants packed in one float array (:func:`unpack_constants` cuts it up): the
+    action type (an index into the action types) and its scales (10), the autopilot's gains (23,
+    ``Autopilot.kernel_parameters``), its mixer's inverse (4, 4), the motors (6: lag up and down,
+    speed limits, rotor drag, body drag coefficient), the fan jet (7), the payload (7), the sensors (7:
+    speed levels, speed step, position, attitude, velocity and body-rate noise, whether velocity and
+    body rates are measured), the nominal allocation (4, 4), the physics step, the drag points (P, 3)
+    and the scheduled wrench segments (K, 8), each of these two after its count."""
+    sizes = {
+        "scales": (scales, 10),
+        "autopilot": (autopilot, 23),
+        "inverse": (inverse, 16),
+        "motors": (motors, 6),
+    }
+    sizes |= {"fan": (fan, 7), "payload": (payload, 7), "sensing": (sensing, 7)}
+    sizes |= {"nominal_allocation": (nominal_allocation, 16)}
+    for name, (part, size) in sizes.items():
+        if np.size(part) != size:
+            raise ValueError(f"{name} has {np.size(part)} numbers; the kernels read {size}")
+    parts = (
+        (action_type,), scales, autopilot, inverse.ravel(), motors, fan, payload, sensing,
+        nominal_allocation.ravel(), (dt, len(drag_points)), drag_points.ravel(), (len(segments),),
+        segments.ravel(),
+    )  # fmt: skip
+    return np.concatenate([np.asarray(part, dtype=float).ravel() for part in parts])
+
+
+@njit(inline=True)
+def unpack_constants(c):
+    """The parts of :func:`physics_constants`, in its order, as views of ``c``."""
+    scales, autopilot, inverse = c[1:11], c[11:34], rows_view(c, 34, 4, 4)
+    motors, fan, payload, sensing = c[50:56], c[56:63], c[63:70], c[70:77]
+    nominal_allocation, dt, n_points = rows_view(c, 77, 4, 4), c[93], int(c[94])
+    o = 95 + 3 * n_points
+    drag_points, n_segments = rows_view(c, 95, n_points, 3), int(c[o])
+    segments = rows_view(c, o + 1, n_segments, 8)
+    return (
+        int(c[0]), scales, autopilot, inverse, motors, fan, payload, sensing, nominal_allocation, dt,
+        drag_points, segments,
+    )  # fmt: skip
 
 
 @njit
@@ -81,10 +163,10 @@ def jet_axis_y(x, t, motion_tables, u0, core):
 
 @njit
 def fan_tracking_terms(position, time, actions, ended, motion_tables, u0, core, height, weights, out):
-    """FanTracking's per-vehicle numbers into ``out`` (N, 6): the reward terms ``tracking``,
+    """FanTracking's per-vehicle numbers into ``out`` (N, 8): the reward terms ``tracking``,
     ``effort`` and ``crash`` (``weights`` = axis scale, effort weight, crash penalty), the signed
-    ``axis_error`` y - jet axis, the jet axis y at the vehicle and the fan's y
-    (``FanTracking.reward_terms`` and ``FanTracking.info``)."""
+    ``axis_error`` y - jet axis, the jet axis y at the vehicle and the fan's position ``(0, y,
+    height)`` (``FanTracking.reward_terms`` and ``FanTracking.info``)."""
     for n in range(position.shape[0]):
         axis = _motion_y(motion_tables[n], time[n] - _transit_time(position[n, 0], u0, core))
         dy, dz = position[n, 1] - axis, position[n, 2] - height
@@ -96,18 +178,23 @@ def fan_tracking_terms(position, time, actions, ended, motion_tables, u0, core, 
         out[n, 2] = -weights[2] * ended[n]
         out[n, 3] = dy
         out[n, 4] = position[n, 1] - dy
-        out[n, 5] = _motion_y(motion_tables[n], time[n])
+        out[n, 5], out[n, 6], out[n, 7] = 0.0, _motion_y(motion_tables[n], time[n]), height
 
 
 @njit
 def before_world_step(
-    action_type, actions, position, velocity, angular_velocity, rotation, time,
-    yaw_setpoint, velocity_integral, rate_integral, saturated, speeds, allocations,
-    autopilot, scales, inverse, motors, drag_points, fan, fan_noise, motion_tables,
-    payload, segments, forces, torques, loads,
+    actions, buffer, yaw_setpoint, velocity_integral, rate_integral, saturated, speeds, allocations,
+    fan_noise, motion_tables, constants,
 ):  # fmt: skip
-    """Motor commands, motor lag and external loads of every vehicle; fills ``forces`` and
-    ``torques`` (world frame, what PyBullet applies) and ``loads`` (the external ``[F, τ]``)."""
+    """Motor commands, motor lag and external loads of every vehicle from (N, 4) ``actions``; fills
+    the ``forces`` and ``torques`` of ``buffer`` (:func:`step_views`; world frame, what PyBullet
+    applies) and its ``loads`` (the external ``[F, τ]``). ``constants``: :func:`physics_constants`."""
+    time, position, _, velocity, angular_velocity, rotation, _, forces, torques, loads, _, _, _, _, _, _ = (
+        step_views(buffer, actions.shape[0])
+    )
+    action_type, scales, autopilot, inverse, motors, fan, payload, _, _, _, drag_points, segments = (
+        unpack_constants(constants)
+    )
     vp, vi = autopilot[0:3], autopilot[3:6]
     setpoint_weight, tan_max_tilt = autopilot[6], autopilot[7]
     att_p, max_rate, max_yaw_error = autopilot[8:11], autopilot[11], autopilot[12]
@@ -126,9 +213,9 @@ def before_world_step(
         motors[3],
         motors[4],
     )
-    command, scratch, body = np.empty(4), np.empty(4), np.empty(4)
-    desired = np.empty((3, 3))
-    tv, rates, om, torque, w = np.empty(3), np.empty(3), np.empty(3), np.empty(3), np.empty(6)
+    work = np.empty(39)  # one allocation, cut into views (each allocation costs as much as a view)
+    command, scratch, body, tv, rates = work[0:4], work[4:8], work[8:12], work[12:15], work[15:18]
+    om, torque, w, desired = work[18:21], work[21:24], work[24:30], rows_view(work, 30, 3, 3)
     n_points = drag_points.shape[0]
     for n in range(actions.shape[0]):
         r = rotation[n]
@@ -284,18 +371,19 @@ def before_world_step(
 
 
 @njit
-def after_world_step(
-    raw, position, quaternion, velocity, angular_velocity, rotation, body_rates, time, dt,
-    noise_buffer, noise_cursor, normals, fan, fan_noise, speeds, sensing, nominal_allocation,
-    thrusts, body_torques, measured_position, measured_quaternion, motion, truth,
-):  # fmt: skip
-    """After PyBullet's step: the true states from its (N, 13) ``raw`` rows (``World.read``) into the
-    state arrays, time on by ``dt``; this step's standard normal draws from each vehicle's block
-    (``NoiseBlocks``); turbulence one step on (``FanJet.advance``); the quantized motor speeds
-    through the nominal mixer (``MotorSpeedSensor``) into ``thrusts`` and ``body_torques``; the noisy
-    pose (``MotionCapture``) into ``measured_position`` and ``measured_quaternion`` and, with an onboard
-    state estimator, noisy velocity and body rates into ``motion`` (N, 6); the true position,
-    velocity, quaternion and body rates into ``truth`` (N, 13)."""
+def after_world_step(raw, buffer, noise_buffer, noise_cursor, fan_noise, speeds, constants):
+    """After PyBullet's step, into ``buffer`` (:func:`step_views`): the true states from its (N, 13)
+    ``raw`` rows (``World.read``), time on by one step; turbulence one step on (``FanJet.advance``)
+    with this step's standard normal draws from each vehicle's block (``NoiseBlocks``); the quantized
+    motor speeds through the nominal mixer (``MotorSpeedSensor``) into ``thrusts`` and
+    ``body_torques``; the noisy pose (``MotionCapture``) into ``measured_position`` and
+    ``measured_quaternion`` and, with an onboard state estimator, noisy velocity and body rates into
+    ``motion``; the true position, velocity, quaternion and body rates into ``truth``."""
+    (
+        time, position, quaternion, velocity, angular_velocity, rotation, body_rates, _, _, _, thrusts,
+        body_torques, measured_position, measured_quaternion, motion, truth,
+    ) = step_views(buffer, raw.shape[0])  # fmt: skip
+    _, _, _, _, _, fan, _, sensing, nominal_allocation, dt, _, _ = unpack_constants(constants)
     levels, step, position_noise, attitude_noise = sensing[0], sensing[1], sensing[2], sensing[3]
     body = np.empty(4)
     for n in range(raw.shape[0]):
@@ -312,10 +400,8 @@ def after_world_step(
             body_rates[n, i] = r[0, i] * raw[n, 10] + r[1, i] * raw[n, 11] + r[2, i] * raw[n, 12]
         time[n] += dt
         # -- this step's draws --
-        row = noise_cursor[n]
-        for i in range(normals.shape[1]):
-            normals[n, i] = noise_buffer[n, row, i]
-        noise_cursor[n] = row + 1
+        normals = noise_buffer[n, noise_cursor[n]]
+        noise_cursor[n] += 1
         # -- turbulence --
         if fan[0] > 0.0 and fan[6] != 0.0:
             x = max(position[n, 0], 1e-3)
@@ -323,7 +409,7 @@ def after_world_step(
             b = math.sqrt(fan[3] + (fan[4] * x) ** 2)
             decay = math.exp(-dt * u_c / b)
             for i in range(3):
-                fan_noise[n, i] = decay * fan_noise[n, i] + math.sqrt(1.0 - decay * decay) * normals[n, i]
+                fan_noise[n, i] = decay * fan_noise[n, i] + math.sqrt(1.0 - decay * decay) * normals[i]
         # -- motor speeds through the nominal mixer --
         body[:] = 0.0
         for i in range(4):
@@ -334,18 +420,18 @@ def after_world_step(
         body_torques[n, 0], body_torques[n, 1], body_torques[n, 2] = body[1], body[2], body[3]
         # -- motion capture --
         for i in range(3):
-            measured_position[n, i] = position[n, i] + position_noise * normals[n, 3 + i]
+            measured_position[n, i] = position[n, i] + position_noise * normals[3 + i]
         ew, ex, ey, ez = exp(
-            attitude_noise * normals[n, 6], attitude_noise * normals[n, 7], attitude_noise * normals[n, 8]
+            attitude_noise * normals[6], attitude_noise * normals[7], attitude_noise * normals[8]
         )
         mw, mx, my, mz = qmul(qw, qx, qy, qz, ew, ex, ey, ez)
         norm = math.sqrt(mw * mw + mx * mx + my * my + mz * mz)
         q = measured_quaternion[n]
         q[0], q[1], q[2], q[3] = mw / norm, mx / norm, my / norm, mz / norm
-        if motion.shape[0] > 0:
+        if sensing[6] > 0.0:
             for i in range(3):
-                motion[n, i] = velocity[n, i] + sensing[4] * normals[n, 9 + i]
-                motion[n, 3 + i] = body_rates[n, i] + sensing[5] * normals[n, 12 + i]
+                motion[n, i] = velocity[n, i] + sensing[4] * normals[9 + i]
+                motion[n, 3 + i] = body_rates[n, i] + sensing[5] * normals[12 + i]
         for i in range(3):
             truth[n, i] = position[n, i]
             truth[n, 3 + i] = velocity[n, i]
@@ -355,13 +441,16 @@ def after_world_step(
 
 
 @njit
-def termination_codes(position, rotation, touching, limits, out):
-    """``Fleet.terminations`` into ``out``: 1 crash (below ``limits[0]`` or ``touching`` the ground),
-    2 flip (``R[2, 2]`` below ``limits[1]``), 3 out of the arena ``limits[2:6]`` (x_min, x_max, y half
-    width, z_max), else 0."""
+def termination_codes(position, rotation, limits, out):
+    """``Fleet.terminations`` into ``out``, but for ground contact: 1 crash (below ``limits[0]``), 2
+    flip (``R[2, 2]`` below ``limits[1]``), 3 out of the arena ``limits[2:6]`` (x_min, x_max, y half
+    width, z_max), else 0. Returns whether any vehicle is below ``limits[6]`` (``World.clear_height``),
+    low enough to touch the ground: only then need its contacts be asked for (crash, code 1)."""
+    near = False
     for n in range(position.shape[0]):
         x, y, z = position[n, 0], position[n, 1], position[n, 2]
-        if z < limits[0] or touching[n]:
+        near = near or z < limits[6]
+        if z < limits[0]:
             out[n] = 1
         elif rotation[n, 2, 2] < limits[1]:
             out[n] = 2
@@ -369,6 +458,7 @@ def termination_codes(position, rotation, touching, limits, out):
             out[n] = 3
         else:
             out[n] = 0
+    return near
 
 
 @njit

@@ -21,7 +21,7 @@ import math
 import numpy as np
 
 from quad_wrench_env.kernels import njit
-from quad_wrench_env.kernels.linalg import cholesky, forward_solve_rows, inputs_finite
+from quad_wrench_env.kernels.linalg import cholesky, forward_solve_rows, inputs_finite, rows_view
 from quad_wrench_env.kernels.quaternions import exp, from_mrp, matrix, qmul, to_mrp
 
 _MEASURED = np.array((6, 7, 8, 0, 1, 2))
@@ -48,7 +48,7 @@ def ukf_bank_step(
     """One predict-correct step of every filter, in place (see the module docstring), with the
     constants of :func:`ukf_constants`; returns False, touching nothing, when an input is not finite."""
     count = quaternions.shape[0]
-    unmeasured = np.empty((0, 3))
+    unmeasured = positions[:0]
     if not inputs_finite(thrusts, body_torques, positions, measured_quaternions, unmeasured, unmeasured):
         return False
     dt, mass, inertia, gravity, spread = (
@@ -58,26 +58,26 @@ def ukf_bank_step(
         constants[5],
         constants[6],
     )
-    q_diagonal, g_diagonal, p0 = constants[9:21], constants[21:27], constants[27:].reshape((18, 18))
+    q_diagonal, g_diagonal, p0 = constants[9:21], constants[21:27], rows_view(constants, 27, 18, 18)
     n_points = 1 + 2 * _NONLINEAR
-    root = np.zeros((18, 18))
-    q_points = np.zeros((n_points, 4))
-    rest_points = np.zeros((n_points, 15))
-    errors = np.zeros((n_points, 18))
-    shifts = np.zeros((18 - _NONLINEAR, 18))
-    mean = np.zeros(18)
-    rotation = np.zeros((3, 3))
-    rotation0 = np.zeros((3, 3))
-    b = np.zeros((18, 12))
-    pht = np.zeros((18, 6))
-    s = np.zeros((6, 6))
-    s_root = np.zeros((6, 6))
-    whitened = np.zeros((18, 6))
-    innovation = np.zeros((1, 6))
-    e = np.zeros(18)
-    accel = np.zeros(3)
-    torque = np.zeros(3)
-    delta = np.zeros(18)
+    root = np.empty((18, 18))
+    q_points = np.empty((n_points, 4))
+    rest_points = np.empty((n_points, 15))
+    errors = np.empty((n_points, 18))
+    shifts = np.empty((18 - _NONLINEAR, 18))
+    mean = np.empty(18)
+    rotation = np.empty((3, 3))
+    rotation0 = np.empty((3, 3))
+    b = np.empty((18, 12))
+    pht = np.empty((18, 6))
+    s = np.empty((6, 6))
+    s_root = np.empty((6, 6))
+    whitened = np.empty((18, 6))
+    innovation = np.empty((1, 6))
+    e = np.empty(18)
+    accel = np.empty(3)
+    torque = np.empty(3)
+    delta = np.empty(18)
     w = constants[8]  # every sigma point but the centre has this weight
     w_centre = constants[7] + 2 * (18 - _NONLINEAR) * w  # with the linear pairs' share (module doc)
     for n in range(count):
