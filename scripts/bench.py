@@ -304,11 +304,17 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--steps", type=int, default=2000)
     parser.add_argument("--repeats", type=int, default=3)
-    parser.add_argument("--soak-minutes", type=float, default=0.0)
+    parser.add_argument(
+        "--soak-minutes", type=float, default=0.0, help="0 (no soak) or at least 20: two 10-minute windows"
+    )
     parser.add_argument("--gym-pybullet-drones", metavar="PATH")
     parser.add_argument("--skip-peers", action="store_true")
     parser.add_argument("--peers-dir", default="~/.cache/quad-wrench-env/peers")
     args = parser.parse_args()
+    if args.soak_minutes and not args.soak_minutes >= 20:
+        parser.error(
+            f"--soak-minutes {args.soak_minutes:g}: allowed 0 (no soak) or at least 20 (two 10-min windows)"
+        )
 
     floors = {
         floor: min(bare_pybullet_step_seconds(4 * args.steps, floor=floor) for _ in range(args.repeats))

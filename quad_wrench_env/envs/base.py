@@ -88,20 +88,16 @@ def clip_actions(action: Any, shape: tuple[int, ...]) -> np.ndarray:
 
 def info_entries(fleet: Fleet, task: Task, vehicle: int | None = None) -> dict[str, Any]:
     """The info of every vehicle, each entry with a leading vehicle axis (ARCHITECTURE.md keys); with
-    ``vehicle``, that vehicle's entries alone (floats and strings for its scalars)."""
+    ``vehicle``, that vehicle's entries alone (Python floats for its scalars). Copies, never views
+    of the fleet's state."""
     rows = slice(None) if vehicle is None else vehicle
     state, statuses = fleet.state, fleet.estimator.statuses()
-    entries = {
-        "time": fleet.time[rows],
-        "position": state.position[rows],
-        "velocity": state.velocity[rows],
-        "wrench_true": fleet.wrench_true[rows],
-        "wrench_est": fleet.estimates()[1][rows],
-        **{key: value[rows] for key, value in task.info(fleet).items()},
-    }
-    info: dict[str, Any] = {
-        key: value.copy() if value.ndim else value.item() for key, value in entries.items()
-    }
+    info: dict[str, Any] = {}
+    for key, value in (
+        ("time", fleet.time), ("position", state.position), ("velocity", state.velocity),
+        ("wrench_true", fleet.wrench_true), ("wrench_est", fleet.estimates()[1]), *task.info(fleet).items(),
+    ):  # fmt: skip
+        info[key] = value[rows].copy() if value.ndim > 1 or vehicle is None else float(value[vehicle])
     info["estimator_status"] = np.array(statuses, dtype=object) if vehicle is None else statuses[vehicle]
     return info
 
