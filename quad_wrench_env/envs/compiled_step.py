@@ -89,30 +89,26 @@ class CompiledStep:
             fleet.rotors.allocations, self._fan_noise, self._motion_tables, self.constants,
         )  # fmt: skip
         self._after = (
-            self.buffer,
-            fleet.noise.buffer,
-            fleet.noise.cursor,
-            self._fan_noise,
-            speeds,
-            self.constants,
-        )
+            self.buffer, fleet.noise.buffer, fleet.noise.cursor, self._fan_noise, speeds, self.constants,
+        )  # fmt: skip
 
     def physics_steps(self, actions: np.ndarray, count: int) -> None:
         """``count`` physics steps with (N, 4) clipped normalised actions."""
         fleet = self.fleet
         if fleet.state is not self.state:
             self._adopt()
-        world, noise, estimator = fleet.world, fleet.noise, fleet.estimator
+        world, noise, estimator, truth_fed = fleet.world, fleet.noise, fleet.estimator, fleet.truth_fed
         before, after = (actions, *self._before), self._after
         forces, torques, position = self.forces, self.torques, self.state.position
+        measured = (
+            self.thrusts, self.body_torques, self.measured_position, self.measured_quaternion,
+            self.velocity_measured, self.body_rates_measured,
+        )  # fmt: skip
         for _ in range(count):
             before_world_step(*before)
             world.step(forces, torques, position)
             noise.ready()
             after_world_step(world.read(), *after)
-            if fleet.truth_fed:
+            if truth_fed:
                 estimator.observe_truth(self.truth, self.loads)
-            estimator.step(
-                self.thrusts, self.body_torques, self.measured_position, self.measured_quaternion,
-                self.velocity_measured, self.body_rates_measured,
-            )  # fmt: skip
+            estimator.step(*measured)
