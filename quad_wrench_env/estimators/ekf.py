@@ -34,7 +34,7 @@ import numpy as np
 from quad_wrench_env.estimators.bank import BankOfOne, EulerAttitudes, FilterBank
 from quad_wrench_env.estimators.noise import EKFNoise
 from quad_wrench_env.kernels import resolve_backend
-from quad_wrench_env.kernels.ekf import ekf_bank_step
+from quad_wrench_env.kernels.ekf import ekf_bank_step, ekf_constants, ekf_states, ekf_wrenches
 from quad_wrench_env.rotations import (
     cross,
     euler_zyx_from_quat,
@@ -92,7 +92,6 @@ class ExtendedFilterBank(FilterBank, EulerAttitudes):
         q_diag[F] = n.force_walk**2
         q_diag[N] = n.torque_walk**2
         self.Q = np.diag(q_diag)
-        self._q_diagonal = q_diag
         initial = (
             n.initial_position, n.initial_velocity, n.initial_attitude,
             n.initial_rates, n.initial_force, n.initial_torque,
@@ -100,6 +99,10 @@ class ExtendedFilterBank(FilterBank, EulerAttitudes):
         self.P0 = np.diag(np.repeat(initial, 3) ** 2)
         self._noise_pose = np.repeat((n.position, n.attitude), 3) ** 2
         self._noise_motion = np.repeat((n.velocity, n.body_rate), 3) ** 2
+        self.kernel_constants = ekf_constants(
+            dt, self.mass, self.inertia, GRAVITY, q_diag, self._noise_pose, self._noise_motion, self.P0
+        )
+        """The compiled step's constants (:func:`~quad_wrench_env.kernels.ekf.ekf_constants`)."""
         self.x = np.zeros((count, STATE_DIM))
         self.P = np.tile(self.P0, (count, 1, 1))
         self.reinitialisations = np.zeros(count, dtype=int)
@@ -121,8 +124,7 @@ class ExtendedFilterBank(FilterBank, EulerAttitudes):
     def _compiled_step(self, thrusts, body_torques, positions, quaternions, velocities, body_rates) -> bool:
         return ekf_bank_step(
             self.x, self.P, self.reinitialisations, thrusts, body_torques, positions, quaternions,
-            velocities, body_rates, self.dt, self.mass, self.inertia, GRAVITY, self._q_diagonal,
-            self._noise_pose, self._noise_motion, self.P0,
+            velocities, body_rates, self.kernel_constants,
         )  # fmt: skip
 
     def _numpy_step(self, thrusts, body_torques, positions, quaternions, velocities, body_rates) -> None:
@@ -149,6 +151,10 @@ class ExtendedFilterBank(FilterBank, EulerAttitudes):
 
     def wrenches(self) -> np.ndarray:
         """(N, 6) estimated ``[f_ext, R η_ext]``, world frame."""
+        if self.backend == "numba":
+            out = np.empty((self.count, 6))
+            ekf_wrenches(self.x, out)
+            return out
         torque = np.einsum("nij,nj->ni", self.rotations(), self.x[:, N])
         return np.concatenate((self.x[:, F], torque), axis=1)
 
@@ -161,6 +167,10 @@ class ExtendedFilterBank(FilterBank, EulerAttitudes):
 
     def states(self) -> np.ndarray:
         """(N, 13) estimated position, velocity, quaternion and body rates."""
+        if self.backend == "numba":
+            out = np.empty((self.count, 13))
+            ekf_states(self.x, out)
+            return out
         return np.concatenate((self.x[:, P], self.x[:, V], self.quaternions(), self.x[:, W]), axis=1)
 
     def statuses(self) -> list[str]:

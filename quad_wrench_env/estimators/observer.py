@@ -36,7 +36,12 @@ import numpy as np
 from quad_wrench_env.config import check_numbers
 from quad_wrench_env.estimators.bank import BankOfOne, EulerAttitudes, FilterBank
 from quad_wrench_env.kernels import resolve_backend
-from quad_wrench_env.kernels.observer import observer_bank_step
+from quad_wrench_env.kernels.observer import (
+    observer_bank_step,
+    observer_constants,
+    observer_states,
+    observer_wrenches,
+)
 from quad_wrench_env.rotations import (
     cross,
     euler_zyx_from_quat,
@@ -129,9 +134,11 @@ class ObserverBank(FilterBank, EulerAttitudes):
         self.psi_torque = np.zeros((count, 3))
         self.forces = np.zeros((count, 3))
         self.torques_generalised = np.zeros((count, 3))
-        self._kernel_gains = np.array(
-            (g.c_force, g.c_torque, self._force_decay, self._velocity_alpha, self._rate_alpha)
-        )
+        self.kernel_constants = observer_constants(
+            dt, self.mass, self.inertia, GRAVITY,
+            (g.c_force, g.c_torque, self._force_decay, self._velocity_alpha, self._rate_alpha),
+        )  # fmt: skip
+        """The compiled step's constants (:func:`~quad_wrench_env.kernels.observer.observer_constants`)."""
         self.version = 0
 
     def euler_angles(self) -> np.ndarray:
@@ -152,8 +159,7 @@ class ObserverBank(FilterBank, EulerAttitudes):
         return observer_bank_step(
             self.positions, self.eulers, self.velocities, self.euler_rates, self.psi_force,
             self.psi_torque, self.forces, self.torques_generalised, thrusts, body_torques, positions,
-            quaternions, velocities, body_rates, self.dt, self.mass, self.inertia, GRAVITY,
-            self._kernel_gains,
+            quaternions, velocities, body_rates, self.kernel_constants,
         )  # fmt: skip
 
     def _numpy_step(self, thrusts, body_torques, positions, quaternions, velocities, body_rates) -> None:
@@ -211,12 +217,20 @@ class ObserverBank(FilterBank, EulerAttitudes):
 
     def wrenches(self) -> np.ndarray:
         """(N, 6) estimated ``[f, R T⁻ᵀ τ̂_gen]``, world frame."""
+        if self.backend == "numba":
+            out = np.empty((self.count, 6))
+            observer_wrenches(self.eulers, self.forces, self.torques_generalised, out)
+            return out
         kinematics = euler_kinematics(self.eulers[:, 0], self.eulers[:, 1])
         body = np.linalg.solve(kinematics.transpose(0, 2, 1), self.torques_generalised[:, :, None])[:, :, 0]
         return np.concatenate((self.forces, _apply(self.attitudes()[1], body)), axis=1)
 
     def states(self) -> np.ndarray:
         """(N, 13) position, velocity, quaternion and body rates ``T η̇``."""
+        if self.backend == "numba":
+            out = np.empty((self.count, 13))
+            observer_states(self.positions, self.eulers, self.velocities, self.euler_rates, out)
+            return out
         body_rates = _apply(euler_kinematics(self.eulers[:, 0], self.eulers[:, 1]), self.euler_rates)
         return np.concatenate((self.positions, self.velocities, self.quaternions(), body_rates), axis=1)
 

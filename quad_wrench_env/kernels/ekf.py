@@ -8,7 +8,7 @@ import math
 import numpy as np
 
 from quad_wrench_env.kernels import njit
-from quad_wrench_env.kernels.linalg import cholesky, cholesky_solve_rows, inputs_finite
+from quad_wrench_env.kernels.linalg import cholesky, cholesky_solve_rows, inputs_finite, rows_view
 from quad_wrench_env.kernels.quaternions import matrix
 
 
@@ -41,13 +41,29 @@ def wrap(angle):
     return (angle + math.pi) % (2.0 * math.pi) - math.pi
 
 
+def ekf_constants(dt, mass, inertia, gravity, q_diagonal, noise_pose, noise_motion, p0) -> np.ndarray:
+    """:func:`ekf_bank_step`'s constants in one array, in the order it reads them: ``dt``, ``mass``,
+    ``inertia`` (3), ``gravity``, the diagonal of ``Q`` (18), the pose measurement variances (6), the
+    velocity and body-rate measurement variances (6), ``P₀`` (18, 18)."""
+    head = (dt, mass, *inertia, gravity)
+    return np.concatenate((head, q_diagonal, noise_pose, noise_motion, np.ravel(p0))).astype(float)
+
+
 @njit
 def ekf_bank_step(
-    x, p, reinitialisations, thrusts, body_torques, positions, quaternions, velocities, body_rates,
-    dt, mass, inertia, gravity, q_diagonal, noise_pose, noise_motion, p0,
-):  # fmt: skip
-    """One predict-correct step of every filter, in place; ``velocities`` and ``body_rates`` are
-    (N, 3) where measured, else (0, 3). Returns False, touching nothing, when an input is not finite."""
+    x, p, reinitialisations, thrusts, body_torques, positions, quaternions, velocities, body_rates, constants
+):
+    """One predict-correct step of every filter, in place, with the constants of
+    :func:`ekf_constants`; ``velocities`` and ``body_rates`` are (N, 3) where measured, else (0, 3).
+    Returns False, touching nothing, when an input is not finite."""
+    dt, mass, inertia, gravity, q_diagonal = (
+        constants[0],
+        constants[1],
+        constants[2:5],
+        constants[5],
+        constants[6:24],
+    )
+    noise_pose, noise_motion, p0 = constants[24:30], constants[30:36], rows_view(constants, 36, 18, 18)
     count = x.shape[0]
     with_velocity, with_rates = velocities.shape[0] > 0, body_rates.shape[0] > 0
     if not inputs_finite(thrusts, body_torques, positions, quaternions, velocities, body_rates):
@@ -66,13 +82,13 @@ def ekf_bank_step(
     if with_rates:
         for i in range(3):
             measured[k + i], noise[k + i] = 9 + i, noise_motion[3 + i]
-    a = np.zeros((18, 18))
+    a = np.empty((18, 18))
     fp = np.empty((18, 18))
     r = np.empty((3, 3))
     residual = np.empty(size)
     pht = np.empty((18, size))
     s = np.empty((size, size))
-    s_root = np.zeros((size, size))
+    s_root = np.empty((size, size))
     gain = np.empty((18, size))
     jx, jy, jz = inertia[0], inertia[1], inertia[2]
     for n in range(count):
@@ -195,3 +211,26 @@ def ekf_bank_step(
             pn[:, :] = p0
             reinitialisations[n] += 1
     return True
+
+
+@njit
+def ekf_states(x, out):
+    """``ExtendedFilterBank.states`` into ``out`` (N, 13): position, velocity, the quaternion of the
+    ZYX Euler angles, body rates."""
+    for n in range(x.shape[0]):
+        for i in range(3):
+            out[n, i], out[n, 3 + i], out[n, 10 + i] = x[n, i], x[n, 3 + i], x[n, 9 + i]
+        out[n, 6], out[n, 7], out[n, 8], out[n, 9] = quaternion_from_euler(x[n, 6], x[n, 7], x[n, 8])
+
+
+@njit
+def ekf_wrenches(x, out):
+    """``ExtendedFilterBank.wrenches`` into ``out`` (N, 6): the force and the body torque turned into
+    the world frame, ``[f, R η]``."""
+    r = np.empty((3, 3))
+    for n in range(x.shape[0]):
+        qw, qx, qy, qz = quaternion_from_euler(x[n, 6], x[n, 7], x[n, 8])
+        matrix(qw, qx, qy, qz, r)
+        for i in range(3):
+            out[n, i] = x[n, 12 + i]
+            out[n, 3 + i] = r[i, 0] * x[n, 15] + r[i, 1] * x[n, 16] + r[i, 2] * x[n, 17]

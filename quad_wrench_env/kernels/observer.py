@@ -49,16 +49,28 @@ def _solve3(m, b, out):
         out[row] = t / a[row, row]
 
 
+def observer_constants(dt, mass, inertia, gravity, gains) -> np.ndarray:
+    """:func:`observer_bank_step`'s constants in one array, in the order it reads them: ``dt``,
+    ``mass``, ``inertia`` (3), ``gravity`` and the ``gains`` c_force, c_torque, force decay, velocity
+    filter gain, rate filter gain."""
+    return np.array((dt, mass, *inertia, gravity, *gains), dtype=float)
+
+
 @njit
 def observer_bank_step(
     positions_state, eulers, velocities_state, euler_rates, psi_force, psi_torque, forces,
-    torques_generalised,
-    thrusts, body_torques, positions, quaternions, velocities, body_rates,
-    dt, mass, inertia, gravity, gains,
+    torques_generalised, thrusts, body_torques, positions, quaternions, velocities, body_rates, constants,
 ):  # fmt: skip
-    """One step of every observer, in place; ``velocities`` and ``body_rates`` are (N, 3) where
-    measured, else (0, 3); ``gains`` = c_force, c_torque, force decay, velocity filter gain, rate
-    filter gain. Returns False, touching nothing, when an input is not finite."""
+    """One step of every observer, in place, with the constants of :func:`observer_constants`;
+    ``velocities`` and ``body_rates`` are (N, 3) where measured, else (0, 3). Returns False,
+    touching nothing, when an input is not finite."""
+    dt, mass, inertia, gravity, gains = (
+        constants[0],
+        constants[1],
+        constants[2:5],
+        constants[5],
+        constants[6:11],
+    )
     count = positions.shape[0]
     with_velocity, with_rates = velocities.shape[0] > 0, body_rates.shape[0] > 0
     if not inputs_finite(thrusts, body_torques, positions, quaternions, velocities, body_rates):
@@ -149,3 +161,38 @@ def observer_bank_step(
             psi_torque[n, i] = rate[i]
             torques_generalised[n, i] = rate[i] + c_torque * euler_rates[n, i]
     return True
+
+
+@njit
+def observer_states(positions, eulers, velocities, euler_rates, out):
+    """``ObserverBank.states`` into ``out`` (N, 13): position, velocity, the quaternion of the
+    measured ZYX Euler angles, body rates ``T η̇``."""
+    kin = np.empty((3, 3))
+    for n in range(positions.shape[0]):
+        _kinematics(eulers[n, 0], eulers[n, 1], kin)
+        for i in range(3):
+            out[n, i], out[n, 3 + i] = positions[n, i], velocities[n, i]
+            out[n, 10 + i] = (
+                kin[i, 0] * euler_rates[n, 0] + kin[i, 1] * euler_rates[n, 1] + kin[i, 2] * euler_rates[n, 2]
+            )
+        out[n, 6], out[n, 7], out[n, 8], out[n, 9] = quaternion_from_euler(
+            eulers[n, 0], eulers[n, 1], eulers[n, 2]
+        )
+
+
+@njit
+def observer_wrenches(eulers, forces, torques_generalised, out):
+    """``ObserverBank.wrenches`` into ``out`` (N, 6): the force and the body torque ``T⁻ᵀ τ̂_gen``
+    turned into the world frame."""
+    kin, kin_t, r, body = np.empty((3, 3)), np.empty((3, 3)), np.empty((3, 3)), np.empty(3)
+    for n in range(eulers.shape[0]):
+        _kinematics(eulers[n, 0], eulers[n, 1], kin)
+        for i in range(3):
+            for j in range(3):
+                kin_t[i, j] = kin[j, i]
+        _solve3(kin_t, torques_generalised[n], body)
+        qw, qx, qy, qz = quaternion_from_euler(eulers[n, 0], eulers[n, 1], eulers[n, 2])
+        matrix(qw, qx, qy, qz, r)
+        for i in range(3):
+            out[n, i] = forces[n, i]
+            out[n, 3 + i] = r[i, 0] * body[0] + r[i, 1] * body[1] + r[i, 2] * body[2]
