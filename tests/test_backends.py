@@ -173,8 +173,9 @@ def test_physics_constants_unpack_into_their_parts():
 @needs_numba
 @pytest.mark.parametrize("name", ["ekf", "observer"])
 def test_compiled_euler_estimates_equal_the_numpy_ones_at_any_attitude(name):
-    """The Euler-angle banks' states and wrenches (quaternion, world-frame torque, body rates) from
-    the kernels match the numpy reference over the whole angle range (pitch short of ±90°)."""
+    """The Euler-angle banks' states, wrenches and wrench covariances (quaternion, world-frame torque,
+    body rates) from the kernels match the numpy reference over the whole angle range (pitch short
+    of ±90°)."""
     vehicle = make_vehicle("ardrone2")
     banks = [make_estimator_bank(name, vehicle, 0.005, 50, backend=b) for b in ("numpy", "numba")]
     rng = np.random.default_rng(1)
@@ -197,3 +198,10 @@ def test_compiled_euler_estimates_equal_the_numpy_ones_at_any_attitude(name):
     reference, compiled = banks
     np.testing.assert_allclose(compiled.wrenches(), reference.wrenches(), rtol=1e-12, atol=1e-12)
     np.testing.assert_allclose(compiled.states(), reference.states(), rtol=1e-12, atol=1e-12)
+    if name == "ekf":
+        covariance = rng.normal(size=(50, 18, 18))
+        for bank in banks:
+            bank.P[:] = covariance @ covariance.transpose(0, 2, 1)
+        np.testing.assert_allclose(
+            compiled.wrench_covariances(), reference.wrench_covariances(), rtol=1e-12, atol=1e-12
+        )

@@ -34,7 +34,13 @@ import numpy as np
 from quad_wrench_env.estimators.bank import BankOfOne, EulerAttitudes, FilterBank
 from quad_wrench_env.estimators.noise import EKFNoise
 from quad_wrench_env.kernels import resolve_backend
-from quad_wrench_env.kernels.ekf import ekf_bank_step, ekf_constants, ekf_states, ekf_wrenches
+from quad_wrench_env.kernels.ekf import (
+    ekf_bank_step,
+    ekf_constants,
+    ekf_states,
+    ekf_wrench_covariances,
+    ekf_wrenches,
+)
 from quad_wrench_env.rotations import (
     cross,
     euler_zyx_from_quat,
@@ -160,6 +166,10 @@ class ExtendedFilterBank(FilterBank, EulerAttitudes):
 
     def wrench_covariances(self) -> np.ndarray:
         """(N, 6, 6) covariance of ``[f_ext, R η_ext]``."""
+        if self.backend == "numba":
+            out = np.empty((self.count, 6, 6))
+            ekf_wrench_covariances(self.x, self.P, out)
+            return out
         rotate = np.tile(np.eye(6), (self.count, 1, 1))
         rotate[:, 3:, 3:] = self.rotations()
         block = self.P[:, 12:18, 12:18]

@@ -234,3 +234,30 @@ def ekf_wrenches(x, out):
         for i in range(3):
             out[n, i] = x[n, 12 + i]
             out[n, 3 + i] = r[i, 0] * x[n, 15] + r[i, 1] * x[n, 16] + r[i, 2] * x[n, 17]
+
+
+@njit
+def ekf_wrench_covariances(x, p, out):
+    """``ExtendedFilterBank.wrench_covariances`` into ``out`` (N, 6, 6): the covariance of the force
+    and the body torque, the torque rows and columns turned into the world frame (``Rot P Rotᵀ`` with
+    ``Rot = diag(I, R)``)."""
+    r = np.empty((3, 3))
+    for n in range(x.shape[0]):
+        qw, qx, qy, qz = quaternion_from_euler(x[n, 6], x[n, 7], x[n, 8])
+        matrix(qw, qx, qy, qz, r)
+        for i in range(6):
+            for j in range(6):
+                out[n, i, j] = p[n, 12 + i, 12 + j]
+        for i in range(3):  # the force-torque blocks: F-τ times Rᵀ, τ-F times R
+            for j in range(3):
+                fr = 0.0
+                for k in range(3):
+                    fr += p[n, 12 + i, 15 + k] * r[j, k]
+                out[n, i, 3 + j], out[n, 3 + j, i] = fr, fr
+        for i in range(3):  # the torque block: R P_ττ Rᵀ
+            for j in range(3):
+                total = 0.0
+                for k in range(3):
+                    for m in range(3):
+                        total += r[i, k] * p[n, 15 + k, 15 + m] * r[j, m]
+                out[n, 3 + i, 3 + j] = total
