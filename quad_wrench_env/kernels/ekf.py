@@ -56,14 +56,9 @@ def ekf_bank_step(
     """One predict-correct step of every filter, in place, with the constants of
     :func:`ekf_constants`; ``velocities`` and ``body_rates`` are (N, 3) where measured, else (0, 3).
     Returns False, touching nothing, when an input is not finite."""
-    dt, mass, inertia, gravity, q_diagonal = (
-        constants[0],
-        constants[1],
-        constants[2:5],
-        constants[5],
-        constants[6:24],
-    )
-    noise_pose, noise_motion, p0 = constants[24:30], constants[30:36], rows_view(constants, 36, 18, 18)
+    dt, mass, inertia, gravity = constants[0], constants[1], constants[2:5], constants[5]
+    q_diagonal, noise_pose, noise_motion = constants[6:24], constants[24:30], constants[30:36]
+    p0 = rows_view(constants, 36, 18, 18)
     count = x.shape[0]
     with_velocity, with_rates = velocities.shape[0] > 0, body_rates.shape[0] > 0
     if not inputs_finite(thrusts, body_torques, positions, quaternions, velocities, body_rates):

@@ -64,18 +64,14 @@ def observer_bank_step(
     """One step of every observer, in place, with the constants of :func:`observer_constants`;
     ``velocities`` and ``body_rates`` are (N, 3) where measured, else (0, 3). Returns False,
     touching nothing, when an input is not finite."""
-    dt, mass, inertia, gravity, gains = (
-        constants[0],
-        constants[1],
-        constants[2:5],
-        constants[5],
-        constants[6:11],
-    )
+    dt, mass, inertia, gravity = constants[0], constants[1], constants[2:5], constants[5]
+    c_force, c_torque, decay, velocity_alpha, rate_alpha = (
+        constants[6], constants[7], constants[8], constants[9], constants[10],
+    )  # fmt: skip
     count = positions.shape[0]
     with_velocity, with_rates = velocities.shape[0] > 0, body_rates.shape[0] > 0
     if not inputs_finite(thrusts, body_torques, positions, quaternions, velocities, body_rates):
         return False
-    c_force, c_torque, decay, velocity_alpha, rate_alpha = gains[0], gains[1], gains[2], gains[3], gains[4]
     kin = np.empty((3, 3))
     kin_dot = np.empty((3, 3))
     j_gen = np.empty((3, 3))
