@@ -21,8 +21,9 @@ or what the envs apply (one resultant force at the centre of mass and one torque
 
 def bare_pybullet_step_seconds(steps: int, bodies: int = 1, floor: str = FLOORS[0]) -> float:
     """Seconds per PyBullet step of a world of ``bodies`` box bodies (10 m apart, no ground), each
-    with its state read (pose and velocity) and the loads of ``floor`` applied: the limit under any
-    simulator built on PyBullet. Divide by ``bodies`` for the cost per body."""
+    with its state read (pose and velocity) and the loads of ``floor`` applied, each call as fast as
+    PyBullet takes it (client id positional): the limit under any simulator built on PyBullet. Divide
+    by ``bodies`` for the cost per body."""
     if floor not in FLOORS:
         raise ValueError(f"floor={floor!r}; allowed: {list(FLOORS)}")
     hubs = [(0.13, 0.13, 0.0), (-0.13, 0.13, 0.0), (-0.13, -0.13, 0.0), (0.13, -0.13, 0.0)]
@@ -38,16 +39,16 @@ def bare_pybullet_step_seconds(steps: int, bodies: int = 1, floor: str = FLOORS[
         four = floor == FLOORS[0]
         start = time.perf_counter()
         for _ in range(steps):
-            for body in ids:
-                position, _ = p.getBasePositionAndOrientation(body, physicsClientId=cid)
-                p.getBaseVelocity(body, physicsClientId=cid)
+            for body in ids:  # the client id positionally, as the envs pass it (world.py)
+                position, _ = p.getBasePositionAndOrientation(body, cid)
+                p.getBaseVelocity(body, cid)
                 if four:
                     for hub in hubs:
-                        p.applyExternalForce(body, -1, (0, 0, 1.03), hub, p.LINK_FRAME, physicsClientId=cid)
+                        p.applyExternalForce(body, -1, (0, 0, 1.03), hub, p.LINK_FRAME, cid)
                 else:
-                    p.applyExternalForce(body, -1, (0, 0, 4.12), position, p.WORLD_FRAME, physicsClientId=cid)
-                    p.applyExternalTorque(body, -1, (0, 0, 0), p.WORLD_FRAME, physicsClientId=cid)
-            p.stepSimulation(physicsClientId=cid)
+                    p.applyExternalForce(body, -1, (0, 0, 4.12), position, p.WORLD_FRAME, cid)
+                    p.applyExternalTorque(body, -1, (0, 0, 0), p.WORLD_FRAME, cid)
+            p.stepSimulation(cid)
         return (time.perf_counter() - start) / steps
     finally:
         p.disconnect(physicsClientId=cid)
