@@ -35,6 +35,14 @@ def quaternion_from_euler(roll, pitch, yaw):
     )
 
 
+@njit(inline=True)
+def euler_matrix(roll, pitch, yaw, out):
+    """Body -> world rotation matrix of ZYX Euler angles into ``out`` (3, 3)
+    (``rotations.rotation_matrices(quat_from_euler_zyx(...))``)."""
+    qw, qx, qy, qz = quaternion_from_euler(roll, pitch, yaw)
+    matrix(qw, qx, qy, qz, out)
+
+
 @njit
 def wrap(angle):
     """``rotations.wrap_angle``."""
@@ -91,8 +99,7 @@ def ekf_bank_step(
         # -- predict: F = I + T A at the prior state, then the forward-Euler step (transition) --
         roll, pitch, yaw = xn[6], xn[7], xn[8]
         p_, q_, r_ = xn[9], xn[10], xn[11]
-        qw, qx, qy, qz = quaternion_from_euler(roll, pitch, yaw)
-        matrix(qw, qx, qy, qz, r)
+        euler_matrix(roll, pitch, yaw, r)
         sr, cr = math.sin(roll), math.cos(roll)
         sp, cp, tp = math.sin(pitch), math.cos(pitch), math.tan(pitch)
         sy, cy = math.sin(yaw), math.cos(yaw)
@@ -224,8 +231,7 @@ def ekf_wrenches(x, out):
     the world frame, ``[f, R η]``."""
     r = np.empty((3, 3))
     for n in range(x.shape[0]):
-        qw, qx, qy, qz = quaternion_from_euler(x[n, 6], x[n, 7], x[n, 8])
-        matrix(qw, qx, qy, qz, r)
+        euler_matrix(x[n, 6], x[n, 7], x[n, 8], r)
         for i in range(3):
             out[n, i] = x[n, 12 + i]
             out[n, 3 + i] = r[i, 0] * x[n, 15] + r[i, 1] * x[n, 16] + r[i, 2] * x[n, 17]
@@ -238,12 +244,11 @@ def ekf_wrench_covariances(x, p, out):
     ``Rot = diag(I, R)``)."""
     r = np.empty((3, 3))
     for n in range(x.shape[0]):
-        qw, qx, qy, qz = quaternion_from_euler(x[n, 6], x[n, 7], x[n, 8])
-        matrix(qw, qx, qy, qz, r)
+        euler_matrix(x[n, 6], x[n, 7], x[n, 8], r)
         for i in range(6):
             for j in range(6):
                 out[n, i, j] = p[n, 12 + i, 12 + j]
-        for i in range(3):  # the force-torque blocks: F-τ times Rᵀ, τ-F times R
+        for i in range(3):  # the force-torque block P_fτ Rᵀ, and its transpose (P is symmetric)
             for j in range(3):
                 fr = 0.0
                 for k in range(3):

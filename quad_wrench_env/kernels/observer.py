@@ -8,9 +8,8 @@ import math
 import numpy as np
 
 from quad_wrench_env.kernels import njit
-from quad_wrench_env.kernels.ekf import euler_from_quaternion, quaternion_from_euler, wrap
+from quad_wrench_env.kernels.ekf import euler_from_quaternion, euler_matrix, quaternion_from_euler, wrap
 from quad_wrench_env.kernels.linalg import inputs_finite
-from quad_wrench_env.kernels.quaternions import matrix
 
 
 @njit
@@ -104,8 +103,7 @@ def observer_bank_step(
             positions_state[n, i] = positions[n, i]
         eulers[n, 0], eulers[n, 1], eulers[n, 2] = roll, pitch, yaw
         # -- force block (eq. 13, L = c/m, exact) --
-        qw, qx, qy, qz = quaternion_from_euler(roll, pitch, yaw)
-        matrix(qw, qx, qy, qz, r)
+        euler_matrix(roll, pitch, yaw, r)
         for i in range(3):
             drive = -thrusts[n] * r[i, 2] - c_force * velocities_state[n, i]
             if i == 2:
@@ -187,8 +185,7 @@ def observer_wrenches(eulers, forces, torques_generalised, out):
             for j in range(3):
                 kin_t[i, j] = kin[j, i]
         _solve3(kin_t, torques_generalised[n], body)
-        qw, qx, qy, qz = quaternion_from_euler(eulers[n, 0], eulers[n, 1], eulers[n, 2])
-        matrix(qw, qx, qy, qz, r)
+        euler_matrix(eulers[n, 0], eulers[n, 1], eulers[n, 2], r)
         for i in range(3):
             out[n, i] = forces[n, i]
             out[n, 3 + i] = r[i, 0] * body[0] + r[i, 1] * body[1] + r[i, 2] * body[2]

@@ -69,15 +69,11 @@ def physics_constants(
     speed levels, speed step, position, attitude, velocity and body-rate noise, whether velocity and
     body rates are measured), the nominal allocation (4, 4), the physics step, the drag points (P, 3)
     and the scheduled wrench segments (K, 8), each of these two after its count."""
-    sizes = {
-        "scales": (scales, 10),
-        "autopilot": (autopilot, 23),
-        "inverse": (inverse, 16),
-        "motors": (motors, 6),
-    }
-    sizes |= {"fan": (fan, 7), "payload": (payload, 7), "sensing": (sensing, 7)}
-    sizes |= {"nominal_allocation": (nominal_allocation, 16)}
-    for name, (part, size) in sizes.items():
+    for name, part, size in (
+        ("scales", scales, 10), ("autopilot", autopilot, 23), ("inverse", inverse, 16), ("motors", motors, 6),
+        ("fan", fan, 7), ("payload", payload, 7), ("sensing", sensing, 7),
+        ("nominal_allocation", nominal_allocation, 16),
+    ):  # fmt: skip
         if np.size(part) != size:
             raise ValueError(f"{name} has {np.size(part)} numbers; the kernels read {size}")
     parts = (
