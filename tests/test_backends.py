@@ -85,6 +85,10 @@ def test_compiled_estimator_banks_equal_the_numpy_banks(name, count, motion):
     reference, compiled = banks
     np.testing.assert_allclose(compiled.wrenches(), reference.wrenches(), atol=1e-9)
     np.testing.assert_allclose(compiled.states(), reference.states(), atol=1e-9)
+    for bank in banks:  # what the envs read: both at once, from one kernel call on numba
+        states, wrenches = bank.estimates()
+        np.testing.assert_array_equal(states, bank.states())
+        np.testing.assert_array_equal(wrenches, bank.wrenches())
     assert compiled.statuses() == reference.statuses() == ["ok"] * count
     with pytest.raises(ValueError, match="non-finite"):
         compiled.step(thrusts * np.nan, torques, measured_p, measured_q)
@@ -198,6 +202,8 @@ def test_compiled_euler_estimates_equal_the_numpy_ones_at_any_attitude(name):
     reference, compiled = banks
     np.testing.assert_allclose(compiled.wrenches(), reference.wrenches(), rtol=1e-12, atol=1e-12)
     np.testing.assert_allclose(compiled.states(), reference.states(), rtol=1e-12, atol=1e-12)
+    for got, wanted in zip(compiled.estimates(), (reference.states(), reference.wrenches()), strict=True):
+        np.testing.assert_allclose(got, wanted, rtol=1e-12, atol=1e-12)
     if name == "ekf":
         covariance = rng.normal(size=(50, 18, 18))
         for bank in banks:

@@ -233,7 +233,7 @@ class Fleet:
         """The estimators' (N, 13) states and (N, 6) wrenches (see
         :class:`~quad_wrench_env.estimators.bank.EstimatorBank`), read once per :attr:`revision`."""
         if self._estimates[0] != self.revision:
-            self._estimates = (self.revision, self.estimator.states(), self.estimator.wrenches())
+            self._estimates = (self.revision, *self.estimator.estimates())
         return self._estimates[1], self._estimates[2]
 
     def observations(self, last_actions: np.ndarray) -> np.ndarray:

@@ -43,6 +43,10 @@ class EstimatorBank(Protocol):
     def wrenches(self) -> np.ndarray:
         """(N, 6) estimated ``[f, τ]``, world frame."""
 
+    def estimates(self) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`states` and :meth:`wrenches` together (one compiled call where the bank has one: what
+        the envs read after every policy step)."""
+
     def wrench_covariances(self) -> np.ndarray:
         """(N, 6, 6) covariance of ``[f, τ]`` (zeros where an estimator carries none)."""
 
@@ -97,6 +101,11 @@ class FilterBank:
             self._refuse(thrusts, body_torques, positions, quaternions, velocities, body_rates)
             self._numpy_step(thrusts, body_torques, positions, quaternions, velocities, body_rates)
         self.version += 1
+
+    def estimates(self) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`states` and :meth:`wrenches` (see :class:`EstimatorBank`); the banks with a compiled
+        form of both override this."""
+        return self.states(), self.wrenches()
 
     def _refuse(self, thrusts, body_torques, positions, quaternions, velocities, body_rates) -> None:
         check_finite_batch(
@@ -160,6 +169,9 @@ class OracleBank:
 
     def wrenches(self) -> np.ndarray:
         return self._wrenches
+
+    def estimates(self) -> tuple[np.ndarray, np.ndarray]:
+        return self._states, self._wrenches
 
     def wrench_covariances(self) -> np.ndarray:
         return np.zeros((self.count, 6, 6))

@@ -37,6 +37,7 @@ from quad_wrench_env.kernels import resolve_backend
 from quad_wrench_env.kernels.ekf import (
     ekf_bank_step,
     ekf_constants,
+    ekf_estimates,
     ekf_states,
     ekf_wrench_covariances,
     ekf_wrenches,
@@ -163,6 +164,14 @@ class ExtendedFilterBank(FilterBank, EulerAttitudes):
             return out
         torque = np.einsum("nij,nj->ni", self.rotations(), self.x[:, N])
         return np.concatenate((self.x[:, F], torque), axis=1)
+
+    def estimates(self) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`states` and :meth:`wrenches`, on the numba backend from one compiled call."""
+        if self.backend != "numba":
+            return self.states(), self.wrenches()
+        states, wrenches = np.empty((self.count, 13)), np.empty((self.count, 6))
+        ekf_estimates(self.x, states, wrenches)
+        return states, wrenches
 
     def wrench_covariances(self) -> np.ndarray:
         """(N, 6, 6) covariance of ``[f_ext, R η_ext]``."""

@@ -39,6 +39,7 @@ from quad_wrench_env.kernels import resolve_backend
 from quad_wrench_env.kernels.observer import (
     observer_bank_step,
     observer_constants,
+    observer_estimates,
     observer_states,
     observer_wrenches,
 )
@@ -233,6 +234,17 @@ class ObserverBank(FilterBank, EulerAttitudes):
             return out
         body_rates = _apply(euler_kinematics(self.eulers[:, 0], self.eulers[:, 1]), self.euler_rates)
         return np.concatenate((self.positions, self.velocities, self.quaternions(), body_rates), axis=1)
+
+    def estimates(self) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`states` and :meth:`wrenches`, on the numba backend from one compiled call."""
+        if self.backend != "numba":
+            return self.states(), self.wrenches()
+        states, wrenches = np.empty((self.count, 13)), np.empty((self.count, 6))
+        observer_estimates(
+            self.positions, self.eulers, self.velocities, self.euler_rates, self.forces,
+            self.torques_generalised, states, wrenches,
+        )  # fmt: skip
+        return states, wrenches
 
     def wrench_covariances(self) -> np.ndarray:
         """The observer carries no covariance: zeros."""

@@ -54,7 +54,7 @@ import numpy as np
 from quad_wrench_env.estimators.bank import BankOfOne, FilterBank
 from quad_wrench_env.estimators.noise import FilterNoise, mrp_std
 from quad_wrench_env.kernels import resolve_backend
-from quad_wrench_env.kernels.ukf import ukf_bank_step, ukf_constants
+from quad_wrench_env.kernels.ukf import ukf_bank_step, ukf_constants, ukf_estimates
 from quad_wrench_env.rotations import (
     cross,
     mrp_from_quat,
@@ -164,6 +164,14 @@ class UnscentedFilterBank(FilterBank):
         """(N, 13) estimated position, velocity, quaternion and body rates."""
         r = self.rests
         return np.concatenate((r[:, 3:9], self.quaternions, r[:, 0:3]), axis=1)
+
+    def estimates(self) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`states` and :meth:`wrenches`, on the numba backend from one compiled call."""
+        if self.backend != "numba":
+            return self.states(), self.wrenches()
+        states, wrenches = np.empty((self.count, 13)), np.empty((self.count, 6))
+        ukf_estimates(self.quaternions, self.rests, states, wrenches)
+        return states, wrenches
 
     def wrench_covariances(self) -> np.ndarray:
         """(N, 6, 6) covariance of ``[f_e, τ_e]``."""

@@ -238,6 +238,13 @@ def ekf_wrenches(x, out):
 
 
 @njit
+def ekf_estimates(x, states, wrenches):
+    """:func:`ekf_states` and :func:`ekf_wrenches` in one call (``ExtendedFilterBank.estimates``)."""
+    ekf_states(x, states)
+    ekf_wrenches(x, wrenches)
+
+
+@njit
 def ekf_wrench_covariances(x, p, out):
     """``ExtendedFilterBank.wrench_covariances`` into ``out`` (N, 6, 6): the covariance of the force
     and the body torque, the torque rows and columns turned into the world frame (``Rot P Rotᵀ`` with

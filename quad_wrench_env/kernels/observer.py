@@ -189,3 +189,12 @@ def observer_wrenches(eulers, forces, torques_generalised, out):
         for i in range(3):
             out[n, i] = forces[n, i]
             out[n, 3 + i] = r[i, 0] * body[0] + r[i, 1] * body[1] + r[i, 2] * body[2]
+
+
+@njit
+def observer_estimates(
+    positions, eulers, velocities, euler_rates, forces, torques_generalised, states, wrenches
+):
+    """:func:`observer_states` and :func:`observer_wrenches` in one call (``ObserverBank.estimates``)."""
+    observer_states(positions, eulers, velocities, euler_rates, states)
+    observer_wrenches(eulers, forces, torques_generalised, wrenches)

@@ -249,3 +249,15 @@ def ukf_bank_step(
             p[:, :] = p0
             reinitialisations[n] += 1
     return True
+
+
+@njit
+def ukf_estimates(quaternions, rests, states, wrenches):
+    """``UnscentedFilterBank.estimates`` into (N, 13) ``states`` (position, velocity, quaternion, body
+    rates) and (N, 6) ``wrenches`` (``[f_e, τ_e]``), from the filters' means."""
+    for n in range(quaternions.shape[0]):
+        for i in range(3):
+            states[n, i], states[n, 3 + i], states[n, 10 + i] = rests[n, 3 + i], rests[n, 6 + i], rests[n, i]
+            wrenches[n, i], wrenches[n, 3 + i] = rests[n, 12 + i], rests[n, 9 + i]
+        for i in range(4):
+            states[n, 6 + i] = quaternions[n, i]
