@@ -8,14 +8,23 @@ world frame: callers sum forces applied at body points (``r × F``) before handi
 exactly what PyBullet does with a force at a point, in one call instead of one per point.
 
 The vehicles share the world but never touch each other (collision groups: a vehicle collides
-with the ground only), so each body integrates exactly as it would alone; the body is built once and
+with the ground only), so each body integrates as it would alone; the body is built once and
 later episodes put it back in place (``resetBasePositionAndOrientation`` and ``resetBaseVelocity``
 fix every degree of freedom of a free body, so nothing of an earlier episode survives).
+
+Each vehicle flies in its own frame, whose origin in PyBullet's world is :attr:`World.origins` (a
+square grid on the ground, ``spacing`` apart; vehicle 0 at the world's origin): positions go in and
+come out of the world relative to it. Collision groups keep vehicles that overlap from touching,
+but not from costing: Bullet's broadphase still finds every pair of overlapping bounding boxes of
+moving bodies, and 64 vehicles flying one task in one place cost about 0.8 µs more per body and
+step than 64 kept apart. The ground is an infinite plane, so the shift changes nothing physical; it
+changes the rounding of positions by about the spacing's last bit (1e-14 m for 100 m).
 """
 
 from __future__ import annotations
 
 import contextlib
+import math
 import os
 import sys
 from dataclasses import dataclass
@@ -85,9 +94,13 @@ class RigidBodyState:
 class World:
     """A PyBullet client holding a ground plane and ``count`` vehicle bodies."""
 
-    def __init__(self, vehicle: VehicleParams, dt: float, count: int = 1, gui: bool = False) -> None:
+    def __init__(
+        self, vehicle: VehicleParams, dt: float, count: int = 1, gui: bool = False, spacing: float = 0.0
+    ) -> None:
         if not (isinstance(count, int) and count >= 1):
             raise ValueError(f"count={count!r} must be an integer >= 1 (vehicles in the world)")
+        if not (math.isfinite(spacing) and spacing >= 0.0):
+            raise ValueError(f"spacing={spacing!r} must be a finite distance >= 0 m between vehicle frames")
         self.vehicle = vehicle
         self.dt = dt
         self.count = count
@@ -111,6 +124,11 @@ class World:
         )
         """Height (m) of a body's centre above which it cannot touch the ground: its box's bounding
         radius, the contact threshold and one step's fall. The envs ask for contacts only below it."""
+        columns = math.ceil(math.sqrt(count))
+        grid = np.arange(count)
+        self.origins = np.column_stack((grid % columns, grid // columns, np.zeros(count))) * spacing
+        """(N, 3) origin of each vehicle's frame in PyBullet's world (module docstring)."""
+        self._shifted = bool(self.origins.any())
 
     @property
     def built(self) -> bool:
@@ -135,7 +153,7 @@ class World:
         self.bodies = []
         for i in range(self.count):
             body = p.createMultiBody(
-                v.mass, hull, visual, basePosition=(0.0, float(i), 1.0), physicsClientId=cid
+                v.mass, hull, visual, basePosition=(*self.origins[i, :2], 1.0), physicsClientId=cid
             )
             p.changeDynamics(
                 body,
@@ -155,9 +173,10 @@ class World:
         if not self.built:
             self.build()
         cid = self.client
+        index = np.asarray(index)
         xyzw = to_pybullet(quaternions).tolist()
         for i, position, orientation in zip(
-            np.asarray(index).tolist(), positions.tolist(), xyzw, strict=True
+            index.tolist(), (positions + self.origins[index]).tolist(), xyzw, strict=True
         ):
             body = self.bodies[i]
             p.resetBasePositionAndOrientation(body, position, orientation, physicsClientId=cid)
@@ -165,7 +184,7 @@ class World:
 
     def read(self) -> np.ndarray:
         """(N, 13) rows ``[position, quaternion (x, y, z, w), velocity, angular velocity]`` of the
-        vehicles, as PyBullet reports them."""
+        vehicles as PyBullet reports them, positions in each vehicle's frame."""
         cid = self.client
         pose, twist = p.getBasePositionAndOrientation, p.getBaseVelocity
         flat: list[float] = []
@@ -173,18 +192,23 @@ class World:
             position, orientation = pose(body, cid)
             linear, angular = twist(body, cid)
             flat += position + orientation + linear + angular
-        return np.array(flat).reshape(self.count, 13)
+        rows = np.array(flat).reshape(self.count, 13)
+        if self._shifted:
+            rows[:, :3] -= self.origins
+        return rows
 
     def state(self) -> RigidBodyState:
         """The true states of all vehicles."""
         return RigidBodyState.from_pybullet(self.read())
 
     def step(self, forces: np.ndarray, torques: np.ndarray, centres_of_mass: np.ndarray) -> None:
-        """Apply (N, 3) world-frame forces at the centres of mass (their current world positions) and
-        (N, 3) world-frame torques, then advance the simulation one step."""
+        """Apply (N, 3) world-frame forces at the centres of mass (their current positions, in each
+        vehicle's frame) and (N, 3) world-frame torques, then advance the simulation one step."""
         cid = self.client
         world_frame = p.WORLD_FRAME
         apply_force, apply_torque = p.applyExternalForce, p.applyExternalTorque
+        if self._shifted:
+            centres_of_mass = centres_of_mass + self.origins
         for body, force, torque, com in zip(
             self.bodies, forces.tolist(), torques.tolist(), centres_of_mass.tolist(), strict=True
         ):

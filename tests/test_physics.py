@@ -36,6 +36,32 @@ def _fly(world: World, force: np.ndarray, torque: np.ndarray, steps: int = STEPS
     return world.state().select(0)
 
 
+def test_bodies_in_one_spot_never_touch():
+    """Two bodies put in the same place (spacing 0) under the same loads move exactly as one alone:
+    collision groups keep vehicles from touching each other, wherever their frames are."""
+    vehicle = make_vehicle("ardrone2")
+    pair, alone = World(vehicle, DT, count=2, spacing=0.0), World(vehicle, DT)
+    try:
+        start, level = np.array(((0.0, 0.0, 2.0),)), np.array(((1.0, 0.0, 0.0, 0.0),))
+        pair.place(np.array((0, 1)), np.repeat(start, 2, axis=0), np.repeat(level, 2, axis=0))
+        alone.place(np.array((0,)), start, level)
+        force, torque = np.array((0.4, -0.3, vehicle.mass * GRAVITY)), np.array((1e-3, -2e-3, 5e-4))
+        for _ in range(100):
+            pair.step(np.tile(force, (2, 1)), np.tile(torque, (2, 1)), pair.state().position)
+            alone.step(force[None], torque[None], alone.state().position)
+        both, one = pair.read(), alone.read()
+        np.testing.assert_array_equal(both[0], both[1])
+        np.testing.assert_array_equal(both[0], one[0])
+    finally:
+        pair.close()
+        alone.close()
+
+
+def test_spacing_is_refused_by_name_when_not_a_distance():
+    with pytest.raises(ValueError, match="spacing=-1.0"):
+        World(make_vehicle("ardrone2"), DT, count=2, spacing=-1.0)
+
+
 def test_free_fall(world):
     state = _fly(world, np.zeros(3), np.zeros(3))
     t = STEPS * DT

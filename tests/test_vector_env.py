@@ -96,8 +96,9 @@ def test_every_registered_id_has_a_vector_entry_point():
             venv.close()
 
 
-def test_vehicles_in_one_world_do_not_touch():
-    """Two vehicles started at the same spot fly through each other as if each were alone."""
+def test_vehicles_fly_apart_in_their_own_frames():
+    """Two vehicles started at the same spot of their frames fly as a single env does, each in its
+    frame; PyBullet holds them an arena apart (World.origins), so their boxes never overlap."""
     venv = _make_vec(2, estimator="oracle")
     env = gym.make(FAN_TRACKING, estimator="oracle")
     try:
@@ -107,8 +108,17 @@ def test_vehicles_in_one_world_do_not_touch():
             action = np.array((0.3, -0.2, 0.1, 0.0), dtype=np.float32)
             _, _, _, _, info = venv.step(np.stack((action, action)))
             _, _, _, _, single = env.step(action)
-        np.testing.assert_array_equal(info["position"][0], info["position"][1])
-        np.testing.assert_allclose(info["position"][0], single["position"], atol=1e-12)
+        np.testing.assert_array_equal(info["position"][0], single["position"])
+        # vehicle 1's frame is shifted by about 10 m: rounding at that magnitude (a few 1e-15 m a step)
+        np.testing.assert_allclose(info["position"][1], single["position"], atol=1e-12)
+        world = venv.unwrapped.fleet.world
+        arena = venv.unwrapped.fleet.cfg.arena
+        apart = np.linalg.norm(world.origins[1] - world.origins[0])
+        assert apart > max(arena.x_max - arena.x_min, 2 * arena.y_half_width)
+        positions = [
+            p.getBasePositionAndOrientation(b, physicsClientId=world.client)[0] for b in world.bodies
+        ]
+        np.testing.assert_allclose(np.subtract(positions, world.origins), info["position"], atol=1e-12)
     finally:
         venv.close()
         env.close()

@@ -98,7 +98,11 @@ class Fleet:
         self.drag = QuadraticDrag(vehicle.drag_area, len(self.drag_points))
         self.wind_fields = wind_fields
         self.noise = NoiseBlocks(count, _MOTION.stop if sensors.state_estimator else _MOCAP.stop)
-        self.world = World(vehicle, dt, count, gui=gui)
+        arena = cfg.arena
+        # Frames apart by the arena's larger side and two box diagonals (< 4 hull radii) and a metre
+        # more: boxes of vehicles inside their arenas never overlap (see World's docstring).
+        spacing = max(arena.x_max - arena.x_min, 2.0 * arena.y_half_width) + 4.0 * vehicle.hull_radius + 1.0
+        self.world = World(vehicle, dt, count, gui=gui, spacing=spacing)
         self._flip_cos = math.cos(math.radians(cfg.flip_tilt_deg))
         self.time = np.zeros(count)
         self.state: RigidBodyState | None = None
