@@ -12,11 +12,13 @@ compared at any step.
 
 from __future__ import annotations
 
+from functools import partial
 from typing import TYPE_CHECKING
 
 import numpy as np
 
 from quad_wrench_env.disturbances.fan import FanJet
+from quad_wrench_env.estimators.bank import FilterBank
 from quad_wrench_env.kernels.physics import (
     STEP_WIDTH,
     after_world_step,
@@ -91,6 +93,16 @@ class CompiledStep:
         self._after = (
             self.buffer, fleet.noise.buffer, fleet.noise.cursor, self._fan_noise, speeds, self.constants,
         )  # fmt: skip
+        measured = (
+            self.thrusts, self.body_torques, self.measured_position, self.measured_quaternion,
+            self.velocity_measured, self.body_rates_measured,
+        )  # fmt: skip
+        estimator = fleet.estimator
+        self._estimate = (
+            estimator.bind_step(*measured)
+            if isinstance(estimator, FilterBank)
+            else partial(estimator.step, *measured)
+        )
 
     def physics_steps(self, actions: np.ndarray, count: int) -> None:
         """``count`` physics steps with (N, 4) clipped normalised actions."""
@@ -98,17 +110,13 @@ class CompiledStep:
         if fleet.state is not self.state:
             self._adopt()
         world, noise, estimator, truth_fed = fleet.world, fleet.noise, fleet.estimator, fleet.truth_fed
-        before, after = (actions, *self._before), self._after
+        before, after, estimate = (actions, *self._before), self._after, self._estimate
         forces, torques, position = self.forces, self.torques, self.state.position
-        measured = (
-            self.thrusts, self.body_torques, self.measured_position, self.measured_quaternion,
-            self.velocity_measured, self.body_rates_measured,
-        )  # fmt: skip
         for _ in range(count):
             before_world_step(*before)
             world.step(forces, torques, position)
             noise.ready()
-            after_world_step(world.read(), *after)
+            after_world_step(world.read_flat(), *after)
             if truth_fed:
                 estimator.observe_truth(self.truth, self.loads)
-            estimator.step(*measured)
+            estimate()

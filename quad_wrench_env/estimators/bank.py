@@ -9,6 +9,8 @@ of one, so there is one implementation of each algorithm.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from functools import partial
 from typing import Protocol, runtime_checkable
 
 import numpy as np
@@ -69,12 +71,17 @@ _UNMEASURED = np.empty((0, 3))
 """What the kernels get for a velocity or body-rate measurement the sensors do not make."""
 
 
+def _kernel_inputs(inputs: tuple[np.ndarray | None, ...]) -> tuple[np.ndarray, ...]:
+    """A step's inputs as the kernels take them: :data:`_UNMEASURED` for a missing measurement."""
+    return tuple(_UNMEASURED if value is None else value for value in inputs)
+
+
 class FilterBank:
     """What the UKF, EKF and observer banks share: one ``step`` that runs the compiled kernel or the
     numpy reference (``backend``), refuses non-finite inputs by name before anything enters a
     filter, and counts ``version``, the changes of the bank's state (a key for cached values).
-    Subclasses implement ``_compiled_step`` (returns False, changing nothing, on a non-finite
-    input) and ``_numpy_step``."""
+    Subclasses implement ``_kernel`` (the compiled step and its arguments; it returns False,
+    changing nothing, on a non-finite input) and ``_numpy_step``."""
 
     name: str
     backend: str
@@ -90,22 +97,40 @@ class FilterBank:
         body_rates: np.ndarray | None = None,
     ) -> None:
         """One step of every filter (see :class:`EstimatorBank`)."""
+        inputs = (thrusts, body_torques, positions, quaternions, velocities, body_rates)
         if self.backend == "numba":
-            if not self._compiled_step(
-                thrusts, body_torques, positions, quaternions,
-                _UNMEASURED if velocities is None else velocities,
-                _UNMEASURED if body_rates is None else body_rates,
-            ):  # fmt: skip
-                self._refuse(thrusts, body_torques, positions, quaternions, velocities, body_rates)
+            kernel, arguments = self._kernel(*_kernel_inputs(inputs))
+            if not kernel(*arguments):
+                self._refuse(*inputs)
         else:
-            self._refuse(thrusts, body_torques, positions, quaternions, velocities, body_rates)
-            self._numpy_step(thrusts, body_torques, positions, quaternions, velocities, body_rates)
+            self._refuse(*inputs)
+            self._numpy_step(*inputs)
         self.version += 1
 
-    def estimates(self) -> tuple[np.ndarray, np.ndarray]:
-        """:meth:`states` and :meth:`wrenches` (see :class:`EstimatorBank`); the banks with a compiled
-        form of both override this."""
-        return self.states(), self.wrenches()
+    def bind_step(
+        self,
+        thrusts: np.ndarray,
+        body_torques: np.ndarray,
+        positions: np.ndarray,
+        quaternions: np.ndarray,
+        velocities: np.ndarray | None = None,
+        body_rates: np.ndarray | None = None,
+    ) -> Callable[[], None]:
+        """:meth:`step` on these input arrays, as a call without arguments that reads them afresh
+        each time (the caller refills them in place). On numba the kernel and its arguments, the
+        bank's state arrays among them, are bound once (the compiled step updates them in place):
+        about 0.3 µs less per step than :meth:`step`."""
+        inputs = (thrusts, body_torques, positions, quaternions, velocities, body_rates)
+        if self.backend != "numba":
+            return partial(self.step, *inputs)
+        kernel, arguments = self._kernel(*_kernel_inputs(inputs))
+
+        def bound_step() -> None:
+            if not kernel(*arguments):
+                self._refuse(*inputs)
+            self.version += 1
+
+        return bound_step
 
     def _refuse(self, thrusts, body_torques, positions, quaternions, velocities, body_rates) -> None:
         check_finite_batch(
@@ -113,7 +138,16 @@ class FilterBank:
             quaternions=quaternions, velocities=velocities, body_rates=body_rates,
         )  # fmt: skip
 
-    def _compiled_step(self, thrusts, body_torques, positions, quaternions, velocities, body_rates) -> bool:
+    def estimates(self) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`states` and :meth:`wrenches` (see :class:`EstimatorBank`); the banks with a compiled
+        form of both override this."""
+        return self.states(), self.wrenches()
+
+    def _kernel(
+        self, thrusts, body_torques, positions, quaternions, velocities, body_rates
+    ) -> tuple[Callable[..., bool], tuple]:
+        """The compiled step and its arguments for these inputs (an empty array for a velocity or
+        body-rate measurement the sensors do not make)."""
         raise NotImplementedError
 
     def _numpy_step(self, thrusts, body_torques, positions, quaternions, velocities, body_rates) -> None:

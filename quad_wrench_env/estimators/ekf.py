@@ -128,8 +128,8 @@ class ExtendedFilterBank(FilterBank, EulerAttitudes):
         self.P[index] = self.P0
         self.version += 1
 
-    def _compiled_step(self, thrusts, body_torques, positions, quaternions, velocities, body_rates) -> bool:
-        return ekf_bank_step(
+    def _kernel(self, thrusts, body_torques, positions, quaternions, velocities, body_rates):
+        return ekf_bank_step, (
             self.x, self.P, self.reinitialisations, thrusts, body_torques, positions, quaternions,
             velocities, body_rates, self.kernel_constants,
         )  # fmt: skip

@@ -156,8 +156,8 @@ class ObserverBank(FilterBank, EulerAttitudes):
         self.forces[index] = 0.0
         self.torques_generalised[index] = 0.0
 
-    def _compiled_step(self, thrusts, body_torques, positions, quaternions, velocities, body_rates) -> bool:
-        return observer_bank_step(
+    def _kernel(self, thrusts, body_torques, positions, quaternions, velocities, body_rates):
+        return observer_bank_step, (
             self.positions, self.eulers, self.velocities, self.euler_rates, self.psi_force,
             self.psi_torque, self.forces, self.torques_generalised, thrusts, body_torques, positions,
             quaternions, velocities, body_rates, self.kernel_constants,

@@ -139,9 +139,9 @@ class UnscentedFilterBank(FilterBank):
         self.rests[index, 3:6] = positions
         self.covariances[index] = self.P0
 
-    def _compiled_step(self, thrusts, body_torques, positions, quaternions, velocities, body_rates) -> bool:
+    def _kernel(self, thrusts, body_torques, positions, quaternions, velocities, body_rates):
         """Paper 000's filter measures the pose only: ``velocities`` and ``body_rates`` are unused."""
-        return ukf_bank_step(
+        return ukf_bank_step, (
             self.quaternions, self.rests, self.covariances, self.reinitialisations,
             thrusts, body_torques, positions, quaternions, self.kernel_constants,
         )  # fmt: skip

@@ -367,18 +367,19 @@ def before_world_step(
 
 
 @njit
-def after_world_step(raw, buffer, noise_buffer, noise_cursor, fan_noise, speeds, constants):
+def after_world_step(flat, buffer, noise_buffer, noise_cursor, fan_noise, speeds, constants):
     """After PyBullet's step, into ``buffer`` (:func:`step_views`): the true states from its (N, 13)
-    ``raw`` rows (``World.read``), time on by one step; turbulence one step on (``FanJet.advance``)
-    with this step's standard normal draws from each vehicle's block (``NoiseBlocks``); the quantized
-    motor speeds through the nominal mixer (``MotorSpeedSensor``) into ``thrusts`` and
-    ``body_torques``; the noisy pose (``MotionCapture``) into ``measured_position`` and
+    rows one after another in ``flat`` (``World.read_flat``), time on by one step; turbulence one
+    step on (``FanJet.advance``) with this step's standard normal draws from each vehicle's block
+    (``NoiseBlocks``); the quantized motor speeds through the nominal mixer (``MotorSpeedSensor``)
+    into ``thrusts`` and ``body_torques``; the noisy pose (``MotionCapture``) into ``measured_position`` and
     ``measured_quaternion`` and, with an onboard state estimator, noisy velocity and body rates into
     ``motion``; the true position, velocity, quaternion and body rates into ``truth``."""
     (
         time, position, quaternion, velocity, angular_velocity, rotation, body_rates, _, _, _, thrusts,
         body_torques, measured_position, measured_quaternion, motion, truth,
-    ) = step_views(buffer, raw.shape[0])  # fmt: skip
+    ) = step_views(buffer, flat.shape[0] // 13)  # fmt: skip
+    raw = rows_view(flat, 0, flat.shape[0] // 13, 13)
     _, _, _, _, _, fan, _, sensing, nominal_allocation, dt, _, _ = unpack_constants(constants)
     levels, step, position_noise, attitude_noise = sensing[0], sensing[1], sensing[2], sensing[3]
     body = np.empty(4)
