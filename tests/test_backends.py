@@ -174,6 +174,34 @@ def test_physics_constants_unpack_into_their_parts():
         physics_constants(**{**parts, "fan": rng.random(6)})
 
 
+@pytest.mark.parametrize("backend", ["numpy", pytest.param("numba", marks=needs_numba)])
+@pytest.mark.parametrize("name", ["ukf", "ekf", "observer"])
+def test_a_bound_step_reads_its_arrays_afresh_and_equals_step(name, backend):
+    """``bind_step`` (what the compiled env step calls) gives exactly what ``step`` gives with the
+    same inputs, refilled in place between calls, and refuses a non-finite one by name."""
+    vehicle, count = make_vehicle("ardrone2"), 3
+    stepped, bound = (make_estimator_bank(name, vehicle, 0.005, count, backend=backend) for _ in range(2))
+    rng = np.random.default_rng(2)
+    thrusts, torques = np.full(count, vehicle.mass * GRAVITY), np.zeros((count, 3))
+    positions, quaternions = np.zeros((count, 3)), np.tile((1.0, 0.0, 0.0, 0.0), (count, 1))
+    for bank in (stepped, bound):
+        for i in range(count):
+            bank.reset(i, positions[i], quaternions[i])
+    step = bound.bind_step(thrusts, torques, positions, quaternions)
+    for _ in range(50):
+        thrusts[:] = vehicle.mass * GRAVITY + 0.1 * rng.normal(size=count)
+        positions[:] = 1e-3 * rng.normal(size=(count, 3))
+        quaternions[:] = quat_exp(2e-3 * rng.normal(size=(count, 3)))
+        stepped.step(thrusts, torques, positions, quaternions)
+        step()
+    np.testing.assert_array_equal(bound.wrenches(), stepped.wrenches())
+    np.testing.assert_array_equal(bound.states(), stepped.states())
+    positions[1, 2] = np.nan
+    with pytest.raises(ValueError, match=r"non-finite input\(s\) \['positions'\]"):
+        step()
+    assert np.isfinite(bound.states()).all()
+
+
 @needs_numba
 @pytest.mark.parametrize("name", ["ekf", "observer"])
 def test_compiled_euler_estimates_equal_the_numpy_ones_at_any_attitude(name):
