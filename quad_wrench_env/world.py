@@ -197,7 +197,7 @@ class World:
             position, orientation = pose(body, cid)
             linear, angular = twist(body, cid)
             flat += position + orientation + linear + angular
-        rows = np.array(flat)
+        rows = np.fromiter(flat, float, 13 * self.count)
         if self._shifted:
             rows.reshape(self.count, 13)[:, :3] -= self.origins
         return rows

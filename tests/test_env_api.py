@@ -12,6 +12,7 @@ import pytest
 from gymnasium.utils.env_checker import check_env as gym_check_env
 from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
+from quad_wrench_env.envs.base import clip_actions
 from tests.conftest import FAN_TRACKING
 
 
@@ -155,6 +156,14 @@ def test_bad_reset_and_step_input_names_the_value(make_env):
         env.step(np.array((0.0, np.nan, 0.0, 0.0), dtype=np.float32))
     with pytest.raises(ValueError, match="shape"):
         env.step(np.zeros(3, dtype=np.float32))
+
+
+def test_actions_with_infinities_are_refused_and_huge_finite_ones_clipped():
+    for bad in ((np.inf, 0.0, 0.0, 0.0), (np.inf, -np.inf, 0.0, 0.0), (0.0, 0.0, np.nan, 1.0)):
+        with pytest.raises(ValueError, match="NaN or infinity"):
+            clip_actions(np.array(bad), (4,))
+    huge = np.array((1e308, 1e308, -1e308, 0.5))  # their sum overflows; each is finite
+    np.testing.assert_array_equal(clip_actions(huge, (4,)), (1.0, 1.0, -1.0, 0.5))
 
 
 def test_actions_outside_the_box_are_clipped(make_env):

@@ -79,7 +79,7 @@ def clip_actions(action: Any, shape: tuple[int, ...]) -> np.ndarray:
     if a.shape != shape:
         raise ValueError(f"action {action!r} must have shape {shape}, got {a.shape}")
     values = a.ravel().tolist()
-    if not all(map(math.isfinite, values)):
+    if not math.isfinite(sum(values)) and not all(map(math.isfinite, values)):  # the sum: NaN, ±inf
         raise ValueError(f"action {action!r} contains NaN or infinity; allowed: finite values in [-1, 1]")
     if max(values) > 1.0 or min(values) < -1.0:
         np.clip(a, -1.0, 1.0, out=a)

@@ -95,8 +95,11 @@ class FanTracking:
         self._default_motion = self.fan.motion(0)
         self._compiled = resolve_backend(cfg.backend) == "numba"
         r = cfg.reward
-        self._weights = np.array((r.axis_scale, r.effort_weight, r.crash_penalty))
-        self._jet = self.fan.kernel_parameters()
+        jet = self.fan.kernel_parameters()
+        self._terms_constants = np.array(
+            (jet[1], jet[2], cfg.fan.height, r.axis_scale, r.effort_weight, r.crash_penalty)
+        )
+        """What ``fan_tracking_terms`` reads (see its docstring)."""
         self._cache: tuple[int, np.ndarray] = (-1, np.zeros((count, 8)))
 
     def wind_fields(self) -> list[WindField]:
@@ -148,9 +151,8 @@ class FanTracking:
         numbers = np.empty((count, 8))
         if self._compiled:
             fan_tracking_terms(
-                position, time, actions, ended, fan.motion_tables, self._jet[1], self._jet[2],
-                self.cfg.fan.height, self._weights, numbers,
-            )  # fmt: skip
+                position, time, actions, ended, fan.motion_tables, self._terms_constants, numbers
+            )
         else:
             dy = position[:, 1] - fan.axis_y(position[:, 0], time)
             dz = position[:, 2] - self.cfg.fan.height

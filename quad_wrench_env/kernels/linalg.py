@@ -66,6 +66,17 @@ def cholesky_solve_rows(root, rows, out):
             out[r, c] = t / root[c, c]
 
 
+@njit(inline=True)
+def all_finite(values):
+    """Whether every entry of the 1-d array ``values`` is finite (``np.isfinite(values).all()``): one
+    independent test per entry, where a running sum would chain the additions one after another
+    (and turn an overflow into a false alarm)."""
+    finite = True
+    for i in range(values.shape[0]):
+        finite &= math.isfinite(values[i])
+    return finite
+
+
 @njit
 def inputs_finite(thrusts, body_torques, positions, quaternions, velocities, body_rates):
     """Whether every estimator input is finite (one sum per vehicle: NaN and inf propagate);

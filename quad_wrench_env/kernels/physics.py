@@ -158,11 +158,13 @@ def jet_axis_y(x, t, motion_tables, u0, core):
 
 
 @njit
-def fan_tracking_terms(position, time, actions, ended, motion_tables, u0, core, height, weights, out):
+def fan_tracking_terms(position, time, actions, ended, motion_tables, constants, out):
     """FanTracking's per-vehicle numbers into ``out`` (N, 8): the reward terms ``tracking``,
-    ``effort`` and ``crash`` (``weights`` = axis scale, effort weight, crash penalty), the signed
-    ``axis_error`` y - jet axis, the jet axis y at the vehicle and the fan's position ``(0, y,
-    height)`` (``FanTracking.reward_terms`` and ``FanTracking.info``)."""
+    ``effort`` and ``crash``, the signed ``axis_error`` y - jet axis, the jet axis y at the vehicle
+    and the fan's position ``(0, y, height)`` (``FanTracking.reward_terms`` and ``FanTracking.info``).
+    ``constants``: the jet's exit speed and core length, the fan's height, and the reward's axis
+    scale, effort weight and crash penalty."""
+    u0, core, height, weights = constants[0], constants[1], constants[2], constants[3:6]
     for n in range(position.shape[0]):
         axis = _motion_y(motion_tables[n], time[n] - _transit_time(position[n, 0], u0, core))
         dy, dz = position[n, 1] - axis, position[n, 2] - height

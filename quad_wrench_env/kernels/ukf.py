@@ -21,7 +21,7 @@ import math
 import numpy as np
 
 from quad_wrench_env.kernels import njit
-from quad_wrench_env.kernels.linalg import cholesky, forward_solve_rows, inputs_finite, rows_view
+from quad_wrench_env.kernels.linalg import all_finite, cholesky, forward_solve_rows, inputs_finite, rows_view
 from quad_wrench_env.kernels.quaternions import exp, from_mrp, matrix, qmul, to_mrp
 
 _MEASURED = np.array((6, 7, 8, 0, 1, 2))
@@ -236,13 +236,10 @@ def ukf_bank_step(
         )  # fmt: skip
         for i in range(15):
             rests[n, i] += delta[3 + i]
-        total = 0.0  # NaN or an infinity in any term makes the sum non-finite
-        for i in range(15):
-            total += rests[n, i]
+        finite = all_finite(rests[n])
         for a in range(18):
-            for c in range(18):
-                total += p[a, c]
-        if not math.isfinite(total):  # restart from the measured pose at rest
+            finite &= all_finite(p[a])
+        if not finite:  # restart from the measured pose at rest
             quaternions[n] = measured_quaternions[n]
             rests[n] = 0.0
             rests[n, 3:6] = positions[n]
