@@ -105,18 +105,35 @@ def _time(call, calls: int) -> float:
     return (time.perf_counter() - start) / calls
 
 
-def component_seconds(calls: int, **env_kwargs) -> dict[str, float]:
-    """Seconds per call of each part of a step, timed in isolation on a live single env (its own
-    backend): the parts of one physics step, then the per-policy-step work."""
-    env = gym.make("QuadWrench/FanTracking-v0", **env_kwargs)
-    try:
+def component_seconds(calls: int, num_envs: int = 1, **env_kwargs) -> dict[str, float]:
+    """Seconds per call and vehicle of each part of a step, timed in isolation on a live env (its
+    own backend): the single env, or with ``num_envs`` > 1 the vector env (compiled backend only).
+    The parts of one physics step, then the per-policy-step work."""
+    if num_envs == 1:
+        env = gym.make("QuadWrench/FanTracking-v0", **env_kwargs)
         env.reset(seed=0, options={"offset_y": 0.4})
         base = env.unwrapped
+        infos = base._info
+    else:
+        env = gym.make_vec(
+            "QuadWrench/FanTracking-v0",
+            num_envs=num_envs,
+            vectorization_mode="vector_entry_point",
+            **env_kwargs,
+        )
+        env.reset(seed=0)
+        base = env.unwrapped
+        infos = base._infos
+    try:
         fleet = base.fleet
-        action = np.zeros((1, 4))
-        base.step(action[0])
+        action = np.zeros((num_envs, 4))
+        base.step(action[0] if num_envs == 1 else action)
         compiled = fleet.compiled
         if compiled is None:
+            if num_envs > 1:
+                raise ValueError(
+                    f"num_envs={num_envs} times the compiled backend only; allowed: 1 with numpy"
+                )
             state = fleet.state
             loads = fleet.external_loads(state, slice(None))
             nominal = fleet.autopilot.mixer.wrench(fleet.rotors.speeds[0])[None]
@@ -138,19 +155,12 @@ def component_seconds(calls: int, **env_kwargs) -> dict[str, float]:
                 "PyBullet apply + step": lambda: fleet.world.step(
                     compiled.forces, compiled.torques, fleet.state.position
                 ),
-                "PyBullet read": fleet.world.read,
+                "PyBullet read": fleet.world.read_flat,
             }
         out = {f"physics step: {name}": _time(call, calls) for name, call in parts.items()}
         if compiled is not None:  # the whole compiled step, less what is timed on its own
             whole = out.pop("physics step: compiled: autopilot, motors, disturbances")
-            c = compiled
-            estimator = _time(
-                lambda: fleet.estimator.step(
-                    c.thrusts, c.body_torques, c.measured_position, c.measured_quaternion,
-                    c.velocity_measured, c.body_rates_measured,
-                ),
-                calls,
-            )  # fmt: skip
+            estimator = _time(compiled.estimate, calls)
             pybullet = out["physics step: PyBullet apply + step"] + out["physics step: PyBullet read"]
             out["physics step: kernels (autopilot, motors, disturbances, sensors) + glue"] = (
                 whole - pybullet - estimator
@@ -160,11 +170,11 @@ def component_seconds(calls: int, **env_kwargs) -> dict[str, float]:
             lambda: (
                 fleet.observations(action),
                 base.task.reward_terms(fleet, action, fleet.terminations() > 0),
-                base._info(),
+                infos(),
             ),
             calls,
         )
-        return out
+        return {name: seconds / num_envs for name, seconds in out.items()}
     finally:
         env.close()
 

@@ -13,7 +13,8 @@ Tables printed (all measured in this run, best of ``--repeats`` for timings):
    and the mean reset time;
 3. the vector env of 64 vehicles on one core: µs per vehicle and physics step, its ratio to the
    64-body floors per body, vehicle-seconds per wall second;
-4. the cost of each part of a step (UKF env, each backend), timed in isolation;
+4. the cost of each part of a step (UKF env, each backend; the 64-vehicle vector env on numba, per
+   vehicle), timed in isolation;
 5. peak memory of this process; with ``--soak-minutes`` the rates and resident memory of the first
    and last ten simulated minutes of one long run;
 6. the peers, each in a virtual environment of its own under ``--peers-dir`` (created on first use,
@@ -372,6 +373,15 @@ def main() -> None:
             table(
                 [f"part of a step (ukf env, {backend})", "µs"],
                 [[name, f"{seconds * 1e6:.1f}"] for name, seconds in parts.items()],
+            )
+            + "\n"
+        )
+    if NUMBA_AVAILABLE:
+        parts = component_seconds(max(args.steps // VECTOR_ENVS, 20), num_envs=VECTOR_ENVS, backend="numba")
+        print(
+            table(
+                [f"part of a step (ukf vector env x {VECTOR_ENVS}, numba)", "µs per vehicle"],
+                [[name, f"{seconds * 1e6:.2f}"] for name, seconds in parts.items()],
             )
             + "\n"
         )

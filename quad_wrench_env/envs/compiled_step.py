@@ -98,7 +98,7 @@ class CompiledStep:
             self.velocity_measured, self.body_rates_measured,
         )  # fmt: skip
         estimator = fleet.estimator
-        self._estimate = (
+        self.estimate = (
             estimator.bind_step(*measured)
             if isinstance(estimator, FilterBank)
             else partial(estimator.step, *measured)
@@ -110,7 +110,7 @@ class CompiledStep:
         if fleet.state is not self.state:
             self._adopt()
         world, noise, estimator, truth_fed = fleet.world, fleet.noise, fleet.estimator, fleet.truth_fed
-        before, after, estimate = (actions, *self._before), self._after, self._estimate
+        before, after, estimate = (actions, *self._before), self._after, self.estimate
         forces, torques, position = self.forces, self.torques, self.state.position
         for _ in range(count):
             before_world_step(*before)
