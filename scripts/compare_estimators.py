@@ -67,6 +67,9 @@ class _Recorder:
     def states(self):
         return self.inner.states()
 
+    def estimates(self):
+        return self.inner.estimates()
+
     def statuses(self):
         return self.inner.statuses()
 

@@ -206,3 +206,30 @@ def test_rgb_array_render_shows_a_scene(make_env):
     image = env.render()
     assert image.shape == (360, 480, 3) and image.dtype == np.uint8
     assert image.std() > 10  # not a blank frame
+
+
+def test_an_estimator_bank_swapped_in_mid_episode_is_the_one_stepped():
+    """What scripts/compare_estimators.py does: wrap the env's bank after reset; every physics step
+    then goes through the wrapper (the compiled step rebinds to it)."""
+
+    class Counting:
+        def __init__(self, inner):
+            self.inner, self.calls = inner, 0
+
+        def __getattr__(self, name):
+            return getattr(self.inner, name)
+
+        def step(self, *inputs):
+            self.calls += 1
+            self.inner.step(*inputs)
+
+    env = gym.make(FAN_TRACKING, estimator="ukf")
+    try:
+        env.reset(seed=0)
+        env.step(np.zeros(4, dtype=np.float32))
+        fleet = env.unwrapped.fleet
+        fleet.estimator = Counting(fleet.estimator)
+        env.step(np.zeros(4, dtype=np.float32))
+        assert fleet.estimator.calls == fleet.substeps
+    finally:
+        env.close()

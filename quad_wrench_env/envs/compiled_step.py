@@ -74,6 +74,8 @@ class CompiledStep:
         fleet.time = self.time
         self._fan_noise = np.zeros((count, 3)) if self.fan is None else self.fan.noise
         self._motion_tables = np.zeros((count, 4)) if self.fan is None else self.fan.motion_tables
+        self._bound: object | None = None
+        """The estimator bank :attr:`estimate` is bound to."""
 
     def _adopt(self) -> None:
         """Take over the state the fleet read after a reset (into the kernels' own arrays) and bind
@@ -93,22 +95,29 @@ class CompiledStep:
         self._after = (
             self.buffer, fleet.noise.buffer, fleet.noise.cursor, self._fan_noise, speeds, self.constants,
         )  # fmt: skip
+        self._bind_estimator()
+
+    def _bind_estimator(self) -> None:
+        """Bind :attr:`estimate` to the fleet's estimator bank (again whenever it is swapped)."""
         measured = (
             self.thrusts, self.body_torques, self.measured_position, self.measured_quaternion,
             self.velocity_measured, self.body_rates_measured,
         )  # fmt: skip
-        estimator = fleet.estimator
+        estimator = self._bound = self.fleet.estimator
         self.estimate = (
             estimator.bind_step(*measured)
             if isinstance(estimator, FilterBank)
             else partial(estimator.step, *measured)
         )
+        """One step of the fleet's estimators on the measurements of the physics step just taken."""
 
     def physics_steps(self, actions: np.ndarray, count: int) -> None:
         """``count`` physics steps with (N, 4) clipped normalised actions."""
         fleet = self.fleet
         if fleet.state is not self.state:
             self._adopt()
+        if fleet.estimator is not self._bound:
+            self._bind_estimator()
         world, noise, estimator, truth_fed = fleet.world, fleet.noise, fleet.estimator, fleet.truth_fed
         before, after, estimate = (actions, *self._before), self._after, self.estimate
         forces, torques, position = self.forces, self.torques, self.state.position

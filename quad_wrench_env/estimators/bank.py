@@ -71,9 +71,12 @@ _UNMEASURED = np.empty((0, 3))
 """What the kernels get for a velocity or body-rate measurement the sensors do not make."""
 
 
-def _kernel_inputs(inputs: tuple[np.ndarray | None, ...]) -> tuple[np.ndarray, ...]:
+def _kernel_inputs(thrusts, body_torques, positions, quaternions, velocities, body_rates) -> tuple:
     """A step's inputs as the kernels take them: :data:`_UNMEASURED` for a missing measurement."""
-    return tuple(_UNMEASURED if value is None else value for value in inputs)
+    return (
+        thrusts, body_torques, positions, quaternions,
+        _UNMEASURED if velocities is None else velocities, _UNMEASURED if body_rates is None else body_rates,
+    )  # fmt: skip
 
 
 class FilterBank:
@@ -99,7 +102,7 @@ class FilterBank:
         """One step of every filter (see :class:`EstimatorBank`)."""
         inputs = (thrusts, body_torques, positions, quaternions, velocities, body_rates)
         if self.backend == "numba":
-            kernel, arguments = self._kernel(*_kernel_inputs(inputs))
+            kernel, arguments = self._kernel(*_kernel_inputs(*inputs))
             if not kernel(*arguments):
                 self._refuse(*inputs)
         else:
@@ -123,7 +126,7 @@ class FilterBank:
         inputs = (thrusts, body_torques, positions, quaternions, velocities, body_rates)
         if self.backend != "numba":
             return partial(self.step, *inputs)
-        kernel, arguments = self._kernel(*_kernel_inputs(inputs))
+        kernel, arguments = self._kernel(*_kernel_inputs(*inputs))
 
         def bound_step() -> None:
             if not kernel(*arguments):
