@@ -2,12 +2,16 @@
 
 from __future__ import annotations
 
+import importlib.util
 import math
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 from agents.evaluate import Episode, evaluate, fan_tracking_metrics
+from quad_wrench_env.config import load_yaml
 from tests.conftest import FAN_TRACKING
 
 
@@ -51,3 +55,18 @@ def test_evaluate_runs_every_seed_and_is_reproducible():
     assert policy.calls == 100 and len(a.episodes[0].trace["time"]) == 101
     with pytest.raises(ValueError, match="seed"):
         evaluate(policy, FAN_TRACKING, [])
+
+
+def test_the_estimator_comparison_records_a_short_flight(monkeypatch):
+    """scripts/compare_estimators.py swaps a recording bank into the env: a short flight records
+    one sensor sample and one true wrench per physics step."""
+    path = Path(__file__).parents[1] / "scripts" / "compare_estimators.py"
+    spec = importlib.util.spec_from_file_location("compare_estimators", path)
+    script = importlib.util.module_from_spec(spec)
+    monkeypatch.setitem(sys.modules, spec.name, script)  # its dataclasses look their module up
+    spec.loader.exec_module(script)
+    config = load_yaml(Path(__file__).parents[1] / "configs" / "compare_estimators.yaml")
+    stream = script.record(config, 0, episode_seconds=0.2)
+    assert len(stream.inputs) == len(stream.truth) == round(0.2 / stream.dt)
+    thrust, torque, position, quaternion = stream.inputs[-1]
+    assert math.isfinite(thrust) and torque.shape == position.shape == (3,) and quaternion.shape == (4,)
