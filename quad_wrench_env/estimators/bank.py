@@ -100,14 +100,15 @@ class FilterBank:
         body_rates: np.ndarray | None = None,
     ) -> None:
         """One step of every filter (see :class:`EstimatorBank`)."""
-        inputs = (thrusts, body_torques, positions, quaternions, velocities, body_rates)
         if self.backend == "numba":
-            kernel, arguments = self._kernel(*_kernel_inputs(*inputs))
+            kernel, arguments = self._kernel(
+                *_kernel_inputs(thrusts, body_torques, positions, quaternions, velocities, body_rates)
+            )
             if not kernel(*arguments):
-                self._refuse(*inputs)
+                self._refuse(thrusts, body_torques, positions, quaternions, velocities, body_rates)
         else:
-            self._refuse(*inputs)
-            self._numpy_step(*inputs)
+            self._refuse(thrusts, body_torques, positions, quaternions, velocities, body_rates)
+            self._numpy_step(thrusts, body_torques, positions, quaternions, velocities, body_rates)
         self.version += 1
 
     def bind_step(
