@@ -173,3 +173,31 @@ def test_sb3_adapter_matches_the_vector_env_and_trains():
     finally:
         venv.close()
         reference.close()
+
+
+def test_a_vehicle_far_from_the_world_origin_crashes_on_the_ground_as_alone():
+    """Vehicle 2's frame is an arena or two from PyBullet's origin: its descent ends on the ground
+    plane with a crash at the step a single env's does."""
+    settings = {"estimator": "oracle", "crash_height": -1.0, "fan": {"enabled": False}}
+    venv = _make_vec(3, **settings)
+    env = gym.make(FAN_TRACKING, **settings)
+    down = np.array((0.0, 0.0, -1.0, 0.0), dtype=np.float32)
+    try:
+        venv.reset(seed=0, options={"offset_y": 0.0})
+        env.reset(seed=2, options={"offset_y": 0.0})
+        assert np.linalg.norm(venv.unwrapped.fleet.world.origins[2]) > 10.0
+        for _ in range(1500):
+            _, _, terminated, _, info = venv.step(np.tile(down, (3, 1)))
+            _, _, single_terminated, _, single_info = env.step(down)
+            assert terminated[2] == single_terminated
+            if single_terminated:
+                assert (
+                    info["final_info"]["termination_reason"][2]
+                    == single_info["termination_reason"]
+                    == "crash"
+                )
+                break
+        assert single_terminated, "the descent never touched the ground"
+    finally:
+        venv.close()
+        env.close()
