@@ -239,3 +239,21 @@ def test_compiled_euler_estimates_equal_the_numpy_ones_at_any_attitude(name):
         np.testing.assert_allclose(
             compiled.wrench_covariances(), reference.wrench_covariances(), rtol=1e-12, atol=1e-12
         )
+
+
+@pytest.mark.parametrize("backend", ["numpy", pytest.param("numba", marks=needs_numba)])
+def test_a_ukf_whose_state_overflows_restarts_from_the_measured_pose(backend):
+    """A filter whose state leaves the finite numbers (here a force of 1e308 N) restarts at rest at
+    the measured pose and reports it; its neighbour in the bank is untouched."""
+    vehicle = make_vehicle("ardrone2")
+    bank = make_estimator_bank("ukf", vehicle, 0.005, 2, backend=backend)
+    level = np.array((1.0, 0.0, 0.0, 0.0))
+    for i in range(2):
+        bank.reset(i, np.zeros(3), level)
+    bank.rests[1, 12] = 1e308
+    measured = np.array(((0.0, 0.0, 0.0), (0.5, -0.2, 1.0)))
+    with np.errstate(over="ignore", invalid="ignore"):
+        bank.step(np.full(2, vehicle.mass * GRAVITY), np.zeros((2, 3)), measured, np.tile(level, (2, 1)))
+    assert bank.statuses() == ["ok", "reinitialised"]
+    np.testing.assert_array_equal(bank.states()[1, :3], measured[1])
+    assert np.isfinite(bank.covariances).all() and np.isfinite(bank.rests).all()
