@@ -377,7 +377,7 @@ def main() -> None:
             + "\n"
         )
     if NUMBA_AVAILABLE:
-        parts = component_seconds(max(args.steps // VECTOR_ENVS, 20), num_envs=VECTOR_ENVS, backend="numba")
+        parts = component_seconds(max(args.steps // 8, 20), num_envs=VECTOR_ENVS, backend="numba")
         print(
             table(
                 [f"part of a step (ukf vector env x {VECTOR_ENVS}, numba)", "µs per vehicle"],
