@@ -88,6 +88,7 @@ class FilterBank:
 
     name: str
     backend: str
+    count: int
     version: int = 0
 
     def step(
@@ -143,9 +144,18 @@ class FilterBank:
         )  # fmt: skip
 
     def estimates(self) -> tuple[np.ndarray, np.ndarray]:
-        """:meth:`states` and :meth:`wrenches` (see :class:`EstimatorBank`); the banks with a compiled
-        form of both override this."""
-        return self.states(), self.wrenches()
+        """:meth:`states` and :meth:`wrenches` (see :class:`EstimatorBank`), on numba from one call
+        of the bank's ``_estimates_kernel``."""
+        if self.backend != "numba":
+            return self.states(), self.wrenches()
+        states, wrenches = np.empty((self.count, 13)), np.empty((self.count, 6))
+        kernel, arguments = self._estimates_kernel()
+        kernel(*arguments, states, wrenches)
+        return states, wrenches
+
+    def _estimates_kernel(self) -> tuple[Callable[..., None], tuple]:
+        """The compiled form of :meth:`estimates` and its arguments, less the two outputs."""
+        raise NotImplementedError
 
     def _kernel(
         self, thrusts, body_torques, positions, quaternions, velocities, body_rates

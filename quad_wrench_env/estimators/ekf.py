@@ -165,13 +165,8 @@ class ExtendedFilterBank(FilterBank, EulerAttitudes):
         torque = np.einsum("nij,nj->ni", self.rotations(), self.x[:, N])
         return np.concatenate((self.x[:, F], torque), axis=1)
 
-    def estimates(self) -> tuple[np.ndarray, np.ndarray]:
-        """:meth:`states` and :meth:`wrenches`, on the numba backend from one compiled call."""
-        if self.backend != "numba":
-            return self.states(), self.wrenches()
-        states, wrenches = np.empty((self.count, 13)), np.empty((self.count, 6))
-        ekf_estimates(self.x, states, wrenches)
-        return states, wrenches
+    def _estimates_kernel(self):
+        return ekf_estimates, (self.x,)
 
     def wrench_covariances(self) -> np.ndarray:
         """(N, 6, 6) covariance of ``[f_ext, R η_ext]``."""

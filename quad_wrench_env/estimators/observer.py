@@ -235,16 +235,11 @@ class ObserverBank(FilterBank, EulerAttitudes):
         body_rates = _apply(euler_kinematics(self.eulers[:, 0], self.eulers[:, 1]), self.euler_rates)
         return np.concatenate((self.positions, self.velocities, self.quaternions(), body_rates), axis=1)
 
-    def estimates(self) -> tuple[np.ndarray, np.ndarray]:
-        """:meth:`states` and :meth:`wrenches`, on the numba backend from one compiled call."""
-        if self.backend != "numba":
-            return self.states(), self.wrenches()
-        states, wrenches = np.empty((self.count, 13)), np.empty((self.count, 6))
-        observer_estimates(
+    def _estimates_kernel(self):
+        return observer_estimates, (
             self.positions, self.eulers, self.velocities, self.euler_rates, self.forces,
-            self.torques_generalised, states, wrenches,
+            self.torques_generalised,
         )  # fmt: skip
-        return states, wrenches
 
     def wrench_covariances(self) -> np.ndarray:
         """The observer carries no covariance: zeros."""

@@ -165,13 +165,8 @@ class UnscentedFilterBank(FilterBank):
         r = self.rests
         return np.concatenate((r[:, 3:9], self.quaternions, r[:, 0:3]), axis=1)
 
-    def estimates(self) -> tuple[np.ndarray, np.ndarray]:
-        """:meth:`states` and :meth:`wrenches`, on the numba backend from one compiled call."""
-        if self.backend != "numba":
-            return self.states(), self.wrenches()
-        states, wrenches = np.empty((self.count, 13)), np.empty((self.count, 6))
-        ukf_estimates(self.quaternions, self.rests, states, wrenches)
-        return states, wrenches
+    def _estimates_kernel(self):
+        return ukf_estimates, (self.quaternions, self.rests)
 
     def wrench_covariances(self) -> np.ndarray:
         """(N, 6, 6) covariance of ``[f_e, τ_e]``."""
