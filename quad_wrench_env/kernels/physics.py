@@ -381,7 +381,7 @@ def after_world_step(flat, buffer, noise_buffer, noise_cursor, fan_noise, speeds
         time, position, quaternion, velocity, angular_velocity, rotation, body_rates, _, _, _, thrusts,
         body_torques, measured_position, measured_quaternion, motion, truth,
     ) = step_views(buffer, flat.shape[0] // 13)  # fmt: skip
-    raw = rows_view(flat, 0, flat.shape[0] // 13, 13)
+    raw = rows_view(flat, 0, time.shape[0], 13)
     _, _, _, _, _, fan, _, sensing, nominal_allocation, dt, _, _ = unpack_constants(constants)
     levels, step, position_noise, attitude_noise = sensing[0], sensing[1], sensing[2], sensing[3]
     body = np.empty(4)
