@@ -8,6 +8,7 @@ import pytest
 
 from quad_wrench_env.estimators import make_estimator_bank
 from quad_wrench_env.kernels import NUMBA_AVAILABLE, resolve_backend
+from quad_wrench_env.kernels.linalg import weighted_gram
 from quad_wrench_env.kernels.physics import (
     STEP_FIELDS,
     STEP_WIDTH,
@@ -155,6 +156,21 @@ def test_step_views_cut_the_buffer_as_step_fields_say(count):
     assert start == buffer.size
     with pytest.raises(ValueError, match="STEP_WIDTH"):
         step_views(buffer[:-1], count)
+
+
+@pytest.mark.parametrize("shape", [(18, 25), (5, 3), (1, 1)])
+def test_weighted_gram_is_the_symmetric_product_with_regrouped_sums(shape):
+    """``weighted_gram`` (reassociated sums on numba) equals ``W Cᵀ`` to rounding, its result exactly
+    symmetric and the same bits on every call (the determinism the envs' seeds promise)."""
+    rng = np.random.default_rng(1)
+    columns = rng.standard_normal(shape)
+    weighted = columns * rng.uniform(-0.5, 2.0, shape[1])
+    out, again = np.full((shape[0],) * 2, np.nan), np.empty((shape[0],) * 2)
+    weighted_gram(weighted, columns, out)
+    weighted_gram(weighted, columns, again)
+    np.testing.assert_allclose(out, weighted @ columns.T, rtol=1e-13, atol=1e-13 * shape[1])
+    np.testing.assert_array_equal(out, out.T)
+    np.testing.assert_array_equal(out, again)
 
 
 def test_physics_constants_unpack_into_their_parts():

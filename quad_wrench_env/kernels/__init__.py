@@ -36,12 +36,20 @@ def resolve_backend(backend: str) -> str:
     return backend
 
 
-def njit(function=None, *, inline: bool = False):
+def njit(function=None, *, inline: bool = False, reassociate: bool = False):
     """``numba.njit(cache=True)`` (IEEE arithmetic, no fast-math), or the function unchanged without
     numba; ``inline=True`` inlines a small helper into its callers (a call across modules otherwise
-    costs more than a short loop)."""
+    costs more than a short loop). ``reassociate=True`` lets the compiler regroup sums so that a
+    reduction runs on SIMD lanes: the last bits change, deterministically (the same inputs give the
+    same bits); nothing else of IEEE arithmetic does. Such a helper must not
+    be inlined: it would compile under its caller's flags."""
     if function is None:
-        return lambda f: njit(f, inline=inline)
+        return lambda f: njit(f, inline=inline, reassociate=reassociate)
     if _numba is None:
         return function
-    return _numba.njit(cache=True, error_model="numpy", inline="always" if inline else "never")(function)
+    return _numba.njit(
+        cache=True,
+        error_model="numpy",
+        inline="always" if inline else "never",
+        fastmath={"reassoc"} if reassociate else False,
+    )(function)

@@ -9,7 +9,10 @@ numpy reference, which does neither, to 1e-9):
   (eqs. 2-5, 11-14) is affine in the rest of the state, so the pair ``±c`` moves to the propagated
   centre ``± A Lₚ[:, c]`` with ``A`` its linear map: only the centre and the 12 points along columns
   0-5 go through the model; a pair adds ``2w`` times the centre to the mean and
-  ``2w (c₀ c₀ᵀ + δ δᵀ)`` to the covariance (``c₀`` the centre's deviation from the mean).
+  ``2w (c₀ c₀ᵀ + δ δᵀ)`` to the covariance (``c₀`` the centre's deviation from the mean). The
+  covariance (eq. 27) is then one weighted Gram matrix of 25 deviation columns (the 13 points' and
+  the 12 pairs' ``δ``), its sums regrouped onto SIMD lanes (:func:`~quad_wrench_env.kernels.linalg.
+  weighted_gram`): the same up to rounding, and bit for bit the same from run to run.
 * With ``S = L Lᵀ`` (eq. 31) and ``M = P Hᵀ L⁻ᵀ``, the gain is ``K = M L⁻¹`` (29), the update
   ``K ν = M (L⁻¹ ν)`` and ``P - K S Kᵀ = P - M Mᵀ`` (30, 37), symmetric by construction.
 """
@@ -21,7 +24,14 @@ import math
 import numpy as np
 
 from quad_wrench_env.kernels import njit
-from quad_wrench_env.kernels.linalg import all_finite, cholesky, forward_solve_rows, inputs_finite, rows_view
+from quad_wrench_env.kernels.linalg import (
+    all_finite,
+    cholesky,
+    forward_solve_rows,
+    inputs_finite,
+    rows_view,
+    weighted_gram,
+)
 from quad_wrench_env.kernels.quaternions import exp, from_mrp, matrix, qmul, to_mrp
 
 _MEASURED = np.array((6, 7, 8, 0, 1, 2))
@@ -63,8 +73,8 @@ def ukf_bank_step(
     root = np.empty((18, 18))
     q_points = np.empty((n_points, 4))
     rest_points = np.empty((n_points, 15))
-    errors = np.empty((n_points, 18))
-    shifts = np.empty((18 - _NONLINEAR, 18))
+    deviations = np.empty((18, n_points + 18 - _NONLINEAR))  # a column per point (module docstring)
+    weighted = np.empty_like(deviations)
     mean = np.empty(18)
     rotation = np.empty((3, 3))
     rotation0 = np.empty((3, 3))
@@ -128,7 +138,7 @@ def ukf_bank_step(
         # column), exactly (module docstring) --
         for k in range(18 - _NONLINEAR):
             col = _NONLINEAR + k
-            shift = shifts[k]
+            shift = deviations[:, n_points + k]
             e[:] = 0.0
             for i in range(col, 18):
                 e[i] = spread * root[i, col]
@@ -142,6 +152,8 @@ def ukf_bank_step(
                 shift[9 + i] = e[9 + i] + dt * force
                 shift[12 + i] = e[12 + i]
                 shift[15 + i] = e[15 + i]
+            for i in range(18):
+                weighted[i, n_points + k] = (2.0 * w) * shift[i]
         # -- recombination (eqs. 25-27); a ± pair of the linear points adds 2w (centre) to the mean
         # and 2w (δ δᵀ + c cᵀ) to the covariance, c the centre's deviation --
         cw, cx, cy, cz = q_points[0, 0], -q_points[0, 1], -q_points[0, 2], -q_points[0, 3]
@@ -150,30 +162,17 @@ def ukf_bank_step(
             rw, rx, ry, rz = qmul(
                 cw, cx, cy, cz, q_points[j, 0], q_points[j, 1], q_points[j, 2], q_points[j, 3]
             )
-            errors[j, 0], errors[j, 1], errors[j, 2] = to_mrp(rw, rx, ry, rz)
-            errors[j, 3:] = rest_points[j]
+            deviations[0, j], deviations[1, j], deviations[2, j] = to_mrp(rw, rx, ry, rz)
+            for i in range(15):
+                deviations[3 + i, j] = rest_points[j, i]
             weight = w_centre if j == 0 else w
             for i in range(18):
-                mean[i] += weight * errors[j, i]
-        for j in range(n_points):
-            for i in range(18):
-                errors[j, i] -= mean[i]
-        p[:, :] = 0.0
-        for j in range(n_points):
-            weight = w_centre if j == 0 else w
-            for a in range(18):
-                f = weight * errors[j, a]
-                for c in range(a, 18):
-                    p[a, c] += f * errors[j, c]
-        for k in range(18 - _NONLINEAR):
-            shift = shifts[k]
-            for a in range(3, 18):
-                f = 2.0 * w * shift[a]
-                for c in range(a, 18):
-                    p[a, c] += f * shift[c]
-        for a in range(18):
-            for c in range(a + 1, 18):
-                p[c, a] = p[a, c]
+                mean[i] += weight * deviations[i, j]
+        for i in range(18):
+            for j in range(n_points):
+                deviations[i, j] -= mean[i]
+                weighted[i, j] = (w_centre if j == 0 else w) * deviations[i, j]
+        weighted_gram(weighted, deviations, p)
         dw, dx, dy, dz = from_mrp(mean[0], mean[1], mean[2])
         qw, qx, qy, qz = qmul(q_points[0, 0], q_points[0, 1], q_points[0, 2], q_points[0, 3], dw, dx, dy, dz)
         rests[n] = mean[3:]
