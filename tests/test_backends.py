@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from quad_wrench_env.estimators import make_estimator_bank
-from quad_wrench_env.kernels import NUMBA_AVAILABLE, resolve_backend
+from quad_wrench_env.kernels import NUMBA_AVAILABLE, bind, resolve_backend, specialised
 from quad_wrench_env.kernels.linalg import weighted_gram
 from quad_wrench_env.kernels.physics import (
     STEP_FIELDS,
@@ -171,6 +171,20 @@ def test_weighted_gram_is_the_symmetric_product_with_regrouped_sums(shape):
     np.testing.assert_allclose(out, weighted @ columns.T, rtol=1e-13, atol=1e-13 * shape[1])
     np.testing.assert_array_equal(out, out.T)
     np.testing.assert_array_equal(out, again)
+
+
+def test_a_bound_kernel_reads_its_arrays_afresh_and_equals_the_plain_call():
+    """``bind``: the compiled form for the bound arrays' types, on the arrays as they are at each call."""
+    rng = np.random.default_rng(2)
+    columns, out, expected = rng.standard_normal((4, 7)), np.empty((4, 4)), np.empty((4, 4))
+    weighted = columns.copy()
+    bound = bind(weighted_gram, weighted, columns, out)
+    for _ in range(2):
+        weighted *= rng.uniform(0.5, 1.5, 7)  # changed in place: the bound call sees it
+        bound()
+        weighted_gram(weighted, columns, expected)
+        np.testing.assert_array_equal(out, expected)
+    assert specialised(np.dot, columns, columns.T) is np.dot  # not a compiled kernel: itself
 
 
 def test_physics_constants_unpack_into_their_parts():

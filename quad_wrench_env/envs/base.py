@@ -29,6 +29,9 @@ from quad_wrench_env.envs.fleet import OBSERVATION_FIELDS, TERMINATION_REASONS, 
 from quad_wrench_env.envs.task import Task
 from quad_wrench_env.vehicle import GRAVITY, VehicleParams, make_vehicle
 
+_ENDED = (np.zeros(1, dtype=bool), np.ones(1, dtype=bool))
+"""A single env's ``ended`` for its task's reward terms: not ended, ended (read, never written)."""
+
 
 def observation_layout() -> dict[str, slice]:
     layout, start = {}, 0
@@ -90,15 +93,18 @@ def info_entries(fleet: Fleet, task: Task, vehicle: int | None = None) -> dict[s
     """The info of every vehicle, each entry with a leading vehicle axis (ARCHITECTURE.md keys); with
     ``vehicle``, that vehicle's entries alone (Python floats for its scalars). Copies, never views
     of the fleet's state."""
-    rows = slice(None) if vehicle is None else vehicle
-    state, statuses = fleet.state, fleet.estimator.statuses()
-    info: dict[str, Any] = {}
-    for key, value in (
-        ("time", fleet.time), ("position", state.position), ("velocity", state.velocity),
-        ("wrench_true", fleet.wrench_true), ("wrench_est", fleet.estimates()[1]), *task.info(fleet).items(),
-    ):  # fmt: skip
-        info[key] = value[rows].copy() if value.ndim > 1 or vehicle is None else float(value[vehicle])
-    info["estimator_status"] = np.array(statuses, dtype=object) if vehicle is None else statuses[vehicle]
+    state = fleet.state
+    entries = {
+        "time": fleet.time, "position": state.position, "velocity": state.velocity,
+        "wrench_true": fleet.wrench_true, "wrench_est": fleet.estimates()[1], **task.info(fleet),
+    }  # fmt: skip
+    statuses = fleet.estimator.statuses()
+    if vehicle is None:
+        info = {key: value.copy() for key, value in entries.items()}
+        info["estimator_status"] = np.array(statuses, dtype=object)
+    else:
+        info = {k: v[vehicle].copy() if v.ndim > 1 else v.item(vehicle) for k, v in entries.items()}
+        info["estimator_status"] = statuses[vehicle]
     return info
 
 
@@ -167,23 +173,22 @@ class QuadWrenchEnv(gym.Env, EzPickle):
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
         if not self._started:
             raise RuntimeError("call reset() before step()")
-        a = clip_actions(action, (4,))[None, :]
-        self.fleet.step(a)
+        a = clip_actions(action, (4,)).reshape(1, 4)
+        fleet = self.fleet
+        fleet.step(a)
         self._steps += 1
         self._last_action = a
-        code = int(self.fleet.terminations()[0])
-        terms = {
-            k: float(v[0]) for k, v in self.task.reward_terms(self.fleet, a, np.array((code > 0,))).items()
-        }
-        reward = float(sum(terms.values()))
-        truncated = code == 0 and self._steps >= self.max_steps
+        code = fleet.terminations().item(0)
+        terminated = code > 0
+        terms = {k: v.item(0) for k, v in self.task.reward_terms(fleet, a, _ENDED[terminated]).items()}
+        truncated = not terminated and self._steps >= self.max_steps
         info = self._info()
         info["reward_terms"] = terms
-        if code:
+        if terminated:
             info["termination_reason"] = TERMINATION_REASONS[code]
         if self.render_mode == "human":
             self.render()
-        return self.fleet.observations(a)[0], reward, code > 0, bool(truncated), info
+        return fleet.observations(a)[0], float(sum(terms.values())), terminated, truncated, info
 
     def render(self) -> np.ndarray | None:
         if self.render_mode is None:

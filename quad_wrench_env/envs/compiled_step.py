@@ -19,6 +19,7 @@ import numpy as np
 
 from quad_wrench_env.disturbances.fan import FanJet
 from quad_wrench_env.estimators.bank import FilterBank
+from quad_wrench_env.kernels import bind, specialised
 from quad_wrench_env.kernels.physics import (
     STEP_WIDTH,
     after_world_step,
@@ -62,6 +63,8 @@ class CompiledStep:
             np.array(sensing), ap.mixer.allocation, fleet.dt, fleet.drag_points, profile.segments,
         )  # fmt: skip
         self.buffer = np.zeros(count * STEP_WIDTH)
+        self.actions = np.zeros((count, 4))
+        """The policy step's (N, 4) clipped normalised actions, copied in (bound to the kernel)."""
         (
             self.time, position, quaternion, velocity, angular_velocity, rotation, body_rates,
             self.forces, self.torques, self.loads, self.thrusts, self.body_torques,
@@ -88,13 +91,21 @@ class CompiledStep:
         if self.fan is not None:
             self._motion_tables = self.fan.motion_tables
         ap, speeds = fleet.autopilot, fleet.rotors.speeds
-        self._before = (
-            self.buffer, ap.yaw_setpoint, ap.velocity_integral, ap.rate_integral, ap.saturated, speeds,
-            fleet.rotors.allocations, self._fan_noise, self._motion_tables, self.constants,
+        self._before = bind(
+            before_world_step, self.actions, self.buffer, ap.yaw_setpoint, ap.velocity_integral,
+            ap.rate_integral, ap.saturated, speeds, fleet.rotors.allocations, self._fan_noise,
+            self._motion_tables, self.constants,
         )  # fmt: skip
         self._after = (
-            self.buffer, fleet.noise.buffer, fleet.noise.cursor, self._fan_noise, speeds, self.constants,
-        )  # fmt: skip
+            self.buffer,
+            fleet.noise.buffer,
+            fleet.noise.cursor,
+            self._fan_noise,
+            speeds,
+            self.constants,
+        )
+        self._after_kernel = specialised(after_world_step, fleet.world.read_flat(), *self._after)
+        """Takes ``World.read_flat``'s rows first: a new float array of the same type every step."""
         self._bind_estimator()
 
     def _bind_estimator(self) -> None:
@@ -118,14 +129,15 @@ class CompiledStep:
             self._adopt()
         if fleet.estimator is not self._bound:
             self._bind_estimator()
+        self.actions[:] = actions
         world, noise, estimator, truth_fed = fleet.world, fleet.noise, fleet.estimator, fleet.truth_fed
-        before, after, estimate = (actions, *self._before), self._after, self.estimate
+        before, after_kernel, after, estimate = self._before, self._after_kernel, self._after, self.estimate
         forces, torques, position = self.forces, self.torques, self.state.position
         for _ in range(count):
-            before_world_step(*before)
+            before()
             world.step(forces, torques, position)
             noise.ready()
-            after_world_step(world.read_flat(), *after)
+            after_kernel(world.read_flat(), *after)
             if truth_fed:
                 estimator.observe_truth(self.truth, self.loads)
             estimate()

@@ -259,12 +259,13 @@ class Fleet:
     def terminations(self) -> np.ndarray:
         """(N,) codes into :data:`TERMINATION_REASONS`: crash (below ``crash_height`` or touching the
         ground), flip (tilt beyond ``flip_tilt_deg``), out_of_arena; 0 while the episode goes on."""
-        s, cfg, arena = self.state, self.cfg, self.cfg.arena
+        s = self.state
         if self.compiled is not None:
             codes = np.empty(self.count, dtype=np.int64)
             if termination_codes(s.position, s.rotation, self._limits, codes):
                 codes[self.world.ground_contacts()] = 1
             return codes
+        cfg, arena = self.cfg, self.cfg.arena
         x, y, z = s.position[:, 0], s.position[:, 1], s.position[:, 2]
         codes = np.zeros(self.count, dtype=int)
         codes[
