@@ -175,7 +175,7 @@ class Autopilot:
         yaw = np.arctan2(r[:, 1, 0], r[:, 0, 0])
         ahead = wrap_angle(self.yaw_setpoint + yaw_rate * self.dt - yaw)
         limit = self.gains.max_yaw_error
-        self.yaw_setpoint = yaw + np.clip(ahead, -limit, limit)
+        self.yaw_setpoint[:] = yaw + np.clip(ahead, -limit, limit)  # in place: the compiled step holds it
 
     def _limit_tilt(self, thrust_vector: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         vertical = np.maximum(thrust_vector[:, 2], 0.1 * self.vehicle.mass * GRAVITY)
@@ -222,7 +222,7 @@ class Autopilot:
         scale = np.minimum(1.0, ratios.min(axis=1))
         squared = without_yaw + scale[:, None] * yaw_part
         clipped = np.clip(squared, lo, hi)
-        self.saturated = (scale < 1.0) | np.any(clipped != squared, axis=1)
+        self.saturated[:] = (scale < 1.0) | np.any(clipped != squared, axis=1)
         return np.sqrt(clipped)
 
 

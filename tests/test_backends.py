@@ -114,6 +114,31 @@ def test_settings_the_kernels_do_not_cover_fall_back_to_numpy():
         env.close()
 
 
+@needs_numba
+def test_the_components_state_stays_in_the_compiled_steps_buffer():
+    """The autopilot's, rotors' and fan's state are views of the compiled step's one buffer (one
+    kernel argument), through steps, resets and the numpy code that also updates them."""
+    env = gym.make(FAN_TRACKING, backend="numba")
+    try:
+        fleet = env.unwrapped.fleet
+        parts = (
+            fleet.autopilot.yaw_setpoint, fleet.autopilot.velocity_integral, fleet.autopilot.rate_integral,
+            fleet.rotors.speeds, fleet.rotors.allocations, env.unwrapped.fan.noise,
+        )  # fmt: skip
+        for seed in (0, 1):
+            env.reset(seed=seed)
+            env.step(np.full(4, 0.3, dtype=np.float32))
+        fleet.rotors.step(fleet.actions.motor_command(np.zeros((1, 4)), fleet.state))  # numpy reference
+        now = (
+            fleet.autopilot.yaw_setpoint, fleet.autopilot.velocity_integral, fleet.autopilot.rate_integral,
+            fleet.rotors.speeds, fleet.rotors.allocations, env.unwrapped.fan.noise,
+        )  # fmt: skip
+        for before, after in zip(parts, now, strict=True):
+            assert after is before and np.shares_memory(after, fleet.compiled.buffer)
+    finally:
+        env.close()
+
+
 def _descend_until_terminated(backend: str) -> tuple[int, float]:
     """Fly straight down with no crash height until the episode ends; return the step and height.
     Checks on the way that no contact is reported above ``World.clear_height``."""

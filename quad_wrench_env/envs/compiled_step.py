@@ -5,9 +5,10 @@ The numbers the kernels need are packed here once from the fleet's own component
 parameters the numpy reference uses. The per-vehicle arrays the kernels fill (true state, time,
 applied loads, measurements) are views of one flat buffer
 (:func:`~quad_wrench_env.kernels.physics.step_views`) that the fleet adopts as its own ``state``,
-``time`` and ``wrench_true``; the state the components keep (autopilot integrators, motor speeds,
-turbulence, noise blocks) is their own arrays, updated in place, so both paths can be mixed and
-compared at any step.
+``time`` and ``wrench_true``. The state the components keep (autopilot setpoints and integrators,
+rotor speeds and allocations, fan turbulence) becomes views of the same buffer, which the components
+go on owning and updating in place, so both paths can be mixed and compared at any step; the mixer's
+saturation flags, the fan's motion tables and the noise blocks stay arrays of their own.
 """
 
 from __future__ import annotations
@@ -68,14 +69,20 @@ class CompiledStep:
         (
             self.time, position, quaternion, velocity, angular_velocity, rotation, body_rates,
             self.forces, self.torques, self.loads, self.thrusts, self.body_torques,
-            self.measured_position, self.measured_quaternion, motion, self.truth,
+            self.measured_position, self.measured_quaternion, motion, self.truth, *components,
         ) = step_views(self.buffer, count)  # fmt: skip
+        rotors = fleet.rotors
+        owners = ((ap, "yaw_setpoint"), (ap, "velocity_integral"), (ap, "rate_integral"), (rotors, "speeds"),
+                  (rotors, "allocations"), (self.fan, "noise"))  # fmt: skip
+        for (owner, name), view in zip(owners, components, strict=True):
+            if owner is not None:  # the components' state is theirs, kept here (updated in place)
+                view[...] = getattr(owner, name)
+                setattr(owner, name, view)
         self.state = RigidBodyState(position, quaternion, velocity, angular_velocity, rotation, body_rates)
         self.velocity_measured = motion[:, :3] if sensors.state_estimator else None
         self.body_rates_measured = motion[:, 3:] if sensors.state_estimator else None
         self.time[:] = fleet.time
         fleet.time = self.time
-        self._fan_noise = np.zeros((count, 3)) if self.fan is None else self.fan.noise
         self._motion_tables = np.zeros((count, 4)) if self.fan is None else self.fan.motion_tables
         self._bound: object | None = None
         """The estimator bank :attr:`estimate` is bound to."""
@@ -90,20 +97,11 @@ class CompiledStep:
         fleet.state, fleet.wrench_true = mine, self.loads
         if self.fan is not None:
             self._motion_tables = self.fan.motion_tables
-        ap, speeds = fleet.autopilot, fleet.rotors.speeds
         self._before = bind(
-            before_world_step, self.actions, self.buffer, ap.yaw_setpoint, ap.velocity_integral,
-            ap.rate_integral, ap.saturated, speeds, fleet.rotors.allocations, self._fan_noise,
-            self._motion_tables, self.constants,
-        )  # fmt: skip
-        self._after = (
-            self.buffer,
-            fleet.noise.buffer,
-            fleet.noise.cursor,
-            self._fan_noise,
-            speeds,
+            before_world_step, self.actions, self.buffer, fleet.autopilot.saturated, self._motion_tables,
             self.constants,
-        )
+        )  # fmt: skip
+        self._after = (self.buffer, fleet.noise.buffer, fleet.noise.cursor, self.constants)
         self._after_kernel = specialised(after_world_step, fleet.world.read_flat(), *self._after)
         """Takes ``World.read_flat``'s rows first: a new float array of the same type every step."""
         self._bind_estimator()

@@ -26,10 +26,13 @@ STEP_FIELDS: tuple[tuple[str, int], ...] = (
     ("time", 1), ("position", 3), ("quaternion", 4), ("velocity", 3), ("angular_velocity", 3),
     ("rotation", 9), ("body_rates", 3), ("forces", 3), ("torques", 3), ("loads", 6), ("thrusts", 1),
     ("body_torques", 3), ("measured_position", 3), ("measured_quaternion", 4), ("motion", 6), ("truth", 13),
+    ("yaw_setpoint", 1), ("velocity_integral", 3), ("rate_integral", 3), ("speeds", 4), ("allocations", 16),
+    ("fan_noise", 3),
 )  # fmt: skip
 """The per-vehicle arrays the kernels read and write, in the order :func:`step_views` cuts them out of
-one flat buffer (widths per vehicle): one array argument instead of sixteen, as numba's cost per call
-grows with the number of array arguments."""
+one flat buffer (widths per vehicle): one array argument instead of twenty-two, as numba's cost per
+call grows with the number of array arguments (about 35 ns each). The last six are the components'
+state (autopilot, rotors, fan turbulence), which the compiled step makes views of this buffer."""
 
 STEP_WIDTH = sum(width for _, width in STEP_FIELDS)
 
@@ -40,7 +43,9 @@ def step_views(buffer, n):
     floats): time (n,), position (n, 3), quaternion (n, 4), velocity, angular velocity (n, 3),
     rotation (n, 3, 3), body rates (n, 3); the world-frame forces and torques PyBullet applies and
     the external loads (n, 6); the measured thrusts (n,) and body torques (n, 3), the motion-capture
-    position (n, 3) and quaternion (n, 4), velocity and body rates (n, 6) and the truth (n, 13)."""
+    position (n, 3) and quaternion (n, 4), velocity and body rates (n, 6) and the truth (n, 13); the
+    autopilot's yaw setpoints (n,) and velocity and rate integrals (n, 3), the true rotor speeds
+    (n, 4) and allocation matrices (n, 4, 4) and the fan's turbulence state (n, 3)."""
     if buffer.shape[0] != n * STEP_WIDTH:
         raise ValueError("the step buffer must hold n * STEP_WIDTH floats")
     time, position, quaternion = buffer[0:n], rows_view(buffer, n, n, 3), rows_view(buffer, 4 * n, n, 4)
@@ -51,9 +56,14 @@ def step_views(buffer, n):
     thrusts, body_torques = buffer[38 * n : 39 * n], rows_view(buffer, 39 * n, n, 3)
     measured_position, measured_quaternion = rows_view(buffer, 42 * n, n, 3), rows_view(buffer, 45 * n, n, 4)
     motion, truth = rows_view(buffer, 49 * n, n, 6), rows_view(buffer, 55 * n, n, 13)
+    yaw_setpoint, velocity_integral = buffer[68 * n : 69 * n], rows_view(buffer, 69 * n, n, 3)
+    rate_integral, speeds = rows_view(buffer, 72 * n, n, 3), rows_view(buffer, 75 * n, n, 4)
+    allocations = as_strided(buffer[79 * n : 95 * n], shape=(n, 4, 4), strides=(128, 32, 8))
+    fan_noise = rows_view(buffer, 95 * n, n, 3)
     return (
         time, position, quaternion, velocity, angular_velocity, rotation, body_rates, forces, torques,
-        loads, thrusts, body_torques, measured_position, measured_quaternion, motion, truth,
+        loads, thrusts, body_torques, measured_position, measured_quaternion, motion, truth, yaw_setpoint,
+        velocity_integral, rate_integral, speeds, allocations, fan_noise,
     )  # fmt: skip
 
 
@@ -180,16 +190,15 @@ def fan_tracking_terms(position, time, actions, ended, motion_tables, constants,
 
 
 @njit
-def before_world_step(
-    actions, buffer, yaw_setpoint, velocity_integral, rate_integral, saturated, speeds, allocations,
-    fan_noise, motion_tables, constants,
-):  # fmt: skip
+def before_world_step(actions, buffer, saturated, motion_tables, constants):
     """Motor commands, motor lag and external loads of every vehicle from (N, 4) ``actions``; fills
     the ``forces`` and ``torques`` of ``buffer`` (:func:`step_views`; world frame, what PyBullet
-    applies) and its ``loads`` (the external ``[F, τ]``). ``constants``: :func:`physics_constants`."""
-    time, position, _, velocity, angular_velocity, rotation, _, forces, torques, loads, _, _, _, _, _, _ = (
-        step_views(buffer, actions.shape[0])
-    )
+    applies) and its ``loads`` (the external ``[F, τ]``), and steps the autopilot's and the rotors'
+    state there; ``saturated`` (N,) are the mixer's flags. ``constants``: :func:`physics_constants`."""
+    (
+        time, position, _, velocity, angular_velocity, rotation, _, forces, torques, loads, _, _, _, _, _, _,
+        yaw_setpoint, velocity_integral, rate_integral, speeds, allocations, fan_noise,
+    ) = step_views(buffer, actions.shape[0])  # fmt: skip
     action_type, scales, autopilot, inverse, motors, fan, payload, _, _, _, drag_points, segments = (
         unpack_constants(constants)
     )
@@ -369,7 +378,7 @@ def before_world_step(
 
 
 @njit
-def after_world_step(flat, buffer, noise_buffer, noise_cursor, fan_noise, speeds, constants):
+def after_world_step(flat, buffer, noise_buffer, noise_cursor, constants):
     """After PyBullet's step, into ``buffer`` (:func:`step_views`): the true states from its (N, 13)
     rows one after another in ``flat`` (``World.read_flat``), time on by one step; turbulence one
     step on (``FanJet.advance``) with this step's standard normal draws from each vehicle's block
@@ -379,7 +388,7 @@ def after_world_step(flat, buffer, noise_buffer, noise_cursor, fan_noise, speeds
     ``motion``; the true position, velocity, quaternion and body rates into ``truth``."""
     (
         time, position, quaternion, velocity, angular_velocity, rotation, body_rates, _, _, _, thrusts,
-        body_torques, measured_position, measured_quaternion, motion, truth,
+        body_torques, measured_position, measured_quaternion, motion, truth, _, _, _, speeds, _, fan_noise,
     ) = step_views(buffer, flat.shape[0] // 13)  # fmt: skip
     raw = rows_view(flat, 0, time.shape[0], 13)
     _, _, _, _, _, fan, _, sensing, nominal_allocation, dt, _, _ = unpack_constants(constants)
