@@ -65,7 +65,8 @@ def specialised(kernel: Callable[..., Any], *arguments: Any) -> Callable[..., An
     passes some 25 arrays). ``kernel`` itself without numba."""
     if _numba is None or not isinstance(kernel, _numba.core.registry.CPUDispatcher):
         return kernel
-    return kernel.compile(tuple(_numba.typeof(argument) for argument in arguments))
+    compiled = kernel.compile(tuple(_numba.typeof(argument) for argument in arguments))
+    return compiled if callable(compiled) else kernel  # what compile returns is not numba's documented API
 
 
 def bind(kernel: Callable[..., Any], *arguments: Any) -> Callable[[], Any]:
