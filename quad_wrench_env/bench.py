@@ -159,7 +159,7 @@ def component_seconds(calls: int, num_envs: int = 1, **env_kwargs) -> dict[str, 
                 "PyBullet apply + step": lambda: fleet.world.step(
                     compiled.forces, compiled.torques, fleet.state.position
                 ),
-                "PyBullet read": fleet.world.read_flat,
+                "PyBullet read": compiled.read_world,
             }
         out = {f"physics step: {name}": _time(call, calls) for name, call in parts.items()}
         if compiled is not None:  # the whole compiled step, less what is timed on its own

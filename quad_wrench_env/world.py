@@ -188,6 +188,14 @@ class World:
         vehicles as PyBullet reports them, positions in each vehicle's frame."""
         return self.read_flat().reshape(self.count, 13)
 
+    def read_first(self) -> tuple[tuple, tuple]:
+        """Vehicle 0's ``((position, quaternion (x, y, z, w)), (velocity, angular velocity))`` as
+        PyBullet returns them (its frame is PyBullet's world frame: nothing to shift). A world of one
+        vehicle hands them to the compiled step as they are, instead of :meth:`read_flat`'s row:
+        about 0.5 µs less per step, as Python builds no array."""
+        body, cid = self.bodies[0], self.client
+        return p.getBasePositionAndOrientation(body, cid), p.getBaseVelocity(body, cid)
+
     def read_flat(self) -> np.ndarray:
         """The rows of :meth:`read` one after another, (13 N,): what the compiled step takes."""
         cid = self.client

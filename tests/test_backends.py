@@ -12,6 +12,8 @@ from quad_wrench_env.kernels.linalg import weighted_gram
 from quad_wrench_env.kernels.physics import (
     STEP_FIELDS,
     STEP_WIDTH,
+    after_world_step,
+    after_world_step_one,
     physics_constants,
     step_views,
     unpack_constants,
@@ -135,6 +137,32 @@ def test_the_components_state_stays_in_the_compiled_steps_buffer():
         )  # fmt: skip
         for before, after in zip(parts, now, strict=True):
             assert after is before and np.shares_memory(after, fleet.compiled.buffer)
+    finally:
+        env.close()
+
+
+@needs_numba
+def test_one_vehicle_after_step_from_pybullets_tuples_equals_the_one_from_rows():
+    """A single env's compiled step reads PyBullet's tuples (``World.read_first``) into
+    ``after_world_step_one``; it fills the buffer exactly as ``after_world_step`` does from the row."""
+    env = gym.make(FAN_TRACKING, backend="numba")
+    try:
+        env.reset(seed=0)
+        env.step(np.zeros(4, dtype=np.float32))
+        fleet = env.unwrapped.fleet
+        compiled, world = fleet.compiled, fleet.world
+        assert compiled.read_world == world.read_first
+        readings, row = world.read_first(), world.read_flat()
+        np.testing.assert_array_equal(row, np.concatenate([np.concatenate(part) for part in readings]))
+        buffers, cursors = [], []
+        for kernel, read in ((after_world_step_one, readings), (after_world_step, row)):
+            buffer, cursor = compiled.buffer.copy(), fleet.noise.cursor.copy()
+            kernel(read, buffer, fleet.noise.buffer, cursor, compiled.constants)
+            buffers.append(buffer)
+            cursors.append(cursor)
+        np.testing.assert_array_equal(buffers[0], buffers[1])
+        np.testing.assert_array_equal(cursors[0], cursors[1])
+        assert not np.array_equal(buffers[0], compiled.buffer)  # the step wrote something
     finally:
         env.close()
 

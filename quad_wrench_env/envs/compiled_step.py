@@ -24,6 +24,7 @@ from quad_wrench_env.kernels import bind, specialised
 from quad_wrench_env.kernels.physics import (
     STEP_WIDTH,
     after_world_step,
+    after_world_step_one,
     before_world_step,
     physics_constants,
     step_views,
@@ -102,8 +103,15 @@ class CompiledStep:
             self.constants,
         )  # fmt: skip
         self._after = (self.buffer, fleet.noise.buffer, fleet.noise.cursor, self.constants)
-        self._after_kernel = specialised(after_world_step, fleet.world.read_flat(), *self._after)
-        """Takes ``World.read_flat``'s rows first: a new float array of the same type every step."""
+        world = fleet.world
+        self.read_world, kernel = (
+            (world.read_first, after_world_step_one)
+            if fleet.count == 1
+            else (world.read_flat, after_world_step)
+        )
+        self._after_kernel = specialised(kernel, self.read_world(), *self._after)
+        """Takes :attr:`read_world`'s result first: a new object of the same type every step (PyBullet's
+        tuples of floats for one vehicle, a float array of rows for more)."""
         self._bind_estimator()
 
     def _bind_estimator(self) -> None:
@@ -129,13 +137,14 @@ class CompiledStep:
             self._bind_estimator()
         self.actions[:] = actions
         world, noise, estimator, truth_fed = fleet.world, fleet.noise, fleet.estimator, fleet.truth_fed
-        before, after_kernel, after, estimate = self._before, self._after_kernel, self._after, self.estimate
+        before, read, after_kernel, after = self._before, self.read_world, self._after_kernel, self._after
+        estimate = self.estimate
         forces, torques, position = self.forces, self.torques, self.state.position
         for _ in range(count):
             before()
             world.step(forces, torques, position)
             noise.ready()
-            after_kernel(world.read_flat(), *after)
+            after_kernel(read(), *after)
             if truth_fed:
                 estimator.observe_truth(self.truth, self.loads)
             estimate()

@@ -449,6 +449,19 @@ def after_world_step(flat, buffer, noise_buffer, noise_cursor, constants):
 
 
 @njit
+def after_world_step_one(readings, buffer, noise_buffer, noise_cursor, constants):
+    """:func:`after_world_step` for a fleet of one vehicle, from PyBullet's ``(pose, twist)`` tuples
+    as ``World.read_first`` returns them."""
+    (position, orientation), (linear, angular) = readings
+    row = np.empty(13)
+    for i in range(3):
+        row[i], row[7 + i], row[10 + i] = position[i], linear[i], angular[i]
+    for i in range(4):
+        row[3 + i] = orientation[i]
+    after_world_step(row, buffer, noise_buffer, noise_cursor, constants)
+
+
+@njit
 def termination_codes(position, rotation, limits, out):
     """``Fleet.terminations`` into ``out``, but for ground contact: 1 crash (below ``limits[0]``), 2
     flip (``R[2, 2]`` below ``limits[1]``), 3 out of the arena ``limits[2:6]`` (x_min, x_max, y half
