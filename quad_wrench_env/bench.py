@@ -153,11 +153,16 @@ def component_seconds(calls: int, num_envs: int = 1, **env_kwargs) -> dict[str, 
                     nominal[:, 0], nominal[:, 1:], state.position, state.quaternion
                 ),
             }
-        else:
+        else:  # PyBullet's calls as the compiled step makes them (one vehicle: World.step_one)
+            loads = [
+                tuple(part[0].tolist()) for part in (compiled.forces, compiled.torques, fleet.state.position)
+            ]
             parts = {
                 "compiled: autopilot, motors, disturbances": lambda: compiled.physics_steps(action, 1),
-                "PyBullet apply + step": lambda: fleet.world.step(
-                    compiled.forces, compiled.torques, fleet.state.position
+                "PyBullet apply + step": (
+                    (lambda: fleet.world.step_one(*loads))
+                    if num_envs == 1
+                    else lambda: fleet.world.step(compiled.forces, compiled.torques, fleet.state.position)
                 ),
                 "PyBullet read": compiled.read_world,
             }

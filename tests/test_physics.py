@@ -57,6 +57,32 @@ def test_bodies_in_one_spot_never_touch():
         alone.close()
 
 
+def test_one_vehicle_step_and_read_equal_the_array_forms():
+    """``step_one`` and ``read_first`` (the single env's compiled path) move and read the body exactly
+    as ``step`` and ``read_flat``; ``step_one`` refuses a world of more vehicles by its count."""
+    vehicle = make_vehicle("ardrone2")
+    worlds = arrays, one = World(vehicle, DT), World(vehicle, DT)
+    try:
+        start, tilted = np.array(((0.0, 0.0, 2.0),)), quat_from_euler_zyx(0.3, -0.2, 0.1)[None]
+        for w in worlds:
+            w.place(np.array((0,)), start, tilted)
+        force, torque = np.array((0.4, -0.3, vehicle.mass * GRAVITY)), np.array((1e-3, -2e-3, 5e-4))
+        for _ in range(50):
+            arrays.step(force[None], torque[None], arrays.state().position)
+            one.step_one(tuple(force), tuple(torque), one.read_first()[0][0])
+        (position, orientation), (linear, angular) = one.read_first()
+        np.testing.assert_array_equal(arrays.read_flat(), position + orientation + linear + angular)
+    finally:
+        for w in worlds:
+            w.close()
+    pair = World(vehicle, DT, count=2)
+    try:
+        with pytest.raises(ValueError, match="this world has 2"):
+            pair.step_one((0.0, 0.0, 0.0), (0.0, 0.0, 0.0), (0.0, 0.0, 1.0))
+    finally:
+        pair.close()
+
+
 def test_spacing_is_refused_by_name_when_not_a_distance():
     with pytest.raises(ValueError, match="spacing=-1.0"):
         World(make_vehicle("ardrone2"), DT, count=2, spacing=-1.0)

@@ -26,6 +26,7 @@ from quad_wrench_env.kernels.physics import (
     after_world_step,
     after_world_step_one,
     before_world_step,
+    before_world_step_one,
     physics_constants,
     step_views,
 )
@@ -98,18 +99,18 @@ class CompiledStep:
         fleet.state, fleet.wrench_true = mine, self.loads
         if self.fan is not None:
             self._motion_tables = self.fan.motion_tables
+        one, world = fleet.count == 1, fleet.world
         self._before = bind(
-            before_world_step, self.actions, self.buffer, fleet.autopilot.saturated, self._motion_tables,
-            self.constants,
+            before_world_step_one if one else before_world_step, self.actions, self.buffer,
+            fleet.autopilot.saturated, self._motion_tables, self.constants,
         )  # fmt: skip
+        """Returns the loads as ``World.step_one`` takes them for one vehicle (PyBullet's sequences:
+        Python builds no lists from arrays), nothing for more (they are in the buffer)."""
         self._after = (self.buffer, fleet.noise.buffer, fleet.noise.cursor, self.constants)
-        world = fleet.world
-        self.read_world, kernel = (
-            (world.read_first, after_world_step_one)
-            if fleet.count == 1
-            else (world.read_flat, after_world_step)
+        self.read_world = world.read_first if one else world.read_flat
+        self._after_kernel = specialised(
+            after_world_step_one if one else after_world_step, self.read_world(), *self._after
         )
-        self._after_kernel = specialised(kernel, self.read_world(), *self._after)
         """Takes :attr:`read_world`'s result first: a new object of the same type every step (PyBullet's
         tuples of floats for one vehicle, a float array of rows for more)."""
         self._bind_estimator()
@@ -140,9 +141,13 @@ class CompiledStep:
         before, read, after_kernel, after = self._before, self.read_world, self._after_kernel, self._after
         estimate = self.estimate
         forces, torques, position = self.forces, self.torques, self.state.position
+        one = fleet.count == 1
         for _ in range(count):
-            before()
-            world.step(forces, torques, position)
+            if one:
+                world.step_one(*before())
+            else:
+                before()
+                world.step(forces, torques, position)
             noise.ready()
             after_kernel(read(), *after)
             if truth_fed:

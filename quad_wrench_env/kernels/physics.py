@@ -449,6 +449,19 @@ def after_world_step(flat, buffer, noise_buffer, noise_cursor, constants):
 
 
 @njit
+def before_world_step_one(actions, buffer, saturated, motion_tables, constants):
+    """:func:`before_world_step` for a fleet of one vehicle, returning what ``World.step_one``
+    applies as tuples of floats: the force, the torque and the centre of mass."""
+    before_world_step(actions, buffer, saturated, motion_tables, constants)
+    _, position, _, _, _, _, _, forces, torques, _, _, _, _, _, _, _, _, _, _, _, _, _ = step_views(buffer, 1)
+    return (
+        (forces[0, 0], forces[0, 1], forces[0, 2]),
+        (torques[0, 0], torques[0, 1], torques[0, 2]),
+        (position[0, 0], position[0, 1], position[0, 2]),
+    )
+
+
+@njit
 def after_world_step_one(readings, buffer, noise_buffer, noise_cursor, constants):
     """:func:`after_world_step` for a fleet of one vehicle, from PyBullet's ``(pose, twist)`` tuples
     as ``World.read_first`` returns them."""
