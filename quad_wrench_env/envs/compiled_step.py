@@ -9,6 +9,12 @@ applied loads, measurements) are views of one flat buffer
 rotor speeds and allocations, fan turbulence) becomes views of the same buffer, which the components
 go on owning and updating in place, so both paths can be mixed and compared at any step; the mixer's
 saturation flags, the fan's motion tables and the noise blocks stay arrays of their own.
+
+Every kernel is called in its compiled form on arguments bound once per episode
+(:func:`~quad_wrench_env.kernels.bind`). A fleet of one vehicle (the single env) meets PyBullet with
+tuples instead of arrays: the before-step kernel returns the loads as ``World.step_one`` takes them
+and the after-step kernel takes ``World.read_first``'s tuples, so Python builds no lists or arrays at
+the boundary (about 0.9 µs less per physics step).
 """
 
 from __future__ import annotations
