@@ -161,7 +161,7 @@ def component_seconds(calls: int, num_envs: int = 1, **env_kwargs) -> dict[str, 
                 "compiled: autopilot, motors, disturbances": lambda: compiled.physics_steps(action, 1),
                 "PyBullet apply + step": (
                     (lambda: fleet.world.step_one(*loads))
-                    if num_envs == 1
+                    if compiled.single
                     else lambda: fleet.world.step(compiled.forces, compiled.torques, fleet.state.position)
                 ),
                 "PyBullet read": compiled.read_world,

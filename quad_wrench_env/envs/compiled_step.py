@@ -71,6 +71,8 @@ class CompiledStep:
             np.zeros(7) if self.fan is None else self.fan.kernel_parameters(), payload.kernel_parameters(),
             np.array(sensing), ap.mixer.allocation, fleet.dt, fleet.drag_points, profile.segments,
         )  # fmt: skip
+        self.single = count == 1
+        """A fleet of one vehicle: it meets PyBullet with tuples (module docstring)."""
         self.buffer = np.zeros(count * STEP_WIDTH)
         self.actions = np.zeros((count, 4))
         """The policy step's (N, 4) clipped normalised actions, copied in (bound to the kernel)."""
@@ -105,7 +107,7 @@ class CompiledStep:
         fleet.state, fleet.wrench_true = mine, self.loads
         if self.fan is not None:
             self._motion_tables = self.fan.motion_tables
-        one, world = fleet.count == 1, fleet.world
+        one, world = self.single, fleet.world
         self._before = bind(
             before_world_step_one if one else before_world_step, self.actions, self.buffer,
             fleet.autopilot.saturated, self._motion_tables, self.constants,
@@ -146,8 +148,7 @@ class CompiledStep:
         world, noise, estimator, truth_fed = fleet.world, fleet.noise, fleet.estimator, fleet.truth_fed
         before, read, after_kernel, after = self._before, self.read_world, self._after_kernel, self._after
         estimate = self.estimate
-        forces, torques, position = self.forces, self.torques, self.state.position
-        one = fleet.count == 1
+        forces, torques, position, one = self.forces, self.torques, self.state.position, self.single
         for _ in range(count):
             if one:
                 world.step_one(*before())
