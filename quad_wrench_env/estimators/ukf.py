@@ -42,7 +42,10 @@ pose at rest. Either way it reports ``status = "reinitialised"`` from then on (t
 
 :class:`UnscentedFilterBank` runs N such filters as one batched computation (every array carries
 a leading filter axis); :class:`UnscentedWrenchEstimator`, the single-vehicle estimator, is a bank
-of one, so there is one implementation of the algebra.
+of one, so there is one implementation of the algebra. Compiled (numba), a bank runs filter by
+filter (:mod:`quad_wrench_env.kernels.ukf`) or, from
+:data:`~quad_wrench_env.kernels.ukf_lanes.LANES_FROM` filters on, eight filters at a time on SIMD
+lanes (:mod:`quad_wrench_env.kernels.ukf_lanes`).
 """
 
 from __future__ import annotations
@@ -123,6 +126,13 @@ class UnscentedFilterBank(FilterBank):
         self.rests = np.zeros((count, STATE_DIM - 3))
         self.covariances = np.tile(self.P0, (count, 1, 1))
         self.reinitialisations = np.zeros(count, dtype=int)
+        self._step_kernel = ukf_bank_step
+        """The compiled step: filter by filter, or on lanes for a bank large enough (module docstring)."""
+        if self.backend == "numba":
+            from quad_wrench_env.kernels.ukf_lanes import LANES_FROM, ukf_lanes_step  # needs numba
+
+            if count >= LANES_FROM:
+                self._step_kernel = ukf_lanes_step
 
     name = "ukf"
 
@@ -141,7 +151,7 @@ class UnscentedFilterBank(FilterBank):
 
     def _kernel(self, thrusts, body_torques, positions, quaternions, velocities, body_rates):
         """Paper 000's filter measures the pose only: ``velocities`` and ``body_rates`` are unused."""
-        return ukf_bank_step, (
+        return self._step_kernel, (
             self.quaternions, self.rests, self.covariances, self.reinitialisations,
             thrusts, body_torques, positions, quaternions, self.kernel_constants,
         )  # fmt: skip
