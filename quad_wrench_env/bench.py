@@ -11,6 +11,7 @@ import pybullet as p
 import quad_wrench_env  # noqa: F401  (registers the env ids)
 from quad_wrench_env.estimators import TruthFed, make_estimator
 from quad_wrench_env.estimators.ukf import UnscentedFilterBank
+from quad_wrench_env.kernels.ukf import ukf_bank_step
 from quad_wrench_env.rotations import quat_exp, quat_multiply
 from quad_wrench_env.vehicle import GRAVITY, make_vehicle
 
@@ -189,11 +190,20 @@ def component_seconds(calls: int, num_envs: int = 1, **env_kwargs) -> dict[str, 
 
 
 def filter_bank_step_seconds(
-    count: int, steps: int, seed: int = 0, dt: float = 0.005, backend: str = "numpy"
+    count: int,
+    steps: int,
+    seed: int = 0,
+    dt: float = 0.005,
+    backend: str = "numpy",
+    filter_by_filter: bool = False,
 ) -> float:
-    """Seconds per step of a bank of ``count`` UKFs (all of them) fed hovering vehicles' noisy poses."""
+    """Seconds per step of a bank of ``count`` UKFs (all of them) fed hovering vehicles' noisy poses;
+    ``filter_by_filter`` runs a compiled bank on the filter-by-filter kernel even where it would run
+    on SIMD lanes (the baseline of the lanes)."""
     vehicle = make_vehicle("ardrone2")
     bank = UnscentedFilterBank(vehicle, dt, None, count, backend)
+    if filter_by_filter:
+        bank._step_kernel = ukf_bank_step
     rng = np.random.default_rng(seed)
     positions, quaternions = np.tile((0.0, 0.0, 1.0), (count, 1)), np.tile((1.0, 0.0, 0.0, 0.0), (count, 1))
     bank.reset(slice(None), positions, quaternions)

@@ -5,7 +5,8 @@
 Each estimator is fed a hovering vehicle's noisy motion-capture pose (0.5 mm, 2 mrad) and the hover
 thrust; the best of ``--repeats`` timings is reported (the machine's noise only ever adds time).
 Each single estimator is timed in numpy and, with numba installed, compiled; the last rows step
-banks of 1, 8 and 64 UKFs as one batched computation (what the envs run).
+banks of 1, 8 and 64 UKFs as one batched computation (what the envs run): compiled, banks of 8 and
+64 run on SIMD lanes, and again filter by filter, the lanes' baseline in the same run.
 """
 
 from __future__ import annotations
@@ -23,8 +24,8 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=5)
     args = parser.parse_args()
     bare = min(bare_pybullet_step_seconds(args.steps) for _ in range(args.repeats))
-    print(f"{'what':32s} {'µs/step':>9s} {'x bare PyBullet step':>21s}")
-    print(f"{'bare PyBullet physics step':32s} {bare * 1e6:9.1f} {1.0:21.1f}")
+    print(f"{'what':52s} {'µs/step':>9s} {'x bare PyBullet step':>21s}")
+    print(f"{'bare PyBullet physics step':52s} {bare * 1e6:9.1f} {1.0:21.1f}")
     backends = ("numpy", "numba") if NUMBA_AVAILABLE else ("numpy",)
     for backend in backends:
         for name in ESTIMATORS:
@@ -33,14 +34,22 @@ def main() -> None:
                 estimator_step_seconds(name, args.steps, backend=backend) for _ in range(args.repeats)
             )
             label = f"estimator {name} step ({backend})"
-            print(f"{label:32s} {seconds * 1e6:9.1f} {seconds / bare:21.1f}")
+            print(f"{label:52s} {seconds * 1e6:9.1f} {seconds / bare:21.1f}")
     for backend in backends:
-        filter_bank_step_seconds(1, 2, backend=backend)  # compiled code loads on first use
+        for count in (1, 8):  # compiled code loads on first use (filter by filter, lanes)
+            filter_bank_step_seconds(count, 2, backend=backend)
         for count in (1, 8, 64):
             steps = max(args.steps // count, 20)
-            bank = min(filter_bank_step_seconds(count, steps, backend=backend) for _ in range(args.repeats))
-            label = f"UKF bank of {count} ({backend}), per filter"
-            print(f"{label:32s} {bank / count * 1e6:9.1f} {bank / count / bare:21.1f}")
+            kernels = [(False, "")]
+            if backend == "numba" and count > 1:  # on lanes, then the lanes' baseline
+                kernels.append((True, ", filter by filter"))
+            for by_filter, kind in kernels:
+                bank = min(
+                    filter_bank_step_seconds(count, steps, backend=backend, filter_by_filter=by_filter)
+                    for _ in range(args.repeats)
+                )
+                label = f"UKF bank of {count} ({backend}{kind}), per filter"
+                print(f"{label:52s} {bank / count * 1e6:9.1f} {bank / count / bare:21.1f}")
 
 
 if __name__ == "__main__":

@@ -3,8 +3,9 @@
 The numpy code is the reference and always available; with numba installed (``pip install
 "quad-wrench-env[fast]"``) the envs run these kernels instead (config ``backend``: ``"auto"`` picks
 numba when it imports, ``"numpy"`` forces the reference, ``"numba"`` requires it). Each kernel loops
-over the vehicles (or filters) of a batch and repeats the reference's arithmetic step by step; the
-tests run both paths and compare them. Compiled code is cached on disk (numba's ``cache=True``), so
+over the vehicles (or filters) of a batch and repeats the reference's arithmetic step by step (the
+UKF of a larger bank runs eight filters at a time on SIMD lanes, :mod:`.lanes`); the tests run both
+paths and compare them. Compiled code is cached on disk (numba's ``cache=True``), so
 the compile cost (seconds) is paid once per machine, not per env.
 """
 
