@@ -171,3 +171,25 @@ def test_banks_below_the_threshold_run_filter_by_filter():
     vehicle = make_vehicle("ardrone2")
     assert UnscentedFilterBank(vehicle, 0.005, None, LANES_FROM - 1, "numba")._step_kernel is ukf_bank_step
     assert UnscentedFilterBank(vehicle, 0.005, None, LANES_FROM, "numba")._step_kernel is ukf_lanes_step
+
+
+def test_a_filter_on_lanes_depends_on_its_own_inputs_only():
+    """The same filters in reverse order (other lanes, other neighbours, the spare lanes elsewhere)
+    give the same bits, filter for filter."""
+    vehicle, count = make_vehicle("ardrone2"), 11
+    banks = [UnscentedFilterBank(vehicle, 0.005, None, count, "numba") for _ in range(2)]
+    rng = np.random.default_rng(4)
+    positions = rng.normal(size=(count, 3))
+    quaternions = rng.normal(size=(count, 4))
+    quaternions /= np.linalg.norm(quaternions, axis=1, keepdims=True)
+    reverse = slice(None, None, -1)
+    banks[0].reset(slice(None), positions, quaternions)
+    banks[1].reset(slice(None), positions[reverse], quaternions[reverse])
+    for _ in range(100):
+        thrusts = vehicle.mass * GRAVITY * (1.0 + 0.2 * rng.standard_normal(count))
+        torques = 0.01 * rng.standard_normal((count, 3))
+        measured_p = positions + 0.01 * rng.standard_normal((count, 3))
+        banks[0].step(thrusts, torques, measured_p, quaternions)
+        banks[1].step(thrusts[reverse], torques[reverse], measured_p[reverse], quaternions[reverse])
+    for name in ("quaternions", "rests", "covariances"):
+        np.testing.assert_array_equal(getattr(banks[1], name)[reverse], getattr(banks[0], name), err_msg=name)
