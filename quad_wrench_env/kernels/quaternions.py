@@ -34,17 +34,29 @@ def to_mrp(w, x, y, z):
     return x * scale, y * scale, z * scale
 
 
+@njit(inline=True)
+def half_angle_squared(v0, v1, v2):
+    """``(θ/2)²`` of the rotation vector ``v``: :func:`exp` takes :func:`exp_small` below 1e-4."""
+    return 0.25 * (v0 * v0 + v1 * v1 + v2 * v2)
+
+
+@njit(inline=True)
+def exp_small(h2, v0, v1, v2):
+    """:func:`exp` for a half angle below 0.01 rad (``h2``: its square): cos and sin/x from their
+    Taylor series, whose first omitted terms (x⁸/8!, x⁸/9!) are below 1e-20, so the same numbers to
+    rounding without the transcendental calls (one filter step takes 37 of these). Plain arithmetic:
+    it runs on SIMD lanes too (:mod:`~quad_wrench_env.kernels.ukf_lanes`)."""
+    cosine = 1.0 - h2 / 2.0 * (1.0 - h2 / 12.0 * (1.0 - h2 / 30.0))
+    scale = 0.5 * (1.0 - h2 / 6.0 * (1.0 - h2 / 20.0 * (1.0 - h2 / 42.0)))
+    return cosine, v0 * scale, v1 * scale, v2 * scale
+
+
 @njit
 def exp(v0, v1, v2):
-    """Quaternion of the rotation vector ``v`` (``rotations.quat_exp``). Below 0.01 rad of half
-    angle, cos and sin/x come from their Taylor series, whose first omitted terms (x⁸/8!, x⁸/9!) are
-    below 1e-20: the same numbers to rounding, without the transcendental calls (one filter step
-    takes 37 of these)."""
-    h2 = 0.25 * (v0 * v0 + v1 * v1 + v2 * v2)  # (θ/2)²
+    """Quaternion of the rotation vector ``v`` (``rotations.quat_exp``)."""
+    h2 = half_angle_squared(v0, v1, v2)
     if h2 < 1e-4:
-        cosine = 1.0 - h2 / 2.0 * (1.0 - h2 / 12.0 * (1.0 - h2 / 30.0))
-        scale = 0.5 * (1.0 - h2 / 6.0 * (1.0 - h2 / 20.0 * (1.0 - h2 / 42.0)))
-        return cosine, v0 * scale, v1 * scale, v2 * scale
+        return exp_small(h2, v0, v1, v2)
     half = math.sqrt(h2)
     return (
         math.cos(half),

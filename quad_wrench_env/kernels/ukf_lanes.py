@@ -12,8 +12,8 @@ Each block of eight filters is copied into lane layout (a short last block repea
 filter in the spare lanes, whose results are dropped), stepped, and copied back. Each lane does the
 filter-by-filter kernel's operations in the same order, except the covariance sum (eq. 27), which
 runs over the sigma points in order here and regrouped there: the two kernels agree to rounding
-(``tests/test_backends.py``). Nothing is regrouped here, so the lanes give the same bits on every
-machine.
+(``tests/test_lanes.py``). Nothing is regrouped here, so the lanes give the same bits on CPUs of
+any vector width.
 """
 
 from __future__ import annotations
@@ -33,12 +33,12 @@ from quad_wrench_env.kernels.lanes import (
     with_lane,
 )
 from quad_wrench_env.kernels.linalg import inputs_finite, rows_view
-from quad_wrench_env.kernels.quaternions import exp, from_mrp, qmul, to_mrp
+from quad_wrench_env.kernels.quaternions import exp, exp_small, from_mrp, half_angle_squared, qmul, to_mrp
 from quad_wrench_env.kernels.ukf import _MEASURED, _NONLINEAR
 
 LANES_FROM = 3
-"""Smallest bank that runs on lanes: a block of eight costs about 7 µs, one filter by itself 3.6 µs
-and two 6.0 µs, three 8.3 µs (``ukf_bank_step``, AMD EPYC with AVX-512)."""
+"""Smallest bank that runs on lanes: a block of eight costs about 7 µs; filter by filter
+(``ukf_bank_step``) one filter costs 3.9 µs, two 6.2 µs and three 8.5 µs (AMD EPYC, AVX-512)."""
 
 _ALL = (1 << WIDTH) - 1
 
@@ -87,11 +87,9 @@ def _cholesky(a, out, n):
 def _exp(v0, v1, v2):
     """:func:`~quad_wrench_env.kernels.quaternions.exp` lane by lane: its Taylor series on the lanes
     when every lane's half angle is small, its scalar form lane by lane otherwise."""
-    h2 = 0.25 * (v0 * v0 + v1 * v1 + v2 * v2)
+    h2 = half_angle_squared(v0, v1, v2)
     if all_less(h2, 1e-4):
-        cosine = 1.0 - h2 / 2.0 * (1.0 - h2 / 12.0 * (1.0 - h2 / 30.0))
-        scale = 0.5 * (1.0 - h2 / 6.0 * (1.0 - h2 / 20.0 * (1.0 - h2 / 42.0)))
-        return cosine, v0 * scale, v1 * scale, v2 * scale
+        return exp_small(h2, v0, v1, v2)
     ew, ex, ey, ez = v0, v0, v0, v0
     for i in range(WIDTH):
         w, x, y, z = exp(lane(v0, i), lane(v1, i), lane(v2, i))
