@@ -19,33 +19,22 @@ pytestmark = pytest.mark.skipif(not NUMBA_AVAILABLE, reason="numba is not instal
 if NUMBA_AVAILABLE:
     import numba
 
-    from quad_wrench_env.kernels.lanes import (
-        WIDTH,
-        all_less,
-        finite_mask,
-        greater_mask,
-        lane,
-        load,
-        splat,
-        sqrt,
-        store,
-        with_lane,
-    )
+    from quad_wrench_env.kernels import lanes
     from quad_wrench_env.kernels.ukf_lanes import LANES_FROM, ukf_lanes_step
 
     @numba.njit
     def _lane_arithmetic(a, b, out):
-        x, y = load(a, 0), load(b, 0)
+        x, y = lanes.load(a, 0), lanes.load(b, 0)
         results = (
-            x + y, x - y, x * y, x / y, -x, 2.0 * x, x / 3.0, 1.0 - x, sqrt(abs(x)), abs(x),
-            math.copysign(1.0, x), math.copysign(x, y), splat(0.5),
+            x + y, x - y, x * y, x / y, -x, 2.0 * x, x / 3.0, 1.0 - x, lanes.sqrt(abs(x)), abs(x),
+            math.copysign(1.0, x), math.copysign(x, y), lanes.splat(0.5),
         )  # fmt: skip
         for k in range(len(results)):
-            store(out, k * WIDTH, results[k])
+            lanes.store(out, k * lanes.WIDTH, results[k])
         w, qx, qy, qz = qmul(x, y, x * y, x - y, y, x, 0.5, y / x)  # a float function, compiled for lanes
         m0, m1, m2 = to_mrp(w, qx, qy, qz)
         for k, value in enumerate((w, qx, qy, qz, m0, m1, m2)):
-            store(out, (len(results) + k) * WIDTH, value)
+            lanes.store(out, (len(results) + k) * lanes.WIDTH, value)
 
     @numba.njit
     def _float_arithmetic(a, b, out):
@@ -61,30 +50,30 @@ if NUMBA_AVAILABLE:
 
     @numba.njit
     def _masks(a, bound):
-        x = load(a, 0)
-        replaced = with_lane(x, 3, -7.0)
+        x = lanes.load(a, 0)
+        replaced = lanes.with_lane(x, 3, -7.0)
         return (
-            greater_mask(x, splat(bound)), finite_mask(x), all_less(x, bound), lane(x, 2),
-            lane(replaced, 3), lane(replaced, 4),
+            lanes.greater_mask(x, lanes.splat(bound)), lanes.finite_mask(x), lanes.all_less(x, bound),
+            lanes.lane(x, 2), lanes.lane(replaced, 3), lanes.lane(replaced, 4),
         )  # fmt: skip
 
     @numba.njit
     def _load_at(array, offset):
-        return lane(load(array, offset), 0)
+        return lanes.lane(lanes.load(array, offset), 0)
 
     @numba.njit
     def _store_at(array, offset):
-        store(array, offset, splat(1.0))
+        lanes.store(array, offset, lanes.splat(1.0))
 
 
 def test_each_lane_is_the_float_arithmetic_bit_for_bit():
     rng = np.random.default_rng(0)
-    a, b = rng.normal(size=WIDTH), rng.normal(size=WIDTH)
+    a, b = rng.normal(size=lanes.WIDTH), rng.normal(size=lanes.WIDTH)
     a[0], b[1] = -1.25, -3.0  # signs that copysign must keep
-    lanes, floats = np.zeros(20 * WIDTH), np.zeros(20 * WIDTH)
-    _lane_arithmetic(a, b, lanes)
+    on_lanes, floats = np.zeros(20 * lanes.WIDTH), np.zeros(20 * lanes.WIDTH)
+    _lane_arithmetic(a, b, on_lanes)
     _float_arithmetic(a, b, floats)
-    np.testing.assert_array_equal(lanes, floats)
+    np.testing.assert_array_equal(on_lanes, floats)
 
 
 def test_masks_and_single_lanes():
@@ -93,21 +82,21 @@ def test_masks_and_single_lanes():
     assert greater == sum(1 << i for i, x in enumerate(a) if x > 0.25)  # NaN is not greater
     assert finite == sum(1 << i for i, x in enumerate(a) if np.isfinite(x))
     assert not below and np.isnan(third) and replaced == -7.0 and kept == np.inf
-    assert _masks(np.full(WIDTH, 1e-5), 1e-4)[2]
-    assert not _masks(np.r_[np.full(WIDTH - 1, 1e-5), np.nan], 1e-4)[2]  # NaN is not below
+    assert _masks(np.full(lanes.WIDTH, 1e-5), 1e-4)[2]
+    assert not _masks(np.r_[np.full(lanes.WIDTH - 1, 1e-5), np.nan], 1e-4)[2]  # NaN is not below
 
 
 def test_lanes_outside_the_array_and_other_arrays_are_refused():
-    array = np.zeros(2 * WIDTH)
-    assert _load_at(array, WIDTH) == 0.0
-    for offset in (-1, WIDTH + 1, 2 * WIDTH):
+    array = np.zeros(2 * lanes.WIDTH)
+    assert _load_at(array, lanes.WIDTH) == 0.0
+    for offset in (-1, lanes.WIDTH + 1, 2 * lanes.WIDTH):
         with pytest.raises(IndexError, match="lanes outside the array"):
             _load_at(array, offset)
         with pytest.raises(IndexError, match="lanes outside the array"):
             _store_at(array, offset)
     np.testing.assert_array_equal(array, 0.0)
     with pytest.raises(TypeError, match="1-d C-contiguous float64"):
-        _load_at(np.zeros((2, WIDTH)), 0)
+        _load_at(np.zeros((2, lanes.WIDTH)), 0)
 
 
 def _fly_banks(count: int, steps: int = 300):
