@@ -171,7 +171,7 @@ def test_a_filter_on_lanes_depends_on_its_own_inputs_only():
     positions = rng.normal(size=(count, 3))
     quaternions = rng.normal(size=(count, 4))
     quaternions /= np.linalg.norm(quaternions, axis=1, keepdims=True)
-    reverse = slice(None, None, -1)
+    reverse = np.arange(count)[::-1]  # a copy in reverse order (C-contiguous, as the envs pass them)
     banks[0].reset(slice(None), positions, quaternions)
     banks[1].reset(slice(None), positions[reverse], quaternions[reverse])
     for _ in range(100):
