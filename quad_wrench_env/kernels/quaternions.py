@@ -66,18 +66,23 @@ def exp(v0, v1, v2):
     )
 
 
-@njit
-def matrix(w, x, y, z, out):
-    """Body -> world rotation matrix into ``out`` (3, 3) (``rotations.rotation_matrix``)."""
+@njit(inline=True)
+def rotation_entries(w, x, y, z):
+    """The nine entries of the body -> world rotation matrix, row by row (``rotations.rotation_matrix``).
+    Plain arithmetic: it runs on SIMD lanes too (:mod:`~quad_wrench_env.kernels.ukf_lanes`)."""
     xx, yy, zz = x * x, y * y, z * z
     xy, xz, yz = x * y, x * z, y * z
     wx, wy, wz = w * x, w * y, w * z
-    out[0, 0] = 1.0 - 2.0 * (yy + zz)
-    out[0, 1] = 2.0 * (xy - wz)
-    out[0, 2] = 2.0 * (xz + wy)
-    out[1, 0] = 2.0 * (xy + wz)
-    out[1, 1] = 1.0 - 2.0 * (xx + zz)
-    out[1, 2] = 2.0 * (yz - wx)
-    out[2, 0] = 2.0 * (xz - wy)
-    out[2, 1] = 2.0 * (yz + wx)
-    out[2, 2] = 1.0 - 2.0 * (xx + yy)
+    return (
+        1.0 - 2.0 * (yy + zz), 2.0 * (xy - wz), 2.0 * (xz + wy),
+        2.0 * (xy + wz), 1.0 - 2.0 * (xx + zz), 2.0 * (yz - wx),
+        2.0 * (xz - wy), 2.0 * (yz + wx), 1.0 - 2.0 * (xx + yy),
+    )  # fmt: skip
+
+
+@njit
+def matrix(w, x, y, z, out):
+    """Body -> world rotation matrix into ``out`` (3, 3) (:func:`rotation_entries`)."""
+    (out[0, 0], out[0, 1], out[0, 2], out[1, 0], out[1, 1], out[1, 2], out[2, 0], out[2, 1], out[2, 2]) = (
+        rotation_entries(w, x, y, z)
+    )

@@ -50,6 +50,29 @@ def ukf_constants(
     return np.concatenate((head, q_diagonal, g_diagonal, np.ravel(p0))).astype(float)
 
 
+@njit(inline=True)
+def unpack_ukf_constants(constants):
+    """:func:`ukf_constants` as the step kernels read them: ``dt``, ``mass``, ``inertia`` (3),
+    ``gravity``, ``spread``, the centre's weight with the linear pairs' share (module docstring), every
+    other point's weight ``w``, the diagonals of ``Q`` and ``G``, and ``P₀`` (18, 18)."""
+    w = constants[8]
+    w_centre = constants[7] + 2 * (18 - _NONLINEAR) * w
+    q_diagonal, g_diagonal, p0 = constants[9:21], constants[21:27], rows_view(constants, 27, 18, 18)
+    inertia = (constants[2], constants[3], constants[4])
+    return (
+        constants[0],
+        constants[1],
+        inertia,
+        constants[5],
+        constants[6],
+        w_centre,
+        w,
+        q_diagonal,
+        g_diagonal,
+        p0,
+    )
+
+
 @njit
 def ukf_bank_step(
     quaternions, rests, covariances, reinitialisations,
@@ -61,14 +84,9 @@ def ukf_bank_step(
     unmeasured = positions[:0]
     if not inputs_finite(thrusts, body_torques, positions, measured_quaternions, unmeasured, unmeasured):
         return False
-    dt, mass, inertia, gravity, spread = (
-        constants[0],
-        constants[1],
-        constants[2:5],
-        constants[5],
-        constants[6],
+    dt, mass, inertia, gravity, spread, w_centre, w, q_diagonal, g_diagonal, p0 = unpack_ukf_constants(
+        constants
     )
-    q_diagonal, g_diagonal, p0 = constants[9:21], constants[21:27], rows_view(constants, 27, 18, 18)
     n_points = 1 + 2 * _NONLINEAR
     root = np.empty((18, 18))
     q_points = np.empty((n_points, 4))
@@ -88,8 +106,6 @@ def ukf_bank_step(
     accel = np.empty(3)
     torque = np.empty(3)
     delta = np.empty(18)
-    w = constants[8]  # every sigma point but the centre has this weight
-    w_centre = constants[7] + 2 * (18 - _NONLINEAR) * w  # with the linear pairs' share (module doc)
     for n in range(count):
         p = covariances[n]
         if not cholesky(p, root):  # lost positive definiteness: keep the mean, restart the covariance

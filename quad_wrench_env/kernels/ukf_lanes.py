@@ -32,9 +32,17 @@ from quad_wrench_env.kernels.lanes import (
     store,
     with_lane,
 )
-from quad_wrench_env.kernels.linalg import inputs_finite, rows_view
-from quad_wrench_env.kernels.quaternions import exp, exp_small, from_mrp, half_angle_squared, qmul, to_mrp
-from quad_wrench_env.kernels.ukf import _MEASURED, _NONLINEAR
+from quad_wrench_env.kernels.linalg import inputs_finite
+from quad_wrench_env.kernels.quaternions import (
+    exp,
+    exp_small,
+    from_mrp,
+    half_angle_squared,
+    qmul,
+    rotation_entries,
+    to_mrp,
+)
+from quad_wrench_env.kernels.ukf import _MEASURED, _NONLINEAR, unpack_ukf_constants
 
 LANES_FROM = 3
 """Smallest bank that runs on lanes: a block of eight costs about 7 µs; filter by filter
@@ -109,13 +117,11 @@ def ukf_lanes_step(
     unmeasured = positions[:0]
     if not inputs_finite(thrusts, body_torques, positions, measured_quaternions, unmeasured, unmeasured):
         return False
-    dt, mass, gravity, spread = constants[0], constants[1], constants[5], constants[6]
-    inertia = (constants[2], constants[3], constants[4])
-    q_diagonal, g_diagonal, p0 = constants[9:21], constants[21:27], rows_view(constants, 27, 18, 18)
+    dt, mass, inertia, gravity, spread, w_centre, w, q_diagonal, g_diagonal, p0 = unpack_ukf_constants(
+        constants
+    )
     n_points = 1 + 2 * _NONLINEAR
     n_columns = n_points + 18 - _NONLINEAR
-    w = constants[8]  # every sigma point but the centre has this weight
-    w_centre = constants[7] + 2 * (18 - _NONLINEAR) * w  # with the linear pairs' share
     p = empty(18 * 18)
     root = empty(18 * 18)
     deviations = empty(18 * n_columns)
@@ -175,13 +181,7 @@ def ukf_lanes_step(
                     store(e, i * WIDTH, sign * spread * load(root, _at(i, col, 18)))
             dw, dx, dy, dz = from_mrp(load(e, 0), load(e, WIDTH), load(e, 2 * WIDTH))
             pw, px, py, pz = qmul(qw, qx, qy, qz, dw, dx, dy, dz)
-            xx, yy, zz, xy, xz, yz = px * px, py * py, pz * pz, px * py, px * pz, py * pz
-            wx, wy, wz = pw * px, pw * py, pw * pz
-            rotation = (  # quaternions.matrix, row by row
-                1.0 - 2.0 * (yy + zz), 2.0 * (xy - wz), 2.0 * (xz + wy),
-                2.0 * (xy + wz), 1.0 - 2.0 * (xx + zz), 2.0 * (yz - wx),
-                2.0 * (xz - wy), 2.0 * (yz + wx), 1.0 - 2.0 * (xx + yy),
-            )  # fmt: skip
+            rotation = rotation_entries(pw, px, py, pz)
             if j == 0:
                 for k in range(9):
                     store(rotation0, k * WIDTH, rotation[k])
