@@ -17,7 +17,10 @@ import numpy as np
 
 from agents.base import Policy
 
-TRACE_KEYS = ("time", "position", "wrench_true", "wrench_est", "fan_position", "jet_axis_y", "axis_error")
+TRACE_KEYS = (
+    "time", "position", "wrench_true", "wrench_est", "fan_position", "jet_axis_y", "axis_error",
+    "standoff_error",
+)  # fmt: skip
 """``info`` entries recorded at every step when present (plus ``reward``)."""
 
 
@@ -49,9 +52,12 @@ class Evaluation:
 
 def fan_tracking_metrics(episode: Episode, settle_time: float = 5.0, band: float = 0.15) -> dict[str, float]:
     """Paper 000 Fig. 7 scores: mean |y - y_axis| after ``settle_time`` (m), fraction of time within
-    ``band`` of the axis, and time to first come within ``band`` (s; inf if never)."""
+    ``band`` of the axis, time to first come within ``band`` (s; inf if never), and the mean
+    |x - standoff_distance| after ``settle_time`` (m), so that tracking from closer to the fan, where
+    the torque is stronger, does not pass for better tracking."""
     t = episode.trace["time"]
     error = np.abs(episode.trace["axis_error"])
+    standoff = np.abs(episode.trace["standoff_error"])
     late = t >= settle_time
     inside = error <= band
     first = np.flatnonzero(inside)
@@ -59,6 +65,7 @@ def fan_tracking_metrics(episode: Episode, settle_time: float = 5.0, band: float
         "mean_abs_error_after_5s": float(np.mean(error[late])) if np.any(late) else math.nan,
         "fraction_within_0.15m": float(np.mean(inside)),
         "time_to_0.15m": float(t[first[0]]) if first.size else math.inf,
+        "mean_abs_standoff_error_after_5s": float(np.mean(standoff[late])) if np.any(late) else math.nan,
         "episode_seconds": float(t[-1]),
         "return": episode.total_reward,
         "terminated_early": float(episode.termination_reason is not None),
@@ -74,7 +81,7 @@ def generic_metrics(episode: Episode) -> dict[str, float]:
 
 
 METRICS: dict[str, Callable[[Episode], dict[str, float]]] = {
-    "QuadWrench/FanTracking-v0": fan_tracking_metrics,
+    "QuadWrench/FanTracking-v1": fan_tracking_metrics,
 }
 
 

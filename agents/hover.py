@@ -7,13 +7,14 @@ one at the start of the episode unless references are given.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import gymnasium as gym
 import numpy as np
 
 from quad_wrench_env.config import build
-from quad_wrench_env.rotations import wrap_angle, yaw_of
+from quad_wrench_env.rotations import wrap_angle
 
 
 @dataclass
@@ -58,7 +59,8 @@ class PositionHoldPolicy:
         """``(v_x, v_y, v_z, yaw rate)`` in SI units that pull the estimated pose to the reference."""
         g = self.gains
         position = observation[self._layout["position"]].astype(float)
-        yaw = yaw_of(observation[self._layout["quaternion"]].astype(float))
+        body_x = observation[self._layout["attitude"]][:3]  # the body x axis in the world frame
+        yaw = math.atan2(float(body_x[1]), float(body_x[0]))
         if self._reference is None:
             self._reference = np.array((*position, yaw))
         error = self._reference[:3] - position

@@ -1,14 +1,14 @@
 """quad-wrench-env: wrench-aware quadrotor control in PyBullet, as Gymnasium environments.
 
 Importing the package registers the environments under the ``QuadWrench`` namespace, so
-``gym.make("quad_wrench_env:QuadWrench/FanTracking-v0")`` works without a prior import, and each id
+``gym.make("quad_wrench_env:QuadWrench/FanTracking-v1")`` works without a prior import, and each id
 has a batched form: ``gym.make_vec(id, num_envs=N, vectorization_mode="vector_entry_point")``.
 """
 
 from gymnasium.envs.registration import register, registry
 
 ENV_IDS = {
-    "QuadWrench/FanTracking-v0": (
+    "QuadWrench/FanTracking-v1": (
         "quad_wrench_env.envs.fan_tracking:FanTrackingEnv",
         "quad_wrench_env.envs.fan_tracking:FanTrackingVectorEnv",
     ),

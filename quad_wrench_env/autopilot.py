@@ -31,6 +31,13 @@ from quad_wrench_env.world import RigidBodyState
 
 _E_Z = np.array((0.0, 0.0, 1.0))
 
+AUTHORITY_SHARE = 0.5
+"""Share of the roll/pitch torque authority (``VehicleParams.max_angular_acceleration``) that the
+rate loop may ask for on its largest step, ``rate_p·max_rate``."""
+
+MIN_MAX_RATE = 1.0
+"""rad/s: the body-rate limit is lowered towards this before the rate gain is."""
+
 
 @dataclass(frozen=True)
 class AutopilotGains:
@@ -53,12 +60,16 @@ class AutopilotGains:
 
     @classmethod
     def for_vehicle(cls, vehicle: VehicleParams) -> AutopilotGains:
-        """Gains derived from the motor time constant (see the module docstring)."""
+        """Gains derived from the motor time constant and bounded by the torque authority (see the
+        module docstring)."""
         tau_m = 0.5 * (vehicle.motor_time_constant_up + vehicle.motor_time_constant_down)
-        rate_p = 0.7 / tau_m
+        alpha = AUTHORITY_SHARE * vehicle.max_angular_acceleration
+        motor_rate_p = 0.7 / tau_m
+        max_rate = min(cls.max_rate, max(MIN_MAX_RATE, alpha / motor_rate_p))
+        rate_p = min(motor_rate_p, alpha / max_rate)
+        climb_p = motor_rate_p / 3.0
         attitude_p = rate_p / 2.5
         velocity_p = attitude_p / 3.0
-        climb_p = rate_p / 3.0
         # Rotor drag adds its own damping to the horizontal loop: v' = a - d·v. Size the integrator
         # and the set-point weight on k = k_p + d so every preset answers a step alike (~5 % overshoot).
         k = velocity_p + vehicle.rotor_drag_decel
@@ -72,6 +83,7 @@ class AutopilotGains:
             climb_p=climb_p,
             climb_i=0.25 * climb_p**2,
             setpoint_weight=0.7 * k / velocity_p,
+            max_rate=max_rate,
         )
 
 

@@ -58,7 +58,7 @@ def bare_pybullet_step_seconds(steps: int, bodies: int = 1, floor: str = FLOORS[
 def env_step_seconds(steps: int, resets: int = 20, **env_kwargs) -> tuple[float, float]:
     """Seconds per FanTracking policy step (resets excluded) and per reset (mean of ``resets``
     after the first), with zero actions."""
-    env = gym.make("QuadWrench/FanTracking-v0", **env_kwargs)
+    env = gym.make("QuadWrench/FanTracking-v1", **env_kwargs)
     try:
         env.reset(seed=0)
         env.step(np.zeros(4, dtype=np.float32))  # compiled kernels load on first use
@@ -85,7 +85,7 @@ def vector_step_seconds(steps: int, num_envs: int, **env_kwargs) -> float:
     """Seconds per policy step of the FanTracking vector env of ``num_envs`` vehicles with zero
     actions (episode ends and their resets included, as they happen)."""
     venv = gym.make_vec(
-        "QuadWrench/FanTracking-v0", num_envs=num_envs, vectorization_mode="vector_entry_point", **env_kwargs
+        "QuadWrench/FanTracking-v1", num_envs=num_envs, vectorization_mode="vector_entry_point", **env_kwargs
     )
     try:
         venv.reset(seed=0)
@@ -115,13 +115,13 @@ def component_seconds(calls: int, num_envs: int = 1, **env_kwargs) -> dict[str, 
     own backend): the single env, or with ``num_envs`` > 1 the vector env (compiled backend only).
     The parts of one physics step, then the per-policy-step work."""
     if num_envs == 1:
-        env = gym.make("QuadWrench/FanTracking-v0", **env_kwargs)
+        env = gym.make("QuadWrench/FanTracking-v1", **env_kwargs)
         env.reset(seed=0, options={"offset_y": 0.4})
         base = env.unwrapped
         infos = base._info
     else:
         env = gym.make_vec(
-            "QuadWrench/FanTracking-v0",
+            "QuadWrench/FanTracking-v1",
             num_envs=num_envs,
             vectorization_mode="vector_entry_point",
             **env_kwargs,

@@ -105,6 +105,16 @@ class VehicleParams:
         return math.sqrt(self.mass * GRAVITY / (4.0 * self.kf))
 
     @property
+    def max_angular_acceleration(self) -> float:
+        """Roll/pitch torque authority at hover thrust (rad/s²): two rotors up and two down by the
+        same ``ΔΩ²`` (the most that keeps both pairs within their speed range) give ``4·l·k·ΔΩ²``,
+        over the larger of ``J_x`` and ``J_y``. ~237 rad/s² for ``ardrone2`` about x, ~19 for
+        ``yuksel1kg`` (PHYSICS.md)."""
+        hover = self.hover_rotor_speed**2
+        margin = min(self.max_rotor_speed**2 - hover, hover - self.min_rotor_speed**2)
+        return 4.0 * self.arm * self.kf * margin / max(self.inertia[0], self.inertia[1])
+
+    @property
     def inertia_matrix(self) -> np.ndarray:
         return np.diag(self.inertia)
 

@@ -230,7 +230,7 @@ def resident_mib() -> float:
 def soak(minutes: float) -> str:
     """One long UKF run, position hold in the moving jet: rates and memory of the first and last ten
     simulated minutes."""
-    env = gym.make("QuadWrench/FanTracking-v0", episode_seconds=minutes * 60.0, fan={"motion": "sine"})
+    env = gym.make("QuadWrench/FanTracking-v1", episode_seconds=minutes * 60.0, fan={"motion": "sine"})
     try:
         observation, _ = env.reset(seed=0, options={"offset_y": 0.0})
         policy = make_agent("hold")
@@ -270,7 +270,7 @@ def env_rows(args: argparse.Namespace, floors: dict[str, float]) -> list[list[st
             per_episode = EPISODE_SECONDS * POLICY_HZ * step + reset
             rows.append(
                 [
-                    f"FanTracking-v0, {estimator}, {backend}",
+                    f"FanTracking-v1, {estimator}, {backend}",
                     f"{step * 1e6:.0f}",
                     f"{physics * 1e6:.1f}",
                     *(f"{floor / physics:.1%}" for floor in floors.values()),
@@ -292,7 +292,7 @@ def vector_rows(args: argparse.Namespace, floors: dict[str, float]) -> list[list
         per_vehicle = step / SUBSTEPS / VECTOR_ENVS
         rows.append(
             [
-                f"FanTracking-v0 x {VECTOR_ENVS}, {estimator}, {backend}",
+                f"FanTracking-v1 x {VECTOR_ENVS}, {estimator}, {backend}",
                 f"{per_vehicle * 1e6:.2f}",
                 *(f"{per_vehicle / floor:.1f}x" for floor in floors.values()),
                 f"{VECTOR_ENVS / POLICY_HZ / step:.0f}",

@@ -81,7 +81,9 @@ def record(config: dict, seed: int, **env_kwargs: Any) -> Stream:
         base = env.unwrapped
         stream = Stream(base.dt)
         base.fleet.estimator = _Recorder(base.fleet.estimator, stream)
-        run_episode(make_agent("hold", **config["hold"]), env, seed, {"offset_y": 0.0})
+        run_episode(
+            make_agent("hold", **config["hold"]), env, seed, {"offset_y": 0.0, "fan_motion": "static"}
+        )
         return stream
     finally:
         env.close()

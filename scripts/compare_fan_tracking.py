@@ -22,6 +22,7 @@ COLUMNS = (
     ("mean_abs_error_after_5s", "mean abs(y - y_axis) after 5 s [m]", "{:.3f}"),
     ("fraction_within_0.15m", "time within 0.15 m", "{:.0%}"),
     ("time_to_0.15m", "first within 0.15 m [s]", "{:.2f}"),
+    ("mean_abs_standoff_error_after_5s", "mean abs(x - x_ref) after 5 s [m]", "{:.3f}"),
     ("terminated_early", "ended early", "{:.0%}"),
 )
 

@@ -39,8 +39,8 @@ def _hold(config: dict) -> Any:
 def _hover(config: dict, seed: int, payload: dict, seconds: float, **env_overrides: Any) -> Episode:
     """The hold agent hovering on the fan's axis with the fan off, carrying ``payload``."""
     return _episode(
-        config, _hold(config), seed, {"offset_y": 0.0}, fan={"enabled": False}, payload=payload,
-        episode_seconds=seconds, **env_overrides,
+        config, _hold(config), seed, {"offset_y": 0.0, "fan_motion": "static"}, fan={"enabled": False},
+        payload=payload, episode_seconds=seconds, **env_overrides,
     )  # fmt: skip
 
 
@@ -141,7 +141,7 @@ def fig6(config: dict, out: Path) -> list[str]:
                 _hold(config),
                 c["seed"],
                 {"offset_y": float(y), "fan_motion": "static"},
-                start_distance=float(x),
+                standoff_distance=float(x),
                 episode_seconds=c["seconds"],
             )
             keep = ep.trace["time"] >= c["seconds"] - c["average_last"]

@@ -7,7 +7,7 @@ import pytest
 
 import quad_wrench_env  # noqa: F401  (registers the env ids)
 
-FAN_TRACKING = "QuadWrench/FanTracking-v0"
+FAN_TRACKING = "QuadWrench/FanTracking-v1"
 
 
 @pytest.fixture

@@ -8,12 +8,15 @@ import numpy as np
 import pytest
 
 from agents import make_agent
-from agents.admittance import AdmittancePolicy
+from agents.admittance import TORQUE_SLOPES, AdmittancePolicy
 from agents.base import Policy
 from agents.evaluate import evaluate
+from quad_wrench_env.rotations import quat_from_euler_zyx
+from quad_wrench_env.vehicle import PRESETS
+from quad_wrench_env.world import RigidBodyState
 from tests.conftest import FAN_TRACKING
 
-GAINS = {"k_p": -20.0, "k_xy": 1.0, "k_z": 1.0, "k_yaw": 1.0}  # configs/fan_tracking.yaml
+GAINS = {"bandwidth": 2.1, "k_xy": 1.0, "k_z": 1.0, "k_yaw": 1.0}  # configs/fan_tracking.yaml
 
 
 def test_conforms_to_the_policy_interface():
@@ -61,6 +64,32 @@ def test_without_the_torque_feedback_it_does_not_track():
     )
     assert result.per_seed[0]["mean_abs_error_after_5s"] > 0.5
     assert math.isinf(result.per_seed[0]["time_to_0.15m"])
+
+
+@pytest.mark.parametrize("vehicle", sorted(PRESETS))
+def test_torque_slopes_match_the_jet_and_drag_model(make_env, vehicle):
+    """The design slopes dτ_z/dy behind the derived gains, by central difference of the mean-flow
+    loads 2 cm either side of the axis at the stand-off (the slope's curvature over ±2 cm is < 1 %)."""
+    env = make_env(vehicle=vehicle, fan={"motion": "static"}).unwrapped
+    env.reset(seed=0, options={"offset_y": 0.0})
+    q = quat_from_euler_zyx(0.0, 0.0, math.pi)[None]
+    tau_z = [
+        env.fleet.external_loads(
+            RigidBodyState.at_rest(np.array(((2.3, y, 1.0),)), q), np.array((0,)), mean=True
+        )[0, 5]
+        for y in (-0.02, 0.02)
+    ]
+    assert (tau_z[1] - tau_z[0]) / 0.04 == pytest.approx(TORQUE_SLOPES[vehicle], rel=0.02)
+
+
+@pytest.mark.parametrize("vehicle", sorted(PRESETS))
+def test_gain_is_derived_per_preset_for_one_loop_rate(make_env, vehicle):
+    env = make_env(vehicle=vehicle)
+    env.reset(seed=0)
+    policy = AdmittancePolicy()
+    policy.reset(env)
+    assert policy.k_p * TORQUE_SLOPES[vehicle] == pytest.approx(-2.1)
+    assert AdmittancePolicy(k_p=-5.0).k_p == -5.0
 
 
 def test_refuses_other_action_types(make_env):

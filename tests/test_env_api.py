@@ -26,7 +26,7 @@ def test_env_checkers_pass_without_warnings(make_env, action_type):
 
 
 def test_reachable_by_module_prefix_without_import():
-    env = gym.make("quad_wrench_env:QuadWrench/FanTracking-v0")
+    env = gym.make("quad_wrench_env:QuadWrench/FanTracking-v1")
     env.close()
 
 

@@ -15,17 +15,22 @@ from quad_wrench_env.config import load_yaml
 from tests.conftest import FAN_TRACKING
 
 
-def _episode(error: np.ndarray, dt: float = 0.02) -> Episode:
+def _episode(error: np.ndarray, standoff: np.ndarray | None = None, dt: float = 0.02) -> Episode:
     t = np.arange(len(error)) * dt
-    return Episode(
-        0, {"time": t, "axis_error": error}, total_reward=1.0, length=len(error) - 1, termination_reason=None
-    )
+    trace = {
+        "time": t,
+        "axis_error": error,
+        "standoff_error": np.zeros_like(error) if standoff is None else standoff,
+    }
+    return Episode(0, trace, total_reward=1.0, length=len(error) - 1, termination_reason=None)
 
 
 def test_fan_tracking_metrics_on_a_known_trace():
     # 10 s: 0.8 m for the first 2 s, then -0.1 m
     error = np.where(np.arange(501) * 0.02 < 2.0, 0.8, -0.1)
-    m = fan_tracking_metrics(_episode(error))
+    standoff = np.where(np.arange(501) * 0.02 < 7.5, -0.5, 0.2)  # 2.5 s at 0.5 m after 5 s, then 2.5 s at 0.2
+    m = fan_tracking_metrics(_episode(error, standoff))
+    assert m["mean_abs_standoff_error_after_5s"] == pytest.approx((125 * 0.5 + 126 * 0.2) / 251)
     assert m["time_to_0.15m"] == pytest.approx(2.0)
     assert m["mean_abs_error_after_5s"] == pytest.approx(0.1)
     assert m["fraction_within_0.15m"] == pytest.approx(401 / 501)

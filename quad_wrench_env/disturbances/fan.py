@@ -1,11 +1,14 @@
 """A fan at ``(0, y_f(t), z_f)`` blowing along +x whose jet moves along y (paper 000 Sec. V, Figs. 6-7).
 
-Velocity field (PHYSICS.md, "Fan"): a round turbulent free jet with centre-line speed
-``u_c(x) = U0·min(1, B·D/x)`` and Gaussian radial profile ``u = u_c·exp(-(r/b)²)``,
-``b(x) = sqrt((D/2)² + (c·x)²)``, where ``r`` is the distance from the jet axis. The air at distance x
-left the fan ``t_transit(x) = ∫₀ˣ dξ/u_c(ξ)`` earlier, so the axis there sits at the fan's *retarded*
-position ``y_f(t - t_transit(x))``. Turbulence multiplies the local mean speed by ``I·n(t)`` in each
-component, ``n`` a unit-variance Ornstein-Uhlenbeck process with time scale ``b/u_c`` at the vehicle.
+Velocity field (PHYSICS.md, "Fan"): a round turbulent jet with Gaussian radial profile
+``u = u_c·exp(-(r/b)²)``, ``b(x) = sqrt((D/2)² + (c·x)²)``, where ``r`` is the distance from the jet
+axis, and a centre-line speed that conserves the outlet's axial momentum flux: the profile carries
+``ρ·u_c²·π·b²/2``, the outlet ``ρ·U0²·π·D²/4``, so ``u_c(x) = U0·min(1, D/(√2·b(x)))``. The core, where
+``u_c = U0``, ends at ``x_c = D/(2c)``. The air at distance x left the fan
+``t_transit(x) = ∫₀ˣ dξ/u_c(ξ)`` earlier (closed form in :meth:`FanJet.transit_time`), so the axis
+there sits at the fan's *retarded* position ``y_f(t - t_transit(x))``. Turbulence multiplies the
+local mean speed by ``I·n(t)`` in each component, ``n`` a unit-variance Ornstein-Uhlenbeck process
+with time scale ``b/u_c`` at the vehicle.
 Before ``t = 0`` the fan rests where its motion starts.
 """
 
@@ -109,6 +112,9 @@ class PiecewiseVelocity:
         return _table(segments=list(rows))
 
 
+RANDOM = "random"
+"""The motion name that asks the task to draw each episode's motion (FanTracking's default)."""
+
 MOTIONS: dict[str, type] = {
     "static": Static,
     "constant_speed": ConstantSpeed,
@@ -149,25 +155,31 @@ class FanConfig:
 
     enabled: bool = True
     """False switches the air off (the fan still moves and is reported), e.g. for hover tests."""
-    outlet_diameter: float = 0.5
-    outlet_speed: float = 6.0
+    outlet_diameter: float = 0.75
+    """``D`` (m): a large drum fan (PHYSICS.md estimate)."""
+    outlet_speed: float = 10.0
+    """``U0`` (m/s): with ``D``, about 5.1 m/s on the axis 2.3 m away."""
     height: float = 1.0
     spread: float = 0.42
     """Jet growth ``c`` in ``b(x)``; 0.113 is free-jet theory, 0.42 fits paper 000 Fig. 6."""
-    centreline_constant: float = 5.8
     turbulence_intensity: float = 0.15
-    motion: str = "sine"
+    motion: str = RANDOM
+    """The motion of every episode: a name of :data:`MOTIONS`, or ``"random"`` (the task draws one
+    per episode)."""
     motions: dict[str, dict] = field(default_factory=_default_motions)
-    """Parameters of each motion, by name; ``motion`` picks the one used."""
+    """Parameters of each named motion (paper 000's cases by default)."""
 
     def __post_init__(self) -> None:
-        check_numbers("fan", self, ("outlet_diameter", "outlet_speed", "spread", "centreline_constant"))
+        check_numbers("fan", self, ("outlet_diameter", "outlet_speed", "spread"))
         if not (0.0 <= self.turbulence_intensity < 1.0):
             raise ValueError(f"fan.turbulence_intensity={self.turbulence_intensity!r} must be in [0, 1)")
         unknown = sorted(set(self.motions) - set(MOTIONS))
         if unknown:
             raise ValueError(f"unknown fan motion(s) {unknown} in fan.motions; allowed: {sorted(MOTIONS)}")
-        self.make_motion(self.motion)  # validates the name and its parameters
+        if self.motion != RANDOM and self.motion not in MOTIONS:
+            raise ValueError(f"fan.motion={self.motion!r}; allowed: {[RANDOM, *sorted(MOTIONS)]}")
+        for name in self.motions:
+            self.make_motion(name)  # validates the parameters
 
     def make_motion(self, name: str, **overrides) -> FanMotion:
         return make_motion(name, **{**self.motions.get(name, {}), **overrides})
@@ -182,12 +194,14 @@ class FanJet:
         self.count = count
         self._compiled = resolve_backend(backend) == "numba"
         self._u0 = config.outlet_speed
-        self._core = config.centreline_constant * config.outlet_diameter
-        """Length ``B·D`` of the potential core, where the centre-line speed is still ``U0``."""
         self._radius2 = (0.5 * config.outlet_diameter) ** 2
+        self._core = 0.5 * config.outlet_diameter / config.spread
+        """Length ``x_c = D/(2c)`` of the core, where the centre-line speed is still ``U0``."""
         self.noise = np.zeros((count, 3))
         """(N, 3) unit-variance Ornstein-Uhlenbeck state of each vehicle's turbulence."""
-        self._motions: list[FanMotion] = [config.make_motion(config.motion)] * count
+        first = Static() if config.motion == RANDOM else config.make_motion(config.motion)
+        self._motions: list[FanMotion] = [first] * count
+        """Each vehicle's motion; with ``"random"``, still until its task draws one."""
         self._group_motions: list[FanMotion] = []
         self._group_of = np.zeros(count, dtype=int)
         self.motion_tables = np.zeros((count, 0))
@@ -228,8 +242,8 @@ class FanJet:
 
     # -- the field --------------------------------------------------------------------------------
     def kernel_parameters(self) -> np.ndarray:
-        """The jet as the kernels read it: on (1), outlet speed, core length, outlet radius², spread,
-        height, turbulence intensity (each vehicle's motion is in :attr:`motion_tables`)."""
+        """The jet as the kernels read it: on (1), outlet speed, core length ``x_c``, outlet radius²,
+        spread, height, turbulence intensity (each vehicle's motion is in :attr:`motion_tables`)."""
         c = self.config
         return np.array(
             (1.0, c.outlet_speed, self._core, self._radius2, c.spread, c.height, c.turbulence_intensity)
@@ -239,17 +253,24 @@ class FanJet:
         self.noise[index] = rng.standard_normal(3)  # the stationary distribution of the OU process
 
     def centreline_speed(self, x: np.ndarray) -> np.ndarray:
-        return self._u0 * np.minimum(1.0, self._core / np.maximum(x, 1e-9))
+        """``u_c = U0·min(1, D/(√2·b))``: the outlet's momentum flux, spread over the profile."""
+        return self._u0 * np.minimum(1.0, np.sqrt(2.0 * self._radius2) / self.half_width(x))
 
     def half_width(self, x: np.ndarray) -> np.ndarray:
         return np.sqrt(self._radius2 + (self.config.spread * x) ** 2)
 
     def transit_time(self, x: np.ndarray) -> np.ndarray:
-        """``∫₀ˣ dξ / u_c(ξ)``: how long ago the air now at distance x left the fan (s)."""
+        """``∫₀ˣ dξ / u_c(ξ)``: how long ago the air now at distance x left the fan (s). Beyond the
+        core ``1/u_c = √2·b/(U0·D)`` and ``∫ b dξ = F(ξ) = ξ·b/2 + (R²/2c)·asinh(c·ξ/R)``, R = D/2."""
         x = np.maximum(x, 0.0)
-        core = self._core
-        beyond = (x * x - core * core) / (2.0 * self._u0 * core)
-        return np.where(x <= core, x / self._u0, core / self._u0 + beyond)
+        core, u0, c = self._core, self._u0, self.config.spread
+        radius = math.sqrt(self._radius2)
+
+        def antiderivative(xi: np.ndarray) -> np.ndarray:
+            return 0.5 * xi * self.half_width(xi) + self._radius2 / (2.0 * c) * np.arcsinh(c * xi / radius)
+
+        beyond = (antiderivative(x) - antiderivative(np.asarray(core))) / (math.sqrt(2.0) * u0 * radius)
+        return np.where(x <= core, x / u0, core / u0 + beyond)
 
     def axis_y(self, x: np.ndarray, t: np.ndarray, index: np.ndarray | slice = slice(None)) -> np.ndarray:
         """y of the jet axis at distances ``x`` (n, ...) from the fans of vehicles ``index`` at their
@@ -257,14 +278,14 @@ class FanJet:
         x = np.asarray(x, dtype=float)
         t = np.asarray(t, dtype=float)
         if self._compiled and x.shape == t.shape == (self.count,) and index == slice(None):
-            return jet_axis_y(x, t, self.motion_tables, self._u0, self._core)
+            return jet_axis_y(x, t, self.motion_tables, self.kernel_parameters())
         return self._y(np.broadcast_to(t, x.shape) - self.transit_time(x), index)
 
     def fan_y(self, t: np.ndarray, index: np.ndarray | slice = slice(None)) -> np.ndarray:
         """The fans' y (n,) now, at times ``t`` (n,)."""
         t = np.asarray(t, dtype=float)
         if self._compiled and t.shape == (self.count,) and index == slice(None):
-            return jet_axis_y(np.zeros(self.count), t, self.motion_tables, self._u0, self._core)
+            return jet_axis_y(np.zeros(self.count), t, self.motion_tables, self.kernel_parameters())
         return self._y(t, index)
 
     def advance(self, dt: float, positions: np.ndarray, normals: np.ndarray) -> None:

@@ -48,7 +48,7 @@ def observation_space(vehicle: VehicleParams) -> spaces.Box:
     bound = {
         "position": 100.0,
         "velocity": 100.0,
-        "quaternion": 1.0,
+        "attitude": 1.0,
         "body_rates": 100.0,
         "force": 100.0 * weight,
         "torque": 100.0 * weight * vehicle.hull_radius,

@@ -51,6 +51,9 @@ class EnvConfig:
     external_wrench: list[list[float]] = field(default_factory=list)
     """Scheduled wrench segments ``[start, end, fx, fy, fz, tx, ty, tz]`` (world frame)."""
     arena: ArenaConfig = field(default_factory=ArenaConfig)
+    observe_wrench: bool = True
+    """False zeroes the force and torque blocks of the observation (the ablation that asks whether
+    the estimated wrench is what makes a task solvable); ``info`` keeps them."""
     crash_height: float = 0.1
     flip_tilt_deg: float = 90.0
     backend: str = "auto"
@@ -70,5 +73,7 @@ class EnvConfig:
             raise ValueError(f"kf_spread={self.kf_spread!r} must be in [0, 0.5)")
         validate_segments(self.external_wrench)
         resolve_backend(self.backend)
+        if not isinstance(self.observe_wrench, bool):
+            raise ValueError(f"observe_wrench={self.observe_wrench!r} must be true or false")
         if not (0.0 < self.flip_tilt_deg <= 180.0):
             raise ValueError(f"flip_tilt_deg={self.flip_tilt_deg!r} must be in (0, 180]")

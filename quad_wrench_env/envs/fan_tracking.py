@@ -1,12 +1,22 @@
-"""``QuadWrench/FanTracking-v0``: stay in the centre of a fan's jet while the fan moves along y.
+"""``QuadWrench/FanTracking-v1``: stay in the centre of a fan's jet while the fan moves along y.
 
-The task of paper 000 Sec. V (Figs. 6-7). A fan at the origin blows along +x; the vehicle starts
-``start_distance`` (2.3 m) in front of it at the fan's height, facing it (yaw = π), up to
-``max_initial_offset`` (0.8 m) to one side of the jet axis. The fan then moves along y (config
-``fan.motion`` or the ``fan_motion`` reset option). The agent never observes the fan: only the
-estimated external force and torque tell it where the jet is.
+The task of paper 000 Sec. V (Figs. 6-7). A fan at ``(0, y_f(t), height)`` blows along +x; the vehicle
+starts ``standoff_distance`` (2.3 m) in front of it at the fan's height, facing it (yaw = π), up to
+``max_initial_offset`` (0.8 m) to one side of the jet axis, and must keep that stand-off while it
+follows the jet sideways. The agent never observes the fan: only the estimated external force and
+torque tell it where the jet is.
 
-Observation (float32, 23; ``env.unwrapped.obs_layout`` names the slices; SI units, world frame unless
+Episodes (``fan.motion``, or the ``fan_motion`` reset option): by default (``"random"``) each episode
+draws the fan's motion family, its parameters and its start ``y0`` from the ranges of
+:class:`FanEpisodes`, so that no trajectory can be memorised: static; constant speed in
+``[-max_speed, max_speed]``; a sine of amplitude in ``[-max_amplitude, max_amplitude]`` and frequency in
+``[min_frequency, max_frequency]``; piecewise constant velocities (``segments`` segments of
+``[min_segment_seconds, max_segment_seconds]`` at speeds in ``[-max_speed, max_speed]``); then ``y0``
+uniform such that the fan stays within ``|y| <= y_range`` for the whole episode. Paper 000's cases
+are named motions with the parameters of ``fan.motions`` (``static``, ``constant_speed`` 0.1 m/s, the
+``sine`` of A = 0.5 m and period 30 s, ``piecewise``), each starting at ``y0`` (0 unless given).
+
+Observation (float32, 25; ``env.unwrapped.obs_layout`` names the slices; SI units, world frame unless
 noted; everything is the estimator's belief, and with ``estimator="oracle"`` it is the truth):
 
 =====  ==============  ====================================================================
@@ -14,31 +24,41 @@ index  name            meaning
 =====  ==============  ====================================================================
 0-2    position        estimated position (m)
 3-5    velocity        estimated velocity (m/s)
-6-9    quaternion      estimated attitude ``[w, x, y, z]``, body -> world, ``w >= 0``
-10-12  body_rates      estimated angular velocity in the body frame (rad/s)
-13-15  force           estimated external force (N)
-16-18  torque          estimated external torque (N·m)
-19-22  last_action     the previous (clipped) action
+6-11   attitude        estimated attitude as the first two columns of the rotation matrix
+                       (body x and y axes in the world frame): continuous, unlike a quaternion
+12-14  body_rates      estimated angular velocity in the body frame (rad/s)
+15-17  force           estimated external force (N); zeros with ``observe_wrench=False``
+18-20  torque          estimated external torque (N·m); zeros with ``observe_wrench=False``
+21-24  last_action     the previous (clipped) action
 =====  ==============  ====================================================================
 
 Action: ``Box(-1, 1, (4,), float32)``, meaning set by ``action_type`` (see
 :mod:`quad_wrench_env.envs.actions`); default ``velocity``: ``(v_x, v_y, v_z, yaw rate)``.
 
-Reward per step (terms in ``info["reward_terms"]``):
-``tracking = exp(-(d/axis_scale)²)`` with ``d`` the distance in the y-z plane from the jet axis at
-the vehicle's x (the retarded axis, PHYSICS.md), ``effort = -effort_weight·mean(a²)``, and
-``crash = -crash_penalty`` on the step that ends the episode early (0 otherwise).
+Reward per step (terms in ``info["reward_terms"]``), with ``d`` the distance in the y-z plane from
+the jet axis at the vehicle's x (the retarded axis, PHYSICS.md):
+
+=========  ===========================================  ==========================================
+term       value                                        why
+=========  ===========================================  ==========================================
+tracking   ``exp(-d/axis_scale)`` (0.5 m)               0.2 at the 0.8 m start: signal across the
+                                                        jet's ~1 m half-width, sharpest on the axis
+standoff   ``-standoff_weight·|x - standoff_distance|`` keeps the stand-off that the harness scores
+effort     ``-effort_weight·mean(a²)``                  smooth commands
+crash      ``-crash_penalty`` on an early end, else 0
+=========  ===========================================  ==========================================
 
 Episode end: terminated on ``crash`` (below ``crash_height`` or touching the ground), ``flip`` (tilt
 above ``flip_tilt_deg``) or ``out_of_arena``, named in ``info["termination_reason"]``; truncated
 after ``episode_seconds`` (30 s at 50 Hz: 1500 steps; physics at 200 Hz).
 
-Reset options: ``offset_y`` (initial offset from the jet axis, m), ``fan_motion`` (a motion name,
-or a mapping ``{"name": ..., **parameters}``).
+Reset options: ``offset_y`` (initial offset from the jet axis, m), ``fan_motion`` (``"random"``, a
+motion name, or a mapping ``{"name": ..., **parameters}``; every motion takes ``y0``).
 
 ``info``: ``time``, ``position``, ``velocity``, ``wrench_true``, ``wrench_est``, ``fan_position``
 (the fan itself, now), ``jet_axis_y`` (the axis at the vehicle's x), ``axis_error`` (signed
-``y - jet_axis_y``), ``reward_terms``, ``termination_reason``.
+``y - jet_axis_y``), ``standoff_error`` (signed ``x - standoff_distance``), ``reward_terms``,
+``termination_reason``.
 """
 
 from __future__ import annotations
@@ -50,28 +70,108 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from quad_wrench_env.config import check_numbers
 from quad_wrench_env.disturbances.base import WindField
-from quad_wrench_env.disturbances.fan import FanConfig, FanJet
+from quad_wrench_env.disturbances.fan import MOTIONS, RANDOM, FanConfig, FanJet, FanMotion, make_motion
 from quad_wrench_env.envs.base import QuadWrenchEnv
 from quad_wrench_env.envs.config import EnvConfig
 from quad_wrench_env.envs.fleet import Fleet
 from quad_wrench_env.envs.vector import QuadWrenchVectorEnv
 from quad_wrench_env.kernels import resolve_backend
-from quad_wrench_env.kernels.physics import fan_tracking_terms
+from quad_wrench_env.kernels.physics import FAN_TRACKING_NUMBERS, fan_tracking_terms
 from quad_wrench_env.vehicle import VehicleParams
 
 
 @dataclass
 class FanTrackingReward:
-    axis_scale: float = 0.3
+    axis_scale: float = 0.5
+    """Length (m) of the tracking term ``exp(-d/axis_scale)``."""
+    standoff_weight: float = 1.0
+    """Reward lost per metre of ``|x - standoff_distance|`` and step."""
     effort_weight: float = 0.01
     crash_penalty: float = 10.0
+
+    def __post_init__(self) -> None:
+        check_numbers("reward", self, ("axis_scale",))
+        check_numbers("reward", self, ("standoff_weight", "effort_weight", "crash_penalty"), positive=False)
+
+
+@dataclass
+class FanEpisodes:
+    """Ranges of the default episode distribution (``fan.motion = "random"``; module docstring)."""
+
+    motions: tuple[str, ...] = ("static", "constant_speed", "sine", "piecewise")
+    y_range: float = 2.0
+    """The fan stays within ``|y| <= y_range`` (m) for the whole episode."""
+    max_speed: float = 0.1
+    max_amplitude: float = 1.0
+    min_frequency: float = 1.0 / 60.0
+    max_frequency: float = 1.0 / 15.0
+    segments: int = 3
+    min_segment_seconds: float = 5.0
+    max_segment_seconds: float = 12.0
+
+    def __post_init__(self) -> None:
+        self.motions = tuple(self.motions)
+        if not self.motions or any(m not in MOTIONS for m in self.motions):
+            raise ValueError(
+                f"episodes.motions={list(self.motions)!r} must name one or more of {sorted(MOTIONS)}"
+            )
+        check_numbers("episodes", self, ("y_range", "min_frequency", "max_frequency", "min_segment_seconds"))
+        check_numbers("episodes", self, ("max_speed", "max_amplitude"), positive=False)
+        if self.min_frequency > self.max_frequency or self.min_segment_seconds > self.max_segment_seconds:
+            raise ValueError(
+                f"episodes: min_frequency={self.min_frequency} <= max_frequency={self.max_frequency} and "
+                f"min_segment_seconds={self.min_segment_seconds} <= max_segment_seconds="
+                f"{self.max_segment_seconds} are required"
+            )
+        if not (isinstance(self.segments, int) and self.segments >= 1):
+            raise ValueError(f"episodes.segments={self.segments!r} must be an integer >= 1")
+
+    def draw(self, rng: np.random.Generator, seconds: float) -> FanMotion:
+        """A motion drawn from the ranges, placed by ``y0`` so that the fan stays within ``y_range``
+        for ``seconds`` (excursions that cannot fit are scaled down to fit)."""
+        name = self.motions[int(rng.integers(len(self.motions)))]
+        v = self.max_speed
+        if name == "static":
+            params: dict[str, Any] = {}
+        elif name == "constant_speed":
+            params = {"speed": float(rng.uniform(-v, v))}
+        elif name == "sine":
+            params = {
+                "amplitude": float(rng.uniform(-self.max_amplitude, self.max_amplitude)),
+                "frequency": float(rng.uniform(self.min_frequency, self.max_frequency)),
+            }
+        else:
+            durations = rng.uniform(self.min_segment_seconds, self.max_segment_seconds, self.segments)
+            velocities = rng.uniform(-v, v, self.segments)
+            params = {"segments": tuple(zip(durations.tolist(), velocities.tolist(), strict=True))}
+        excursion = make_motion(name, **params).y(np.linspace(0.0, seconds, 601))
+        low, high = float(excursion.min()), float(excursion.max())
+        width = high - low
+        if width > 2.0 * self.y_range:  # too far for the range: slow the motion down to fit
+            shrink = 2.0 * self.y_range / width
+            params = _scaled(name, params, shrink)
+            low, high = low * shrink, high * shrink
+        y0 = float(rng.uniform(-self.y_range - low, self.y_range - high))
+        return make_motion(name, **params, y0=y0)
+
+
+def _scaled(name: str, params: dict[str, Any], factor: float) -> dict[str, Any]:
+    """The parameters of motion ``name`` with every excursion scaled by ``factor``."""
+    if name == "constant_speed":
+        return {"speed": params["speed"] * factor}
+    if name == "sine":
+        return {**params, "amplitude": params["amplitude"] * factor}
+    return {"segments": tuple((d, v * factor) for d, v in params["segments"])}
 
 
 @dataclass
 class FanTrackingConfig(EnvConfig):
     fan: FanConfig = field(default_factory=FanConfig)
-    start_distance: float = 2.3
+    episodes: FanEpisodes = field(default_factory=FanEpisodes)
+    standoff_distance: float = 2.3
+    """x (m) in front of the fan where the vehicle starts and must stay (paper 000 Fig. 7)."""
     max_initial_offset: float = 0.8
     reward: FanTrackingReward = field(default_factory=FanTrackingReward)
 
@@ -84,44 +184,46 @@ class FanTracking:
 
     def __init__(self, cfg: FanTrackingConfig, vehicle: VehicleParams, count: int) -> None:
         arena = cfg.arena
-        if not (arena.x_min < cfg.start_distance < arena.x_max):
+        if not (arena.x_min < cfg.standoff_distance < arena.x_max):
             raise ValueError(
-                f"start_distance={cfg.start_distance} must lie inside the arena "
+                f"standoff_distance={cfg.standoff_distance} must lie inside the arena "
                 f"({arena.x_min}, {arena.x_max})"
             )
         self.cfg = cfg
         self.vehicle = vehicle
         self.fan = FanJet(cfg.fan, count, cfg.backend)
-        self._default_motion = self.fan.motion(0)
         self._compiled = resolve_backend(cfg.backend) == "numba"
         r = cfg.reward
-        jet = self.fan.kernel_parameters()
-        self._terms_constants = np.array(
-            (jet[1], jet[2], cfg.fan.height, r.axis_scale, r.effort_weight, r.crash_penalty)
+        self._jet = self.fan.kernel_parameters()
+        self._weights = np.array(
+            (cfg.standoff_distance, r.axis_scale, r.standoff_weight, r.effort_weight, r.crash_penalty)
         )
-        """What ``fan_tracking_terms`` reads (see its docstring)."""
-        self._cache: tuple[int, np.ndarray] = (-1, np.zeros((count, 8)))
+        """What ``fan_tracking_terms`` reads besides the jet (see its docstring)."""
+        self._cache: tuple[int, np.ndarray] = (-1, np.zeros((count, FAN_TRACKING_NUMBERS)))
 
     def wind_fields(self) -> list[WindField]:
         return [self.fan] if self.cfg.fan.enabled else []
 
-    def _motion(self, option: Any):
+    def _motion(self, option: Any, rng: np.random.Generator) -> FanMotion:
+        fan = self.cfg.fan
         if option is None:
-            return self._default_motion
+            option = fan.motion
+        if option == RANDOM:
+            return self.cfg.episodes.draw(rng, self.cfg.episode_seconds)
         if isinstance(option, Mapping):
             params = dict(option)
             if "name" not in params:
                 raise ValueError(f"fan_motion={option!r} needs a 'name' key")
-            return self.cfg.fan.make_motion(params.pop("name"), **params)
+            return fan.make_motion(params.pop("name"), **params)
         if isinstance(option, str):
-            return self.cfg.fan.make_motion(option)
-        raise ValueError(f"fan_motion={option!r} must be a motion name or a mapping")
+            return fan.make_motion(option)
+        raise ValueError(f"fan_motion={option!r} must be 'random', a motion name or a mapping")
 
     def reset_vehicle(
         self, index: int, rng: np.random.Generator, options: Mapping[str, Any]
     ) -> tuple[np.ndarray, float]:
         cfg = self.cfg
-        motion = self._motion(options.get("fan_motion"))
+        motion = self._motion(options.get("fan_motion"), rng)
         fan_y0 = float(motion.y(np.asarray(0.0)))
         if "offset_y" in options:
             offset = float(options["offset_y"])
@@ -135,45 +237,55 @@ class FanTracking:
                 f"allowed: |fan y0 + offset_y| < {margin:.3g} m (arena half-width minus hull radius)"
             )
         self.fan.set_motion(index, motion)
-        return np.array((cfg.start_distance, start_y, cfg.fan.height)), math.pi
+        return np.array((cfg.standoff_distance, start_y, cfg.fan.height)), math.pi
 
     def _numbers(self, fleet: Fleet, actions: np.ndarray | None, ended: np.ndarray | None) -> np.ndarray:
-        """(N, 8): reward terms tracking, effort, crash; axis error, jet axis y, fan position (3).
-        Computed once per state of the fleet (the reward's call, with the step's actions, comes first)."""
+        """(N, 10) ``fan_tracking_terms``: reward terms tracking, standoff, effort, crash; axis error,
+        jet axis y, fan position (3), stand-off error. Computed once per state of the fleet (the
+        reward's call, with the step's actions, comes first)."""
         revision, numbers = self._cache
         if revision == fleet.revision:
             return numbers
         count = fleet.count
         actions = np.zeros((count, 4)) if actions is None else actions
         ended = np.zeros(count, dtype=bool) if ended is None else ended
-        r, fan = self.cfg.reward, self.fan
         position, time = fleet.state.position, fleet.time
-        numbers = np.empty((count, 8))
+        numbers = np.empty((count, FAN_TRACKING_NUMBERS))
         if self._compiled:
             fan_tracking_terms(
-                position, time, actions, ended, fan.motion_tables, self._terms_constants, numbers
+                position, time, actions, ended, self.fan.motion_tables, self._jet, self._weights, numbers
             )
         else:
-            dy = position[:, 1] - fan.axis_y(position[:, 0], time)
+            x_ref, axis_scale, standoff_weight, effort_weight, crash_penalty = self._weights
+            dy = position[:, 1] - self.fan.axis_y(position[:, 0], time)
             dz = position[:, 2] - self.cfg.fan.height
-            numbers[:, 0] = np.exp(-(dy * dy + dz * dz) / r.axis_scale**2)
-            numbers[:, 1] = (-r.effort_weight / actions.shape[1]) * (actions * actions).sum(axis=1)
-            numbers[:, 2] = -r.crash_penalty * ended
-            numbers[:, 3] = dy
-            numbers[:, 4] = position[:, 1] - dy
-            numbers[:, 5] = 0.0
-            numbers[:, 6] = fan.fan_y(time)
-            numbers[:, 7] = self.cfg.fan.height
+            standoff = position[:, 0] - x_ref
+            numbers[:, 0] = np.exp(-np.sqrt(dy * dy + dz * dz) / axis_scale)
+            numbers[:, 1] = -standoff_weight * np.abs(standoff)
+            numbers[:, 2] = (-effort_weight / actions.shape[1]) * (actions * actions).sum(axis=1)
+            numbers[:, 3] = -crash_penalty * ended
+            numbers[:, 4] = dy
+            numbers[:, 5] = position[:, 1] - dy
+            numbers[:, 6] = 0.0
+            numbers[:, 7] = self.fan.fan_y(time)
+            numbers[:, 8] = self.cfg.fan.height
+            numbers[:, 9] = standoff
         self._cache = (fleet.revision, numbers)
         return numbers
 
     def reward_terms(self, fleet: Fleet, actions: np.ndarray, ended: np.ndarray) -> dict[str, np.ndarray]:
         numbers = self._numbers(fleet, actions, ended)
-        return {"tracking": numbers[:, 0], "effort": numbers[:, 1], "crash": numbers[:, 2]}
+        return {
+            "tracking": numbers[:, 0], "standoff": numbers[:, 1], "effort": numbers[:, 2],
+            "crash": numbers[:, 3],
+        }  # fmt: skip
 
     def info(self, fleet: Fleet) -> dict[str, np.ndarray]:
         numbers = self._numbers(fleet, None, None)
-        return {"fan_position": numbers[:, 5:8], "jet_axis_y": numbers[:, 4], "axis_error": numbers[:, 3]}
+        return {
+            "fan_position": numbers[:, 6:9], "jet_axis_y": numbers[:, 5], "axis_error": numbers[:, 4],
+            "standoff_error": numbers[:, 9],
+        }  # fmt: skip
 
 
 class FanTrackingEnv(QuadWrenchEnv):

@@ -26,7 +26,7 @@ from quad_wrench_env.envs.noise import NoiseBlocks
 from quad_wrench_env.estimators import OracleBank, make_estimator_bank
 from quad_wrench_env.kernels import resolve_backend
 from quad_wrench_env.kernels.physics import assemble_observations, termination_codes
-from quad_wrench_env.rotations import cross, quat_from_matrix
+from quad_wrench_env.rotations import cross, quat_from_matrix, rotation_matrices
 from quad_wrench_env.rotors import Rotors
 from quad_wrench_env.sensors import MotionCapture, MotorSpeedSensor
 from quad_wrench_env.vehicle import GRAVITY, VehicleParams
@@ -35,13 +35,15 @@ from quad_wrench_env.world import RigidBodyState, World
 OBSERVATION_FIELDS: tuple[tuple[str, int], ...] = (
     ("position", 3),
     ("velocity", 3),
-    ("quaternion", 4),
+    ("attitude", 6),
     ("body_rates", 3),
     ("force", 3),
     ("torque", 3),
     ("last_action", 4),
 )
-"""Observation blocks in order: the estimator's state and wrench, and the previous action."""
+"""Observation blocks in order: the estimator's state and wrench, and the previous action. The
+attitude is the first two columns of the rotation matrix (body x and y axes in the world frame), a
+representation without the jumps of a quaternion kept to one hemisphere."""
 
 
 OBSERVATION_SIZE = sum(size for _, size in OBSERVATION_FIELDS)
@@ -117,6 +119,7 @@ class Fleet:
                 self.world.clear_height,
             )
         )  # fmt: skip
+        self._observe_wrench = float(cfg.observe_wrench)
         self.revision = 0
         """Counts the changes of the fleet's state (steps and resets): a key for what tasks cache."""
         self._estimates: tuple[int, np.ndarray, np.ndarray] = (-1, np.empty(0), np.empty(0))
@@ -241,19 +244,20 @@ class Fleet:
         return self._estimates[1], self._estimates[2]
 
     def observations(self, last_actions: np.ndarray) -> np.ndarray:
-        """(N, 23) float32 observations (:data:`OBSERVATION_FIELDS`): the estimators' states and
-        wrenches and the last actions (quaternions with ``w >= 0``)."""
+        """(N, 25) float32 observations (:data:`OBSERVATION_FIELDS`): the estimators' states (the
+        attitude as two columns of the rotation matrix) and wrenches (zeros unless
+        ``observe_wrench``), and the last actions."""
         out = np.empty((self.count, OBSERVATION_SIZE), dtype=np.float32)
         states, wrenches = self.estimates()
         if self.compiled is not None:
-            assemble_observations(states, wrenches, last_actions, out)
+            assemble_observations(states, wrenches, last_actions, self._observe_wrench, out)
             return out
-        out[:, :13] = states
-        flipped = out[:, 6] < 0.0
-        if flipped.any():
-            out[flipped, 6:10] *= -1.0
-        out[:, 13:19] = wrenches
-        out[:, 19:23] = last_actions
+        rotation = rotation_matrices(states[:, 6:10] / np.linalg.norm(states[:, 6:10], axis=1, keepdims=True))
+        out[:, :6] = states[:, :6]
+        out[:, 6:12] = rotation[:, :, :2].transpose(0, 2, 1).reshape(-1, 6)
+        out[:, 12:15] = states[:, 10:13]
+        out[:, 15:21] = wrenches * self._observe_wrench
+        out[:, 21:25] = last_actions
         return out
 
     def terminations(self) -> np.ndarray:

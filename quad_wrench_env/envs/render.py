@@ -42,7 +42,7 @@ class SceneRenderer:
             p.GEOM_CYLINDER, radius=radius, length=0.05, rgbaColor=(0.3, 0.3, 0.9, 1.0), physicsClientId=cid
         )
         self._fan = p.createMultiBody(0.0, -1, disc, baseOrientation=_ALONG_X, physicsClientId=cid)
-        x = float(env.cfg.start_distance)
+        x = float(env.cfg.standoff_distance)
         self._jet_length = x
         jet = p.createVisualShape(
             p.GEOM_CYLINDER, radius=0.015, length=x, rgbaColor=(0.4, 0.7, 1.0, 1.0), physicsClientId=cid

@@ -1,7 +1,7 @@
 """stable-baselines3's ``VecEnv`` interface over a :class:`QuadWrenchVectorEnv`, so its algorithms
 train on N vehicles flown in one world directly:
 
-    venv = SB3VecEnv(gym.make_vec("QuadWrench/FanTracking-v0", num_envs=64,
+    venv = SB3VecEnv(gym.make_vec("QuadWrench/FanTracking-v1", num_envs=64,
                                   vectorization_mode="vector_entry_point"))
     PPO("MlpPolicy", VecMonitor(venv)).learn(1_000_000)
 

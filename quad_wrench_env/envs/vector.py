@@ -1,6 +1,6 @@
 """N vehicles of one task as a Gymnasium ``VectorEnv``: one PyBullet world, one batched computation.
 
-``gym.make_vec("QuadWrench/FanTracking-v0", num_envs=N, vectorization_mode="vector_entry_point")``
+``gym.make_vec("QuadWrench/FanTracking-v1", num_envs=N, vectorization_mode="vector_entry_point")``
 builds it (every id the package registers has a vector entry point). Vehicle ``i`` behaves exactly
 as a single env of the same id and settings would, reset with seed ``seed + i``: same code (a
 :class:`~quad_wrench_env.envs.fleet.Fleet` of N instead of one), same random draws, same numbers.

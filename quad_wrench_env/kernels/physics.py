@@ -152,41 +152,68 @@ def _motion_y(table, t):
 
 
 @njit
-def _transit_time(x, u0, core):
-    """``FanJet.transit_time`` of one distance."""
-    x = max(x, 0.0)
-    return x / u0 if x <= core else core / u0 + (x * x - core * core) / (2.0 * u0 * core)
+def jet_speed(fan, x):
+    """``FanJet.centreline_speed`` and ``FanJet.half_width`` at distance ``x`` for the jet ``fan``
+    (``FanJet.kernel_parameters``)."""
+    b = math.sqrt(fan[3] + (fan[4] * x) ** 2)
+    return fan[1] * min(1.0, math.sqrt(2.0 * fan[3]) / b), b
 
 
 @njit
-def jet_axis_y(x, t, motion_tables, u0, core):
+def transit_time(fan, x):
+    """``FanJet.transit_time`` of one distance."""
+    x = max(x, 0.0)
+    u0, core, radius2, c = fan[1], fan[2], fan[3], fan[4]
+    if x <= core:
+        return x / u0
+    radius = math.sqrt(radius2)
+    beyond = 0.5 * x * math.sqrt(radius2 + (c * x) ** 2) + radius2 / (2.0 * c) * math.asinh(c * x / radius)
+    at_core = 0.5 * core * math.sqrt(radius2 + (c * core) ** 2) + radius2 / (2.0 * c) * math.asinh(
+        c * core / radius
+    )
+    return core / u0 + (beyond - at_core) / (math.sqrt(2.0) * u0 * radius)
+
+
+@njit
+def jet_axis_y(x, t, motion_tables, fan):
     """(N,) ``FanJet.axis_y``: each vehicle's jet axis at distance ``x[n]`` and time ``t[n]``."""
     out = np.empty(x.shape[0])
     for n in range(x.shape[0]):
-        out[n] = _motion_y(motion_tables[n], t[n] - _transit_time(x[n], u0, core))
+        out[n] = _motion_y(motion_tables[n], t[n] - transit_time(fan, x[n]))
     return out
 
 
+FAN_TRACKING_NUMBERS = 10
+"""Columns of :func:`fan_tracking_terms`' output."""
+
+
 @njit
-def fan_tracking_terms(position, time, actions, ended, motion_tables, constants, out):
-    """FanTracking's per-vehicle numbers into ``out`` (N, 8): the reward terms ``tracking``,
-    ``effort`` and ``crash``, the signed ``axis_error`` y - jet axis, the jet axis y at the vehicle
-    and the fan's position ``(0, y, height)`` (``FanTracking.reward_terms`` and ``FanTracking.info``).
-    ``constants``: the jet's exit speed and core length, the fan's height, and the reward's axis
-    scale, effort weight and crash penalty."""
-    u0, core, height, weights = constants[0], constants[1], constants[2], constants[3:6]
+def fan_tracking_terms(position, time, actions, ended, motion_tables, fan, weights, out):
+    """FanTracking's per-vehicle numbers into ``out`` (N, 10): the reward terms ``tracking``,
+    ``standoff``, ``effort`` and ``crash``; the signed ``axis_error`` y - jet axis, the jet axis y at
+    the vehicle, the fan's position ``(0, y, height)`` and the signed stand-off error ``x - x_ref``
+    (``FanTracking.reward_terms`` and ``FanTracking.info``). ``fan``: the jet
+    (``FanJet.kernel_parameters``); ``weights``: the stand-off ``x_ref``, the reward's axis scale,
+    stand-off weight, effort weight and crash penalty."""
+    height = fan[5]
+    x_ref, axis_scale, standoff_weight, effort_weight, crash_penalty = (
+        weights[0], weights[1], weights[2], weights[3], weights[4],
+    )  # fmt: skip
     for n in range(position.shape[0]):
-        axis = _motion_y(motion_tables[n], time[n] - _transit_time(position[n, 0], u0, core))
+        axis = _motion_y(motion_tables[n], time[n] - transit_time(fan, position[n, 0]))
         dy, dz = position[n, 1] - axis, position[n, 2] - height
-        out[n, 0] = math.exp(-(dy * dy + dz * dz) / weights[0] ** 2)
+        standoff = position[n, 0] - x_ref
+        out[n, 0] = math.exp(-math.sqrt(dy * dy + dz * dz) / axis_scale)
+        out[n, 1] = -standoff_weight * abs(standoff)
         effort = 0.0
         for i in range(actions.shape[1]):
             effort += actions[n, i] * actions[n, i]
-        out[n, 1] = (-weights[1] / actions.shape[1]) * effort
-        out[n, 2] = -weights[2] * ended[n]
-        out[n, 3] = dy
-        out[n, 4] = position[n, 1] - dy
-        out[n, 5], out[n, 6], out[n, 7] = 0.0, _motion_y(motion_tables[n], time[n]), height
+        out[n, 2] = (-effort_weight / actions.shape[1]) * effort
+        out[n, 3] = -crash_penalty * ended[n]
+        out[n, 4] = dy
+        out[n, 5] = axis
+        out[n, 6], out[n, 7], out[n, 8] = 0.0, _motion_y(motion_tables[n], time[n]), height
+        out[n, 9] = standoff
 
 
 @njit
@@ -330,13 +357,8 @@ def before_world_step(actions, buffer, saturated, motion_tables, constants):
             rel0, rel1, rel2 = -(velocity[n, 0] + w0), -(velocity[n, 1] + w1), -(velocity[n, 2] + w2)
             if fan[0] > 0.0:  # FanJet.velocity_at
                 x = position[n, 0] + o0
-                u_c = fan[1] * min(1.0, fan[2] / max(x, 1e-9))
-                b = math.sqrt(fan[3] + (fan[4] * x) ** 2)
-                dy = (
-                    position[n, 1]
-                    + o1
-                    - _motion_y(motion_tables[n], time[n] - _transit_time(x, fan[1], fan[2]))
-                )
+                u_c, b = jet_speed(fan, x)
+                dy = position[n, 1] + o1 - _motion_y(motion_tables[n], time[n] - transit_time(fan, x))
                 dz = position[n, 2] + o2 - fan[5]
                 speed = u_c * math.exp(-(dy * dy + dz * dz) / (b * b)) if x > 0.0 else 0.0
                 rel0 += speed * (1.0 + fan[6] * fan_noise[n, 0])
@@ -412,9 +434,7 @@ def after_world_step(flat, buffer, noise_buffer, noise_cursor, constants):
         noise_cursor[n] += 1
         # -- turbulence --
         if fan[0] > 0.0 and fan[6] != 0.0:
-            x = max(position[n, 0], 1e-3)
-            u_c = fan[1] * min(1.0, fan[2] / max(x, 1e-9))
-            b = math.sqrt(fan[3] + (fan[4] * x) ** 2)
+            u_c, b = jet_speed(fan, max(position[n, 0], 1e-3))
             decay = math.exp(-dt * u_c / b)
             for i in range(3):
                 fan_noise[n, i] = decay * fan_noise[n, i] + math.sqrt(1.0 - decay * decay) * normals[i]
@@ -496,14 +516,22 @@ def termination_codes(position, rotation, limits, out):
 
 
 @njit
-def assemble_observations(states, wrenches, last_actions, out):
-    """``Fleet.observations`` into ``out`` (N, 23, float32): states (N, 13) with ``w >= 0``, wrenches
-    (N, 6) and the last actions (N, 4)."""
+def assemble_observations(states, wrenches, last_actions, observe_wrench, out):
+    """``Fleet.observations`` into ``out`` (N, 25, float32): from the states (N, 13) the position,
+    velocity, the first two columns of the rotation matrix of the (normalised) quaternion and the
+    body rates; the wrenches (N, 6) times ``observe_wrench`` (1 or 0) and the last actions (N, 4)."""
+    r = np.empty((3, 3))
     for n in range(states.shape[0]):
-        sign = -1.0 if states[n, 6] < 0.0 else 1.0
-        for i in range(13):
-            out[n, i] = states[n, i] * sign if 6 <= i < 10 else states[n, i]
+        s = states[n]
+        norm = math.sqrt(s[6] * s[6] + s[7] * s[7] + s[8] * s[8] + s[9] * s[9])
+        matrix(s[6] / norm, s[7] / norm, s[8] / norm, s[9] / norm, r)
         for i in range(6):
-            out[n, 13 + i] = wrenches[n, i]
+            out[n, i] = s[i]
+        for i in range(3):
+            out[n, 6 + i] = r[i, 0]
+            out[n, 9 + i] = r[i, 1]
+            out[n, 12 + i] = s[10 + i]
+        for i in range(6):
+            out[n, 15 + i] = wrenches[n, i] * observe_wrench
         for i in range(4):
-            out[n, 19 + i] = last_actions[n, i]
+            out[n, 21 + i] = last_actions[n, i]

@@ -1,0 +1,115 @@
+"""FanTracking-v1 as a task: a continuous attitude block, a default episode distribution that only
+the wrench reveals, the stand-off term, the reward's values and the wrench ablation switch."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from quad_wrench_env.disturbances.fan import ConstantSpeed, PiecewiseVelocity, Sine, Static
+from quad_wrench_env.envs.fan_tracking import FanEpisodes
+from quad_wrench_env.rotations import rotation_matrix
+
+
+def test_attitude_block_is_the_rotation_matrix_and_moves_no_faster_than_the_body_rates(make_env):
+    """The vehicle faces the fan (yaw = π, where a quaternion kept to w >= 0 flips sign): between two
+    observations 20 ms apart the block can change by at most what the body rates turn it, |ω|·dt per
+    column (plus the estimator's noise, a few mrad), never a jump of order 1."""
+    env = make_env(estimator="oracle")
+    obs, _ = env.reset(seed=3, options={"offset_y": 0.8, "fan_motion": "static"})
+    layout = env.unwrapped.obs_layout
+    assert layout["attitude"] == slice(6, 12)
+    rng = np.random.default_rng(0)
+    dt = 1.0 / env.unwrapped.cfg.policy_hz
+    for _ in range(300):
+        action = rng.uniform(-1, 1, 4).astype(np.float32)  # yaw rate too: cross w = 0 many times
+        new, _, terminated, _, _ = env.step(action)
+        if terminated:
+            break
+        before, after = obs[layout["attitude"]], new[layout["attitude"]]
+        rates = max(np.linalg.norm(obs[layout["body_rates"]]), np.linalg.norm(new[layout["body_rates"]]))
+        for column in (slice(0, 3), slice(3, 6)):
+            assert np.linalg.norm(after[column] - before[column]) <= 1.5 * rates * dt + 1e-3
+        obs = new
+    quaternion = env.unwrapped.world.state().quaternion[0]
+    np.testing.assert_allclose(
+        obs[layout["attitude"]], rotation_matrix(quaternion)[:, :2].T.ravel(), atol=1e-6
+    )
+
+
+def test_default_episodes_draw_every_motion_family_across_the_y0_range(make_env):
+    env = make_env()
+    episodes = env.unwrapped.cfg.episodes
+    kinds, y0s = set(), []
+    for seed in range(60):
+        env.reset(seed=seed)
+        motion = env.unwrapped.fan.motion(0)
+        kinds.add(type(motion))
+        y0s.append(float(motion.y(np.asarray(0.0))))
+        path = motion.y(np.linspace(0.0, env.unwrapped.cfg.episode_seconds, 301))
+        assert np.all(np.abs(path) <= episodes.y_range + 1e-9)  # the fan stays in the documented range
+    assert kinds == {Static, ConstantSpeed, Sine, PiecewiseVelocity}
+    # uniform y0 over about ±2 m: 60 draws cover most of it, both sides
+    assert min(y0s) < -1.0 and max(y0s) > 1.0
+    assert np.std(y0s) > 0.5
+
+
+def test_same_seed_same_episode_and_the_paper_cases_stay_named(make_env):
+    env = make_env()
+    env.reset(seed=7)
+    first = env.unwrapped.fan.motion(0)
+    env.reset(seed=7)
+    assert env.unwrapped.fan.motion(0) == first
+    env.reset(seed=7, options={"fan_motion": "sine"})
+    assert env.unwrapped.fan.motion(0) == Sine(amplitude=0.5, frequency=1.0 / 30.0, y0=0.0)
+    env.reset(seed=7, options={"fan_motion": {"name": "static", "y0": 1.2}, "offset_y": 0.8})
+    assert env.unwrapped.fan.motion(0) == Static(1.2)
+    assert env.unwrapped.fleet.state.position[0, 1] == pytest.approx(2.0)
+
+
+def test_episode_draw_fits_a_fast_motion_into_the_range():
+    episodes = FanEpisodes(motions=("constant_speed",), max_speed=1.0, y_range=1.0)
+    rng = np.random.default_rng(0)
+    for _ in range(20):
+        path = episodes.draw(rng, 30.0).y(np.linspace(0.0, 30.0, 301))
+        assert np.all(np.abs(path) <= 1.0 + 1e-9)
+
+
+@pytest.mark.parametrize("backend", ["numpy", "numba"])
+def test_reward_terms_by_hand(make_env, backend):
+    """A still fan at y0 = 0: after one step the terms follow from the true position alone."""
+    env = make_env(backend=backend, estimator="oracle", fan={"turbulence_intensity": 0.0})
+    env.reset(seed=0, options={"fan_motion": "static", "offset_y": 0.4})
+    action = np.array((0.5, 0.0, 0.0, -0.5), dtype=np.float32)
+    _, reward, _, _, info = env.step(action)
+    x, y, z = info["position"]
+    d = math.hypot(y - 0.0, z - 1.0)  # the axis of a still fan at y = 0 is y = 0 at every x
+    terms = info["reward_terms"]
+    assert terms["tracking"] == pytest.approx(math.exp(-d / 0.5), rel=1e-9)
+    assert terms["standoff"] == pytest.approx(-abs(x - 2.3), rel=1e-9)
+    assert terms["effort"] == pytest.approx(-0.01 * (0.25 + 0.25) / 4, rel=1e-6)
+    assert terms["crash"] == 0.0
+    assert info["axis_error"] == pytest.approx(y, abs=1e-12)
+    assert info["standoff_error"] == pytest.approx(x - 2.3, abs=1e-12)
+    assert reward == pytest.approx(sum(terms.values()))
+    assert math.exp(-0.8 / 0.5) > 0.15  # signal at the 0.8 m start, unlike exp(-(0.8/0.3)²) = 8e-4
+
+
+@pytest.mark.parametrize("backend", ["numpy", "numba"])
+def test_observe_wrench_false_zeroes_the_wrench_blocks_only(make_env, backend):
+    seen = make_env(backend=backend)
+    hidden = make_env(backend=backend, observe_wrench=False)
+    a, info_a = seen.reset(seed=1)
+    b, info_b = hidden.reset(seed=1)
+    layout = seen.unwrapped.obs_layout
+    for _ in range(20):
+        a, *_, info_a = seen.step(np.full(4, 0.1, dtype=np.float32))
+        b, *_, info_b = hidden.step(np.full(4, 0.1, dtype=np.float32))
+    assert np.any(a[layout["wrench"]] != 0)
+    np.testing.assert_array_equal(b[layout["wrench"]], 0.0)
+    keep = np.ones(a.shape, dtype=bool)
+    keep[layout["wrench"]] = False
+    np.testing.assert_array_equal(a[keep], b[keep])
+    np.testing.assert_array_equal(info_a["wrench_est"], info_b["wrench_est"])
