@@ -242,12 +242,11 @@ class FanJet:
 
     # -- the field --------------------------------------------------------------------------------
     def kernel_parameters(self) -> np.ndarray:
-        """The jet as the kernels read it: on (1), outlet speed, core length ``x_c``, outlet radius²,
+        """The jet as the kernels read it: on (1), outlet speed, core length ``x_c``, outlet radius,
         spread, height, turbulence intensity (each vehicle's motion is in :attr:`motion_tables`)."""
         c = self.config
-        return np.array(
-            (1.0, c.outlet_speed, self._core, self._radius2, c.spread, c.height, c.turbulence_intensity)
-        )
+        radius = 0.5 * c.outlet_diameter
+        return np.array((1.0, c.outlet_speed, self._core, radius, c.spread, c.height, c.turbulence_intensity))
 
     def reset(self, index: int, rng: np.random.Generator) -> None:
         self.noise[index] = rng.standard_normal(3)  # the stationary distribution of the OU process

@@ -151,27 +151,30 @@ def _motion_y(table, t):
     return y
 
 
+_SQRT2 = math.sqrt(2.0)
+_CORE_INTEGRAL = _SQRT2 + math.asinh(1.0)
+"""``F(x_c)·2c/R²`` (``FanJet.transit_time``): at ``x_c = R/c``, ``b = √2·R`` and ``c·x_c/R = 1``."""
+
+
 @njit
 def jet_speed(fan, x):
     """``FanJet.centreline_speed`` and ``FanJet.half_width`` at distance ``x`` for the jet ``fan``
-    (``FanJet.kernel_parameters``)."""
-    b = math.sqrt(fan[3] + (fan[4] * x) ** 2)
-    return fan[1] * min(1.0, math.sqrt(2.0 * fan[3]) / b), b
+    (``FanJet.kernel_parameters``: the outlet radius R in ``fan[3]``)."""
+    radius = fan[3]
+    b = math.sqrt(radius * radius + (fan[4] * x) ** 2)
+    return fan[1] * min(1.0, _SQRT2 * radius / b), b
 
 
 @njit
-def transit_time(fan, x):
-    """``FanJet.transit_time`` of one distance."""
+def transit_time(fan, x, b):
+    """``FanJet.transit_time`` of one distance ``x`` where the half-width is ``b``."""
     x = max(x, 0.0)
-    u0, core, radius2, c = fan[1], fan[2], fan[3], fan[4]
+    u0, core, radius, c = fan[1], fan[2], fan[3], fan[4]
     if x <= core:
         return x / u0
-    radius = math.sqrt(radius2)
-    beyond = 0.5 * x * math.sqrt(radius2 + (c * x) ** 2) + radius2 / (2.0 * c) * math.asinh(c * x / radius)
-    at_core = 0.5 * core * math.sqrt(radius2 + (c * core) ** 2) + radius2 / (2.0 * c) * math.asinh(
-        c * core / radius
-    )
-    return core / u0 + (beyond - at_core) / (math.sqrt(2.0) * u0 * radius)
+    scale = radius * radius / (2.0 * c)
+    integral = 0.5 * x * b + scale * (math.asinh(c * x / radius) - _CORE_INTEGRAL)
+    return core / u0 + integral / (_SQRT2 * u0 * radius)
 
 
 @njit
@@ -179,7 +182,8 @@ def jet_axis_y(x, t, motion_tables, fan):
     """(N,) ``FanJet.axis_y``: each vehicle's jet axis at distance ``x[n]`` and time ``t[n]``."""
     out = np.empty(x.shape[0])
     for n in range(x.shape[0]):
-        out[n] = _motion_y(motion_tables[n], t[n] - transit_time(fan, x[n]))
+        _, b = jet_speed(fan, max(x[n], 0.0))
+        out[n] = _motion_y(motion_tables[n], t[n] - transit_time(fan, x[n], b))
     return out
 
 
@@ -200,7 +204,8 @@ def fan_tracking_terms(position, time, actions, ended, motion_tables, fan, weigh
         weights[0], weights[1], weights[2], weights[3], weights[4],
     )  # fmt: skip
     for n in range(position.shape[0]):
-        axis = _motion_y(motion_tables[n], time[n] - transit_time(fan, position[n, 0]))
+        _, b = jet_speed(fan, max(position[n, 0], 0.0))
+        axis = _motion_y(motion_tables[n], time[n] - transit_time(fan, position[n, 0], b))
         dy, dz = position[n, 1] - axis, position[n, 2] - height
         standoff = position[n, 0] - x_ref
         out[n, 0] = math.exp(-math.sqrt(dy * dy + dz * dz) / axis_scale)
@@ -358,7 +363,7 @@ def before_world_step(actions, buffer, saturated, motion_tables, constants):
             if fan[0] > 0.0:  # FanJet.velocity_at
                 x = position[n, 0] + o0
                 u_c, b = jet_speed(fan, x)
-                dy = position[n, 1] + o1 - _motion_y(motion_tables[n], time[n] - transit_time(fan, x))
+                dy = position[n, 1] + o1 - _motion_y(motion_tables[n], time[n] - transit_time(fan, x, b))
                 dz = position[n, 2] + o2 - fan[5]
                 speed = u_c * math.exp(-(dy * dy + dz * dz) / (b * b)) if x > 0.0 else 0.0
                 rel0 += speed * (1.0 + fan[6] * fan_noise[n, 0])
