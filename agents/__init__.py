@@ -1,10 +1,13 @@
 """Policies that map an observation to an action, and the code that evaluates them.
 
-:func:`make_agent` builds an agent by the name used in ``configs/`` files.
+:func:`make_agent` builds an agent by the name used in ``configs/`` files: a classical controller of
+:data:`AGENTS`, a learned policy shipped with the package (:func:`shipped_agents`, under
+``agents/policies/``), or the path of a user's own training run folder (``scripts/train.py``).
 """
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Any
 
 from agents.admittance import AdmittancePolicy
@@ -13,12 +16,32 @@ from agents.hover import PositionHoldPolicy
 
 AGENTS: dict[str, type] = {"admittance": AdmittancePolicy, "hold": PositionHoldPolicy}
 
+SHIPPED = Path(__file__).resolve().parent / "policies"
+"""Shipped learned policies: one folder each, laid out as a run folder's ``config.yaml`` and ``best/``."""
+
+
+def shipped_agents() -> list[str]:
+    """Names of the learned policies shipped with the package."""
+    return (
+        sorted(p.name for p in SHIPPED.iterdir() if (p / "config.yaml").is_file()) if SHIPPED.is_dir() else []
+    )
+
 
 def make_agent(name: str, **params: Any) -> Policy:
-    """The agent called ``name`` with its parameters (gains) from a config."""
-    if name not in AGENTS:
-        raise ValueError(f"unknown agent {name!r}; allowed: {sorted(AGENTS)}")
-    return AGENTS[name](**params)
+    """The agent called ``name`` with its parameters (gains) from a config; a shipped learned policy
+    or a run folder takes no parameters."""
+    if name in AGENTS:
+        return AGENTS[name](**params)
+    folder = SHIPPED / name if name in shipped_agents() else Path(name)
+    if (folder / "config.yaml").is_file():
+        if params:
+            raise ValueError(f"the learned policy {name!r} takes no parameters, got {sorted(params)}")
+        from agents.sb3 import load_policy
+
+        return load_policy(folder)
+    raise ValueError(
+        f"unknown agent {name!r}; allowed: {sorted(AGENTS) + shipped_agents()} or a training run folder"
+    )
 
 
-__all__ = ["AGENTS", "Policy", "make_agent"]
+__all__ = ["AGENTS", "Policy", "make_agent", "shipped_agents"]

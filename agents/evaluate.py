@@ -119,9 +119,15 @@ def evaluate(
     **env_kwargs: Any,
 ) -> Evaluation:
     """Run ``policy`` on ``gym.make(env_id, **env_kwargs)`` once per seed and score every episode.
+    ``policy`` is an agent, or a stable-baselines3 model (run deterministically on raw observations;
+    wrap a model trained behind ``VecNormalize`` in ``agents.sb3.SB3Policy`` with its scaling).
 
     ``options`` go to every ``reset`` (e.g. ``{"offset_y": 0.8, "fan_motion": "static"}``).
     """
+    if not isinstance(policy, Policy) and hasattr(policy, "predict"):  # a bare SB3 model
+        from agents.sb3 import SB3Policy
+
+        policy = SB3Policy(policy)
     seeds = [int(s) for s in seeds]
     if not seeds:
         raise ValueError("seeds must name at least one seed")
@@ -144,3 +150,34 @@ def write_report(out: Path, header: list[str], parts: Mapping[str, Callable[[], 
     table = "\n".join(lines)
     (out / "table.md").write_text(table)
     return table
+
+
+FAN_TRACKING_COLUMNS = (
+    ("mean_abs_error_after_5s", "mean abs(y - y_axis) after 5 s [m]", "{:.3f}"),
+    ("fraction_within_0.15m", "time within 0.15 m", "{:.0%}"),
+    ("time_to_0.15m", "first within 0.15 m [s]", "{:.2f}"),
+    ("mean_abs_standoff_error_after_5s", "mean abs(x - x_ref) after 5 s [m]", "{:.3f}"),
+    ("terminated_early", "ended early", "{:.0%}"),
+)
+"""FanTracking's columns for :func:`metrics_table`: metric, title, format."""
+
+
+def metrics_table(
+    results: Mapping[tuple[str, str], Evaluation], columns: tuple[tuple[str, str, str], ...]
+) -> list[str]:
+    """Markdown rows, one per (agent, case): each metric's mean over the seeds, with its standard
+    deviation where it varies, and the seeds."""
+    header = "| agent | case | seeds | " + " | ".join(title for _, title, _ in columns) + " |"
+    lines = [header, "|" + "---|" * (3 + len(columns))]
+    for (agent, case), ev in results.items():
+        cells = []
+        for key, _, fmt in columns:
+            values = np.array([m[key] for m in ev.per_seed], dtype=float)
+            if not np.all(np.isfinite(values)):
+                cells.append(f"never ({int(np.sum(~np.isfinite(values)))}/{len(values)})")
+                continue
+            spread = float(np.std(values))
+            cells.append(fmt.format(values.mean()) + (f" ± {fmt.format(spread)}" if spread > 0 else ""))
+        seeds = ",".join(str(s) for s in ev.seeds)
+        lines.append(f"| {agent} | {case} | {seeds} | " + " | ".join(cells) + " |")
+    return lines

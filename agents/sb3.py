@@ -1,19 +1,30 @@
-"""stable-baselines3 policies as agents of the evaluation harness.
+"""stable-baselines3 policies: training runs, and trained models as agents of the evaluation harness.
 
+:func:`train` runs PPO or SAC on any registered env id, batched through ``SB3VecEnv``, from one
+:class:`TrainConfig`, into a run folder that holds what ran (config and commit), checkpoints, the
+best model by the harness's own metric on fixed evaluation seeds, the curve and TensorBoard logs.
 :class:`SB3Policy` wraps a trained model and the observation statistics of the ``VecNormalize`` it
 trained behind, so that ``agents.evaluate.evaluate`` runs it like any classical agent: ``reset(env)``,
-``act(obs)`` on the raw observation, deterministic actions.
+``act(obs)`` on the raw observation, deterministic actions. :func:`load_policy` reads a run folder
+(or a shipped agent, which is a run folder's ``config.yaml`` and ``best/`` kept in the package).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import dataclasses
+import math
+import time
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import gymnasium as gym
 import numpy as np
+import yaml
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.vec_env import VecNormalize
+
+from quad_wrench_env.config import load_yaml
 
 
 @dataclass(frozen=True)
@@ -60,3 +71,236 @@ class SB3Policy:
         obs = observation if self.scaling is None else self.scaling(observation)
         action, _ = self.model.predict(obs, deterministic=True)
         return np.asarray(action, dtype=np.float32)
+
+
+# -- training -------------------------------------------------------------------------------------
+
+
+@dataclass
+class EvaluationConfig:
+    """Evaluation during training, on fixed seeds, with the harness's own metric."""
+
+    seeds: list[int] = field(default_factory=lambda: [10_000, 10_001, 10_002, 10_003, 10_004])
+    every_steps: int = 250_000
+    options: dict[str, Any] = field(default_factory=dict)
+    """Reset options of the evaluation episodes ({}: the env's default distribution)."""
+    metric: str = "return"
+    """A metric of the env id's harness scores (``agents.evaluate.METRICS``); the best checkpoint is
+    the one with the best mean over the seeds."""
+    lower_is_better: bool = False
+
+
+@dataclass
+class TrainConfig:
+    """Everything a training run is built from (one YAML file; see ``configs/train_*.yaml``)."""
+
+    env_id: str = "QuadWrench/FanTracking-v1"
+    env: dict[str, Any] = field(default_factory=dict)
+    """Keyword arguments of the env (estimator, vehicle, action_type, any config key)."""
+    algorithm: str = "ppo"
+    num_envs: int = 32
+    """Vehicles flown in one batched env (``SB3VecEnv``)."""
+    total_steps: int = 1_000_000
+    max_minutes: float = 0.0
+    """Wall-clock budget (0: none): training stops at whichever of this and ``total_steps`` comes first."""
+    seed: int = 0
+    hyperparameters: dict[str, Any] = field(default_factory=dict)
+    """Keyword arguments of the SB3 algorithm (``n_steps``, ``batch_size``, ``learning_rate``, ...)."""
+    net_arch: list[int] = field(default_factory=lambda: [64, 64])
+    activation: str = "tanh"
+    normalize_observations: bool = True
+    normalize_rewards: bool = True
+    clip_observations: float = 10.0
+    checkpoint_every_steps: int = 500_000
+    evaluation: EvaluationConfig = field(default_factory=EvaluationConfig)
+    threads: int = 1
+    """Torch threads (the env steps on the other core)."""
+
+    def __post_init__(self) -> None:
+        if self.algorithm not in ALGORITHMS:
+            raise ValueError(f"algorithm={self.algorithm!r}; allowed: {sorted(ALGORITHMS)}")
+        if self.activation not in ACTIVATIONS:
+            raise ValueError(f"activation={self.activation!r}; allowed: {sorted(ACTIVATIONS)}")
+        for name in ("num_envs", "total_steps", "checkpoint_every_steps", "threads"):
+            value = getattr(self, name)
+            if not (isinstance(value, int) and not isinstance(value, bool) and value >= 1):
+                raise ValueError(f"{name}={value!r} must be an integer >= 1")
+        if not (isinstance(self.max_minutes, (int, float)) and self.max_minutes >= 0):
+            raise ValueError(f"max_minutes={self.max_minutes!r} must be a number >= 0 (0: no budget)")
+        if not self.evaluation.seeds or self.evaluation.every_steps < 1:
+            raise ValueError("evaluation needs at least one seed and every_steps >= 1")
+
+
+ALGORITHMS = ("ppo", "sac")
+ACTIVATIONS = ("tanh", "relu")
+
+
+def _algorithm(name: str) -> type[BaseAlgorithm]:
+    from stable_baselines3 import PPO, SAC
+
+    return {"ppo": PPO, "sac": SAC}[name]
+
+
+def load_policy(folder: str | Path) -> SB3Policy:
+    """The agent of a run folder (or a shipped agent's folder): its best model if it kept one, else
+    its last, behind its observation scaling."""
+    folder = Path(folder)
+    config = folder / "config.yaml"
+    if not config.is_file():
+        raise FileNotFoundError(f"{str(folder)!r} is not a training run folder (no config.yaml)")
+    algorithm = load_yaml(config).get("algorithm", "ppo")
+    for name in ("best", "final"):
+        model = folder / name / "model.zip"
+        if model.is_file():
+            scaling = folder / name / "scaling.npz"
+            return SB3Policy(
+                _algorithm(algorithm).load(model, device="cpu"),
+                ObservationScaling.load(scaling) if scaling.is_file() else None,
+            )
+    raise FileNotFoundError(f"{str(folder)!r} holds no best/model.zip or final/model.zip")
+
+
+def _commit() -> str:
+    """The project's commit (with ``+dirty`` when the tree has changes), or ``unknown``."""
+    import subprocess
+
+    root = Path(__file__).resolve().parent.parent
+    try:
+        head = subprocess.run(
+            ["git", "rev-parse", "HEAD"], cwd=root, capture_output=True, text=True, check=True
+        ).stdout.strip()
+        dirty = subprocess.run(
+            ["git", "status", "--porcelain", "--untracked-files=no"], cwd=root, capture_output=True, text=True
+        ).stdout.strip()
+    except (OSError, subprocess.CalledProcessError):
+        return "unknown"
+    return head + ("+dirty" if dirty else "")
+
+
+def train(config: TrainConfig, folder: str | Path, resume: bool = False, progress: bool = True) -> Path:
+    """Train per ``config`` into the run ``folder``: ``config.yaml`` and ``commit.txt`` (what ran),
+    ``checkpoints/``, ``best/`` and ``final/`` (each a ``model.zip`` with its ``scaling.npz`` and
+    ``vecnormalize.pkl``), ``curve.csv`` (steps, wall seconds, evaluation metric, mean training
+    return) and ``tensorboard/``. ``resume`` continues from the folder's last checkpoint."""
+    import gymnasium as gym
+    import torch
+    from stable_baselines3.common.callbacks import BaseCallback
+    from stable_baselines3.common.vec_env import VecMonitor
+
+    import quad_wrench_env  # noqa: F401  (registers the env ids)
+    from agents.evaluate import evaluate
+    from quad_wrench_env.envs.sb3_vec_env import SB3VecEnv
+
+    folder = Path(folder)
+    torch.set_num_threads(config.threads)
+    venv = gym.make_vec(
+        config.env_id, num_envs=config.num_envs, vectorization_mode="vector_entry_point", **config.env
+    )
+    env: Any = VecMonitor(SB3VecEnv(venv))
+    checkpoints = folder / "checkpoints"
+    algorithm = _algorithm(config.algorithm)
+    start_steps = 0
+    if resume:
+        last = _last_checkpoint(checkpoints)
+        env = VecNormalize.load(str(last / "vecnormalize.pkl"), env)
+        model = algorithm.load(last / "model.zip", env=env, device="cpu")
+        start_steps = model.num_timesteps
+    else:
+        if folder.exists() and any(folder.iterdir()):
+            raise FileExistsError(f"run folder {str(folder)!r} is not empty; pass resume or a new folder")
+        folder.mkdir(parents=True, exist_ok=True)
+        env = VecNormalize(
+            env,
+            norm_obs=config.normalize_observations,
+            norm_reward=config.normalize_rewards,
+            clip_obs=config.clip_observations,
+            gamma=config.hyperparameters.get("gamma", 0.99),
+        )
+        env.seed(config.seed)
+        activation = {"tanh": torch.nn.Tanh, "relu": torch.nn.ReLU}[config.activation]
+        policy_kwargs = {"net_arch": list(config.net_arch), "activation_fn": activation}
+        model = algorithm(
+            "MlpPolicy", env, seed=config.seed, device="cpu", verbose=0, policy_kwargs=policy_kwargs,
+            tensorboard_log=str(folder / "tensorboard"), **config.hyperparameters,
+        )  # fmt: skip
+    (folder / "config.yaml").write_text(yaml.safe_dump(dataclasses.asdict(config), sort_keys=False))
+    (folder / "commit.txt").write_text(_commit() + "\n")
+    e = config.evaluation
+    started = time.perf_counter()
+    budget = 60.0 * config.max_minutes
+    curve = folder / "curve.csv"
+    if not curve.exists():
+        curve.write_text("steps,wall_seconds,metric,mean_training_return\n")
+
+    def save(name: str) -> None:
+        target = folder / name
+        target.mkdir(parents=True, exist_ok=True)
+        model.save(target / "model.zip")
+        env.save(str(target / "vecnormalize.pkl"))
+        ObservationScaling.of(env).save(target / "scaling.npz")
+
+    class Loop(BaseCallback):
+        """Logs reward terms and task entries, evaluates, checkpoints, keeps the best, keeps the budget."""
+
+        def __init__(self) -> None:
+            super().__init__()
+            self.best = math.inf if e.lower_is_better else -math.inf
+            self.next_eval = start_steps
+            self.next_checkpoint = start_steps + config.checkpoint_every_steps
+            self.sums: dict[str, float] = {}
+            self.count = 0
+
+        def _on_step(self) -> bool:
+            for info in self.locals["infos"]:
+                for key, value in info.items():
+                    if isinstance(value, float) and key != "TimeLimit.truncated":
+                        self.sums[f"task/{key}_abs"] = self.sums.get(f"task/{key}_abs", 0.0) + abs(value)
+                for key, value in info.get("reward_terms", {}).items():
+                    self.sums[f"reward/{key}"] = self.sums.get(f"reward/{key}", 0.0) + value
+            self.count += len(self.locals["infos"])
+            if self.num_timesteps >= self.next_eval:
+                self.evaluate()
+            if self.num_timesteps >= self.next_checkpoint:
+                save(f"checkpoints/{self.num_timesteps:010d}")
+                self.next_checkpoint += config.checkpoint_every_steps
+            return not (budget and time.perf_counter() - started >= budget)
+
+        def _on_rollout_end(self) -> None:
+            for key, total in self.sums.items():
+                self.logger.record(key, total / max(self.count, 1))
+            self.sums, self.count = {}, 0
+
+        def evaluate(self) -> None:
+            self.next_eval = self.num_timesteps + e.every_steps
+            policy = SB3Policy(model, ObservationScaling.of(env))
+            result = evaluate(policy, config.env_id, e.seeds, options=e.options, **config.env)
+            if e.metric not in result.mean:
+                raise ValueError(
+                    f"evaluation.metric={e.metric!r}; allowed for {config.env_id}: {sorted(result.mean)}"
+                )
+            value = result.mean[e.metric]
+            self.logger.record(f"eval/{e.metric}", value)
+            returns = [info["r"] for info in model.ep_info_buffer]
+            mean_return = sum(returns) / len(returns) if returns else math.nan
+            wall = time.perf_counter() - started
+            with curve.open("a") as handle:
+                handle.write(f"{self.num_timesteps},{wall:.1f},{value},{mean_return}\n")
+            if (value < self.best) if e.lower_is_better else (value > self.best):
+                self.best = value
+                save("best")
+
+    loop = Loop()
+    model.learn(
+        config.total_steps - start_steps, callback=loop, progress_bar=progress, reset_num_timesteps=not resume
+    )
+    loop.evaluate()
+    save("final")
+    env.close()
+    return folder
+
+
+def _last_checkpoint(checkpoints: Path) -> Path:
+    found = sorted(p for p in checkpoints.glob("*") if (p / "model.zip").is_file())
+    if not found:
+        raise FileNotFoundError(f"no checkpoint to resume from in {str(checkpoints)!r}")
+    return found[-1]

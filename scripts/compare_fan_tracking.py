@@ -6,7 +6,6 @@ python scripts/compare_fan_tracking.py --config configs/fan_tracking.yaml
 from __future__ import annotations
 
 import argparse
-import math
 from pathlib import Path
 
 import matplotlib
@@ -15,27 +14,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 
 from agents import make_agent
-from agents.evaluate import Evaluation, evaluate
+from agents.evaluate import FAN_TRACKING_COLUMNS, Evaluation, evaluate, metrics_table
 from quad_wrench_env.config import load_yaml
-
-COLUMNS = (
-    ("mean_abs_error_after_5s", "mean abs(y - y_axis) after 5 s [m]", "{:.3f}"),
-    ("fraction_within_0.15m", "time within 0.15 m", "{:.0%}"),
-    ("time_to_0.15m", "first within 0.15 m [s]", "{:.2f}"),
-    ("mean_abs_standoff_error_after_5s", "mean abs(x - x_ref) after 5 s [m]", "{:.3f}"),
-    ("terminated_early", "ended early", "{:.0%}"),
-)
-
-
-def markdown_table(results: dict[tuple[str, str], Evaluation]) -> str:
-    header = "| agent | case | seeds | " + " | ".join(title for _, title, _ in COLUMNS) + " |"
-    lines = [header, "|" + "---|" * (3 + len(COLUMNS))]
-    for (agent, case), ev in results.items():
-        mean = ev.mean
-        cells = [fmt.format(mean[key]) if math.isfinite(mean[key]) else "never" for key, _, fmt in COLUMNS]
-        seeds = ",".join(str(s) for s in ev.seeds)
-        lines.append(f"| {agent} | {case} | {seeds} | " + " | ".join(cells) + " |")
-    return "\n".join(lines)
 
 
 def run_all(config: dict, seeds: list[int]) -> dict[tuple[str, str], Evaluation]:
@@ -97,7 +77,7 @@ def main() -> None:
     out = Path(config.get("output", "results/fan_tracking"))
     out.mkdir(parents=True, exist_ok=True)
     results = run_all(config, seeds)
-    table = markdown_table(results)
+    table = "\n".join(metrics_table(results, FAN_TRACKING_COLUMNS))
     env = config.get("env", {})
     title = f"FanTracking, config {args.config}: vehicle {env.get('vehicle', 'ardrone2')}, seeds {seeds}"
     print(f"\n{title}\n\n{table}\n")

@@ -38,6 +38,9 @@ class SB3VecEnv(VecEnv):
             unwrapped.num_envs, unwrapped.single_observation_space, unwrapped.single_action_space
         )
         self._actions: np.ndarray | None = None
+        self._scalar_keys: tuple[str, ...] | None = None
+        """The task's ``info`` entries that are one number per vehicle, forwarded every step (found
+        at the first step)."""
 
     def reset(self) -> np.ndarray:
         options = [opts or None for opts in self._options]
@@ -53,15 +56,35 @@ class SB3VecEnv(VecEnv):
     def step_wait(self) -> VecEnvStepReturn:
         obs, rewards, terminated, truncated, info = self.venv.step(self._actions)
         dones = terminated | truncated
-        infos: list[dict[str, Any]] = [
-            {"TimeLimit.truncated": bool(truncated[i] and not terminated[i])} for i in range(self.num_envs)
-        ]
+        infos = self._step_infos(info, dones)
+        for i in range(self.num_envs):
+            infos[i]["TimeLimit.truncated"] = bool(truncated[i] and not terminated[i])
         if np.any(dones):
             final = self._split(info["final_info"], dones)
             for i in np.flatnonzero(dones).tolist():
                 infos[i]["terminal_observation"] = info["final_obs"][i]
                 infos[i]["final_info"] = final[i]
         return obs, rewards.astype(np.float32), dones, infos
+
+    def _step_infos(self, info: dict[str, Any], dones: np.ndarray) -> list[dict[str, Any]]:
+        """Per vehicle: this step's reward terms and the task's scalar entries. The vector env's
+        ``final_info`` holds every vehicle's entries from before the restarts (the ended episodes'
+        last step, the others' now), and its reward-term arrays cover every vehicle."""
+        source = info["final_info"] if np.any(dones) else info
+        if self._scalar_keys is None:
+            task_keys = self.venv.task.info(self.venv.fleet)
+            self._scalar_keys = tuple(k for k, v in task_keys.items() if np.ndim(v) == 1)
+        terms = info["reward_terms"]
+        names = [name for name in terms if not name.startswith("_")]
+        columns = [np.asarray(source[k], dtype=float) for k in self._scalar_keys]
+        columns += [np.asarray(terms[name], dtype=float) for name in names]
+        split = len(self._scalar_keys)
+        out = []
+        for row in np.column_stack(columns).tolist():
+            entry: dict[str, Any] = dict(zip(self._scalar_keys, row[:split], strict=True))
+            entry["reward_terms"] = dict(zip(names, row[split:], strict=True))
+            out.append(entry)
+        return out
 
     def close(self) -> None:
         self.venv.close()

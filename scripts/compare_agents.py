@@ -1,0 +1,81 @@
+"""Compare agents, classical and learned, on one env id: the same held-out seeds, every case.
+
+python scripts/compare_agents.py --config configs/compare_agents.yaml
+
+Each agent flies each case (reset options and env overrides on top of the config's ``env`` and the
+agent's own ``env``) through ``agents.evaluate``; writes ``table.md`` (mean ± sd over the seeds) and
+``errors.png`` (the task's first metric per case and agent) under the config's ``output``.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt
+import numpy as np
+
+from agents import make_agent
+from agents.evaluate import FAN_TRACKING_COLUMNS, Evaluation, evaluate, metrics_table
+from quad_wrench_env.config import load_yaml, merged
+
+COLUMNS = {"QuadWrench/FanTracking-v1": FAN_TRACKING_COLUMNS}
+"""Table columns per env id."""
+
+
+def run_all(config: dict) -> dict[tuple[str, str], Evaluation]:
+    results = {}
+    for label, spec in config["agents"].items():
+        for case, setup in config["cases"].items():
+            env = merged(merged(config.get("env", {}), spec.get("env", {})), setup.get("env", {}))
+            results[label, case] = evaluate(
+                make_agent(spec["agent"], **spec.get("params", {})),
+                config["env_id"],
+                config["seeds"],
+                options=setup.get("options", {}),
+                **env,
+            )
+            print(f"done: {label} / {case}", flush=True)
+    return results
+
+
+def plot(results: dict[tuple[str, str], Evaluation], metric: str, title: str, path: Path) -> None:
+    agents = list(dict.fromkeys(a for a, _ in results))
+    cases = list(dict.fromkeys(c for _, c in results))
+    fig, ax = plt.subplots(figsize=(1.6 * len(cases) + 3, 4.5))
+    width = 0.8 / len(agents)
+    for k, agent in enumerate(agents):
+        means = [np.mean([m[metric] for m in results[agent, c].per_seed]) for c in cases]
+        spreads = [np.std([m[metric] for m in results[agent, c].per_seed]) for c in cases]
+        ax.bar(np.arange(len(cases)) + k * width, means, width, yerr=spreads, label=agent, capsize=2)
+    ax.set_xticks(np.arange(len(cases)) + 0.4 - width / 2, cases, rotation=20, ha="right")
+    ax.set_yscale("log")
+    ax.set_ylabel(title)
+    ax.set_title(f"seeds {results[agents[0], cases[0]].seeds}")
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--config", default="configs/compare_agents.yaml")
+    args = parser.parse_args()
+    config = load_yaml(args.config)
+    columns = COLUMNS[config["env_id"]]
+    out = Path(config["output"])
+    out.mkdir(parents=True, exist_ok=True)
+    results = run_all(config)
+    title = f"{config['env_id']}, config {args.config}, env {config.get('env', {})}, seeds {config['seeds']}"
+    table = "\n".join([title, "", *metrics_table(results, columns), ""])
+    (out / "table.md").write_text(table)
+    plot(results, columns[0][0], columns[0][1], out / "errors.png")
+    print(f"\n{table}\nwrote {out / 'table.md'} and {out / 'errors.png'}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,78 @@
+"""Train a stable-baselines3 policy (PPO or SAC) on any QuadWrench env id from one YAML config.
+
+python scripts/train.py configs/train_fan_tracking.yaml [--set key=value ...] [--run-dir runs/NAME]
+python scripts/train.py --resume runs/NAME [--set total_steps=8000000]
+
+``--set`` overrides a config key (dots reach into sections, values are read as YAML), e.g.
+``--set env.observe_wrench=false --set hyperparameters.learning_rate=1e-4``. The run folder holds the
+config it ran with, the commit, checkpoints, the best and final models with their observation
+scaling, ``curve.csv`` and TensorBoard logs (``tensorboard --logdir runs/``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import math
+import time
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from agents.sb3 import TrainConfig, train
+from quad_wrench_env.config import build, load_yaml
+
+
+def apply_overrides(values: dict[str, Any], overrides: list[str]) -> dict[str, Any]:
+    """``values`` with each ``key.sub=value`` of ``overrides`` set (value parsed as YAML)."""
+    out = dict(values)
+    for item in overrides:
+        key, sep, text = item.partition("=")
+        if not sep or not key:
+            raise ValueError(f"--set {item!r} must read key=value")
+        node = out
+        *parents, leaf = key.split(".")
+        for name in parents:
+            node[name] = dict(node.get(name) or {})
+            node = node[name]
+        node[leaf] = yaml.safe_load(text)
+    return out
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("config", nargs="?", help="a training config (configs/train_*.yaml)")
+    parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="override a key")
+    parser.add_argument("--run-dir", help="the run folder (default: runs/<config name>-<time>)")
+    parser.add_argument("--resume", metavar="RUN", help="continue this run from its last checkpoint")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    args = parser.parse_args()
+    if (args.config is None) == (args.resume is None):
+        parser.error("give a config to start a run, or --resume RUN to continue one")
+    source = Path(args.resume) / "config.yaml" if args.resume else Path(args.config)
+    try:
+        config = build(TrainConfig, apply_overrides(load_yaml(source), args.set))
+    except (ValueError, FileNotFoundError) as error:
+        parser.error(str(error))
+    if args.resume:
+        folder = Path(args.resume)
+    else:
+        folder = Path(args.run_dir or f"runs/{source.stem}-{time.strftime('%Y%m%d-%H%M%S')}")
+    started = time.perf_counter()
+    train(config, folder, resume=bool(args.resume), progress=not args.no_progress)
+    with (folder / "curve.csv").open() as handle:
+        rows = list(csv.DictReader(handle))
+    e = config.evaluation
+    scored = [r for r in rows if math.isfinite(float(r["metric"]))]
+    summary = f"{folder}: {rows[-1]['steps']} steps in {time.perf_counter() - started:.0f} s"
+    if scored:
+        best = (min if e.lower_is_better else max)(scored, key=lambda r: float(r["metric"]))
+        summary += (
+            f"; best {e.metric} {float(best['metric']):.4g} at {best['steps']} steps on seeds {e.seeds}"
+        )
+    print(summary)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,140 @@
+"""The training pipeline end to end, learned policies as agents, and what SB3VecEnv forwards."""
+
+from __future__ import annotations
+
+import csv
+import math
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from stable_baselines3 import PPO
+
+from agents import SHIPPED, make_agent, shipped_agents
+from agents.evaluate import evaluate
+from agents.sb3 import SB3Policy, TrainConfig, load_policy, train
+from quad_wrench_env.config import build, load_yaml
+from quad_wrench_env.envs.sb3_vec_env import SB3VecEnv
+from tests.conftest import FAN_TRACKING
+
+SMALL = {
+    "env": {"episode_seconds": 6.0},
+    "num_envs": 4,
+    "checkpoint_every_steps": 1024,
+    "evaluation": {
+        "seeds": [1],
+        "every_steps": 1024,
+        "metric": "mean_abs_error_after_5s",
+        "lower_is_better": True,
+    },
+}
+HYPERPARAMETERS = {
+    "ppo": {"n_steps": 256, "batch_size": 256, "n_epochs": 2},
+    "sac": {
+        "learning_starts": 256,
+        "buffer_size": 4096,
+        "batch_size": 64,
+        "train_freq": 1,
+        "gradient_steps": 1,
+    },
+}
+
+
+def _curve(folder) -> list[dict[str, str]]:
+    with (folder / "curve.csv").open() as handle:
+        return list(csv.DictReader(handle))
+
+
+@pytest.mark.parametrize("algorithm", ["ppo", "sac"])
+def test_config_to_run_folder_to_reloaded_agent_to_evaluation(tmp_path, algorithm):
+    config = build(
+        TrainConfig,
+        {**SMALL, "algorithm": algorithm, "total_steps": 2048, "hyperparameters": HYPERPARAMETERS[algorithm]},
+    )
+    folder = train(config, tmp_path / "run", progress=False)
+    assert load_yaml(folder / "config.yaml")["algorithm"] == algorithm  # the config it ran with
+    assert (folder / "commit.txt").read_text().strip()
+    for part in ("final/model.zip", "final/scaling.npz", "final/vecnormalize.pkl", "best/model.zip"):
+        assert (folder / part).is_file(), part
+    assert any((folder / "tensorboard").iterdir())
+    rows = _curve(folder)
+    assert int(rows[-1]["steps"]) >= 2048 and all(math.isfinite(float(r["metric"])) for r in rows)
+    policy = make_agent(str(folder))
+    assert isinstance(policy, SB3Policy) and policy.scaling is not None
+    result = evaluate(policy, FAN_TRACKING, [5], episode_seconds=6.0)
+    assert math.isfinite(result.per_seed[0]["mean_abs_error_after_5s"])
+    best = min(float(r["metric"]) for r in rows)  # the kept model is the best one on the eval seeds
+    again = evaluate(load_policy(folder), FAN_TRACKING, [1], episode_seconds=6.0)
+    assert again.per_seed[0]["mean_abs_error_after_5s"] == pytest.approx(best, rel=1e-6)
+
+
+def test_a_run_resumes_from_its_last_checkpoint(tmp_path):
+    values = {**SMALL, "total_steps": 1024, "hyperparameters": HYPERPARAMETERS["ppo"]}
+    folder = train(build(TrainConfig, values), tmp_path / "run", progress=False)
+    with pytest.raises(FileExistsError, match="not empty"):
+        train(build(TrainConfig, values), folder, progress=False)
+    train(build(TrainConfig, {**values, "total_steps": 2048}), folder, resume=True, progress=False)
+    assert PPO.load(folder / "final" / "model.zip").num_timesteps >= 2048
+    steps = [int(r["steps"]) for r in _curve(folder)]
+    assert steps == sorted(steps) and steps[-1] >= 2048
+
+
+def test_bad_training_config_names_the_key():
+    with pytest.raises(ValueError, match="algorithm='a2c'"):
+        build(TrainConfig, {"algorithm": "a2c"})
+    with pytest.raises(ValueError, match="num_envs=0"):
+        build(TrainConfig, {"num_envs": 0})
+
+
+@pytest.mark.parametrize("name", shipped_agents())
+def test_shipped_agents_load_and_act_on_their_env(name):
+    policy = make_agent(name)
+    config = load_yaml(SHIPPED / name / "config.yaml")
+    env = gym.make(config["env_id"], **config["env"])
+    try:
+        obs, _ = env.reset(seed=0)
+        policy.reset(env)
+        for _ in range(5):
+            action = policy.act(obs)
+            assert action.shape == (4,) and np.all(np.abs(action) <= 1.0)
+            obs, *_ = env.step(action)
+    finally:
+        env.close()
+    with pytest.raises(ValueError, match="takes no parameters"):
+        make_agent(name, k_p=1.0)
+
+
+def test_ppo_fan_tracking_is_shipped():
+    assert "ppo_fan_tracking" in shipped_agents()
+
+
+def test_unknown_agent_lists_what_is_allowed():
+    with pytest.raises(ValueError, match="unknown agent 'nope'.*admittance"):
+        make_agent("nope")
+
+
+def test_a_bare_sb3_model_is_evaluated_like_any_agent():
+    env = gym.make(FAN_TRACKING)
+    model = PPO("MlpPolicy", env, n_steps=64, device="cpu")
+    env.close()
+    result = evaluate(model, FAN_TRACKING, [0], episode_seconds=1.0)
+    assert result.per_seed[0]["episode_seconds"] > 0
+
+
+def test_sb3_vec_env_forwards_reward_terms_and_task_entries_every_step():
+    venv = gym.make_vec(
+        FAN_TRACKING, num_envs=3, vectorization_mode="vector_entry_point", episode_seconds=0.1
+    )
+    env = SB3VecEnv(venv)
+    try:
+        env.reset()
+        for _ in range(6):  # an episode is 5 steps: the fifth ends all three and restarts them
+            _, rewards, dones, infos = env.step(np.zeros((3, 4)))
+            for i, info in enumerate(infos):
+                assert sum(info["reward_terms"].values()) == pytest.approx(rewards[i], rel=1e-6)
+                assert set(info["reward_terms"]) == {"tracking", "standoff", "effort", "crash"}
+                assert math.isfinite(info["axis_error"]) and math.isfinite(info["standoff_error"])
+                if dones[i]:  # the ended episode's numbers, not the new one's
+                    assert info["axis_error"] == info["final_info"]["axis_error"]
+    finally:
+        env.close()
