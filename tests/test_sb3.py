@@ -138,3 +138,15 @@ def test_sb3_vec_env_forwards_reward_terms_and_task_entries_every_step():
                     assert info["axis_error"] == info["final_info"]["axis_error"]
     finally:
         env.close()
+
+
+def test_train_script_refuses_an_unknown_key_with_exit_code_2():
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parent.parent
+    command = [sys.executable, "scripts/train.py", "configs/train_fan_tracking.yaml", "--set", "nonsense=1"]
+    done = subprocess.run(command, cwd=root, capture_output=True, text=True, timeout=120)
+    assert done.returncode == 2
+    assert "'nonsense'" in done.stderr
