@@ -3,13 +3,15 @@
 python scripts/compare_agents.py --config configs/compare_agents.yaml
 
 Each agent flies each case (reset options and env overrides on top of the config's ``env`` and the
-agent's own ``env``) through ``agents.evaluate``; writes ``table.md`` (mean ± sd over the seeds) and
-``errors.png`` (the task's first metric per case and agent) under the config's ``output``.
+agent's own ``env``) through ``agents.evaluate``; writes ``table.md`` (mean ± sd over the seeds),
+``errors.png`` (the task's first metric per case and agent) and ``training.png`` (the learned agents'
+evaluation curves during training) under the config's ``output``.
 """
 
 from __future__ import annotations
 
 import argparse
+import csv
 from pathlib import Path
 
 import matplotlib
@@ -18,7 +20,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 
-from agents import make_agent
+from agents import SHIPPED, make_agent, shipped_agents
 from agents.evaluate import FAN_TRACKING_COLUMNS, Evaluation, evaluate, metrics_table
 from quad_wrench_env.config import load_yaml, merged
 
@@ -61,6 +63,32 @@ def plot(results: dict[tuple[str, str], Evaluation], metric: str, title: str, pa
     plt.close(fig)
 
 
+def plot_training(config: dict, path: Path) -> bool:
+    """The evaluation curves (``curve.csv``) of the learned agents, against wall time; False if none."""
+    fig, ax = plt.subplots(figsize=(7, 4))
+    plotted = False
+    for label, spec in config["agents"].items():
+        folder = SHIPPED / spec["agent"] if spec["agent"] in shipped_agents() else Path(spec["agent"])
+        if not (folder / "curve.csv").is_file():
+            continue
+        with (folder / "curve.csv").open() as handle:
+            rows = list(csv.DictReader(handle))
+        metric = load_yaml(folder / "config.yaml")["evaluation"]["metric"]
+        minutes = [float(r["wall_seconds"]) / 60.0 for r in rows]
+        ax.plot(minutes, [float(r["metric"]) for r in rows], "o-", label=label)
+        ax.set_ylabel(f"{metric} on the evaluation seeds")
+        plotted = True
+    if plotted:
+        ax.set_yscale("log")
+        ax.set_xlabel("wall time [min]")
+        ax.set_title("learned agents during training (NaN: an episode ended before the metric's window)")
+        ax.legend(fontsize=8)
+        fig.tight_layout()
+        fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return plotted
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--config", default="configs/compare_agents.yaml")
@@ -74,7 +102,8 @@ def main() -> None:
     table = "\n".join([title, "", *metrics_table(results, columns), ""])
     (out / "table.md").write_text(table)
     plot(results, columns[0][0], columns[0][1], out / "errors.png")
-    print(f"\n{table}\nwrote {out / 'table.md'} and {out / 'errors.png'}")
+    curves = " and training.png" if plot_training(config, out / "training.png") else ""
+    print(f"\n{table}\nwrote {out / 'table.md'}, {out / 'errors.png'}{curves}")
 
 
 if __name__ == "__main__":
