@@ -114,7 +114,7 @@ class TrainConfig:
     checkpoint_every_steps: int = 500_000
     evaluation: EvaluationConfig = field(default_factory=EvaluationConfig)
     threads: int = 1
-    """Torch threads (the env steps on the other core)."""
+    """Torch threads: 1 leaves the other core of a 2-core machine to a second run."""
 
     def __post_init__(self) -> None:
         if self.algorithm not in ALGORITHMS:
