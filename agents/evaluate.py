@@ -166,15 +166,19 @@ def metrics_table(
     results: Mapping[tuple[str, str], Evaluation], columns: tuple[tuple[str, str, str], ...]
 ) -> list[str]:
     """Markdown rows, one per (agent, case): each metric's mean over the seeds, with its standard
-    deviation where it varies, and the seeds."""
+    deviation where it varies, and the seeds; ``never`` where a time was never reached, ``n/a`` where
+    an episode ended before the metric's window."""
     header = "| agent | case | seeds | " + " | ".join(title for _, title, _ in columns) + " |"
     lines = [header, "|" + "---|" * (3 + len(columns))]
     for (agent, case), ev in results.items():
         cells = []
         for key, _, fmt in columns:
             values = np.array([m[key] for m in ev.per_seed], dtype=float)
-            if not np.all(np.isfinite(values)):
-                cells.append(f"never ({int(np.sum(~np.isfinite(values)))}/{len(values)})")
+            if np.any(np.isnan(values)):  # e.g. an episode that ended before the metric's window
+                cells.append(f"n/a ({int(np.sum(np.isnan(values)))}/{len(values)} ended early)")
+                continue
+            if np.any(np.isinf(values)):
+                cells.append(f"never ({int(np.sum(np.isinf(values)))}/{len(values)})")
                 continue
             spread = float(np.std(values))
             cells.append(fmt.format(values.mean()) + (f" ± {fmt.format(spread)}" if spread > 0 else ""))

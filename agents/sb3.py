@@ -11,6 +11,7 @@ trained behind, so that ``agents.evaluate.evaluate`` runs it like any classical 
 
 from __future__ import annotations
 
+import csv
 import dataclasses
 import math
 import time
@@ -24,7 +25,7 @@ import yaml
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.vec_env import VecNormalize
 
-from quad_wrench_env.config import load_yaml
+from quad_wrench_env.config import check_numbers, load_yaml
 
 
 @dataclass(frozen=True)
@@ -89,6 +90,21 @@ class EvaluationConfig:
     the one with the best mean over the seeds."""
     lower_is_better: bool = False
 
+    def __post_init__(self) -> None:
+        seeds = self.seeds
+        if not (isinstance(seeds, list) and seeds and all(_is_int(x) and x >= 0 for x in seeds)):
+            raise ValueError(f"evaluation.seeds={seeds!r} must be a non-empty list of integers >= 0")
+        if not (_is_int(self.every_steps) and self.every_steps >= 1):
+            raise ValueError(f"evaluation.every_steps={self.every_steps!r} must be an integer >= 1")
+        if not isinstance(self.metric, str):
+            raise ValueError(f"evaluation.metric={self.metric!r} must be a metric name")
+        if not isinstance(self.lower_is_better, bool):
+            raise ValueError(f"evaluation.lower_is_better={self.lower_is_better!r} must be true or false")
+
+
+def _is_int(value: Any) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool)
+
 
 @dataclass
 class TrainConfig:
@@ -123,12 +139,13 @@ class TrainConfig:
             raise ValueError(f"activation={self.activation!r}; allowed: {sorted(ACTIVATIONS)}")
         for name in ("num_envs", "total_steps", "checkpoint_every_steps", "threads"):
             value = getattr(self, name)
-            if not (isinstance(value, int) and not isinstance(value, bool) and value >= 1):
+            if not (_is_int(value) and value >= 1):
                 raise ValueError(f"{name}={value!r} must be an integer >= 1")
-        if not (isinstance(self.max_minutes, (int, float)) and self.max_minutes >= 0):
-            raise ValueError(f"max_minutes={self.max_minutes!r} must be a number >= 0 (0: no budget)")
-        if not self.evaluation.seeds or self.evaluation.every_steps < 1:
-            raise ValueError("evaluation needs at least one seed and every_steps >= 1")
+        check_numbers("train", self, ("max_minutes",), positive=False)
+        check_numbers("train", self, ("clip_observations",))
+        for name in ("normalize_observations", "normalize_rewards"):
+            if not isinstance(getattr(self, name), bool):
+                raise ValueError(f"{name}={getattr(self, name)!r} must be true or false")
 
 
 ALGORITHMS = ("ppo", "sac")
@@ -197,11 +214,10 @@ def train(config: TrainConfig, folder: str | Path, resume: bool = False, progres
         config.env_id, num_envs=config.num_envs, vectorization_mode="vector_entry_point", **config.env
     )
     env: Any = VecMonitor(SB3VecEnv(venv))
-    checkpoints = folder / "checkpoints"
     algorithm = _algorithm(config.algorithm)
     start_steps = 0
     if resume:
-        last = _last_checkpoint(checkpoints)
+        last = _latest_snapshot(folder)
         env = VecNormalize.load(str(last / "vecnormalize.pkl"), env)
         model = algorithm.load(last / "model.zip", env=env, device="cpu")
         start_steps = model.num_timesteps
@@ -231,20 +247,37 @@ def train(config: TrainConfig, folder: str | Path, resume: bool = False, progres
     curve = folder / "curve.csv"
     if not curve.exists():
         curve.write_text("steps,wall_seconds,metric,mean_training_return\n")
+    with curve.open() as handle:
+        earlier = list(csv.DictReader(handle))
+    wall_before = float(earlier[-1]["wall_seconds"]) if earlier else 0.0
+    scored = [  # the evaluation at the first step is of the untrained policy: never a candidate
+        float(r["metric"])
+        for r in earlier
+        if int(r["steps"]) > config.num_envs and math.isfinite(float(r["metric"]))
+    ]
+
+    def scaling() -> ObservationScaling | None:
+        return ObservationScaling.of(env) if env.norm_obs else None
 
     def save(name: str) -> None:
         target = folder / name
         target.mkdir(parents=True, exist_ok=True)
         model.save(target / "model.zip")
         env.save(str(target / "vecnormalize.pkl"))
-        ObservationScaling.of(env).save(target / "scaling.npz")
+        (target / "scaling.npz").unlink(missing_ok=True)
+        if (current := scaling()) is not None:
+            current.save(target / "scaling.npz")
 
     class Loop(BaseCallback):
         """Logs reward terms and task entries, evaluates, checkpoints, keeps the best, keeps the budget."""
 
         def __init__(self) -> None:
             super().__init__()
-            self.best = math.inf if e.lower_is_better else -math.inf
+            worst = math.inf if e.lower_is_better else -math.inf
+            self.best = (min if e.lower_is_better else max)(scored, default=worst)
+            """The best metric so far, the resumed run's earlier evaluations included."""
+            self.trained = resume
+            """Whether the model has been updated: an untrained policy is never kept as the best."""
             self.next_eval = start_steps
             self.next_checkpoint = start_steps + config.checkpoint_every_steps
             self.sums: dict[str, float] = {}
@@ -266,13 +299,14 @@ def train(config: TrainConfig, folder: str | Path, resume: bool = False, progres
             return not (budget and time.perf_counter() - started >= budget)
 
         def _on_rollout_end(self) -> None:
+            self.trained = True  # the update follows the rollout, before the next step
             for key, total in self.sums.items():
                 self.logger.record(key, total / max(self.count, 1))
             self.sums, self.count = {}, 0
 
         def evaluate(self) -> None:
             self.next_eval = self.num_timesteps + e.every_steps
-            policy = SB3Policy(model, ObservationScaling.of(env))
+            policy = SB3Policy(model, scaling())
             result = evaluate(policy, config.env_id, e.seeds, options=e.options, **config.env)
             if e.metric not in result.mean:
                 raise ValueError(
@@ -282,9 +316,11 @@ def train(config: TrainConfig, folder: str | Path, resume: bool = False, progres
             self.logger.record(f"eval/{e.metric}", value)
             returns = [info["r"] for info in model.ep_info_buffer]
             mean_return = sum(returns) / len(returns) if returns else math.nan
-            wall = time.perf_counter() - started
+            wall = wall_before + time.perf_counter() - started
             with curve.open("a") as handle:
                 handle.write(f"{self.num_timesteps},{wall:.1f},{value},{mean_return}\n")
+            if not self.trained:
+                return
             if (value < self.best) if e.lower_is_better else (value > self.best):
                 self.best = value
                 save("best")
@@ -299,8 +335,20 @@ def train(config: TrainConfig, folder: str | Path, resume: bool = False, progres
     return folder
 
 
-def _last_checkpoint(checkpoints: Path) -> Path:
-    found = sorted(p for p in checkpoints.glob("*") if (p / "model.zip").is_file())
+def _latest_snapshot(folder: Path) -> Path:
+    """The newest of the run's checkpoints and its ``final/`` model, to resume from."""
+    found = [p for p in (folder / "checkpoints").glob("*") if (p / "model.zip").is_file()]
+    if (folder / "final" / "model.zip").is_file():
+        found.append(folder / "final")
     if not found:
-        raise FileNotFoundError(f"no checkpoint to resume from in {str(checkpoints)!r}")
-    return found[-1]
+        raise FileNotFoundError(f"no checkpoint or final model to resume from in {str(folder)!r}")
+    return max(found, key=_saved_steps)
+
+
+def _saved_steps(snapshot: Path) -> int:
+    """Environment steps of a saved model (from its zip's ``data``, without loading the networks)."""
+    import json
+    import zipfile
+
+    with zipfile.ZipFile(snapshot / "model.zip") as archive:
+        return int(json.loads(archive.read("data"))["num_timesteps"])

@@ -13,8 +13,11 @@ What PX4 is to paper 003's vehicle and the AR.Drone firmware to paper 000's: a c
 
 Gains follow from the vehicle: the rate-loop bandwidth is set by the motor time constant ``τ_m``
 (``k_rate = 0.7/τ_m`` gives a damping ratio of 0.6 for the loop ``k/(s(τ_m s + 1))``; the integrator,
-``0.6·k²``, holds a constant torque disturbance such as a mass hung under one rotor), and each outer
-loop is slower than the one inside it. The autopilot reads the vehicle's true state, as the onboard
+``0.6·k²``, holds a constant torque disturbance such as a mass hung under one rotor), bounded by the
+torque authority α (``VehicleParams.max_angular_acceleration``): the largest rate step may ask for
+at most :data:`AUTHORITY_SHARE` of it, ``k_rate·max_rate <= share·α``, by a lower rate limit first
+(down to :data:`MIN_MAX_RATE`), then a lower gain (``yuksel1kg``: 9.4 instead of 35). Each outer loop
+is slower than the one inside it. The autopilot reads the vehicle's true state, as the onboard
 state estimate of a real vehicle under motion capture would give it to within sensor noise.
 """
 

@@ -108,8 +108,8 @@ class VehicleParams:
     def max_angular_acceleration(self) -> float:
         """Roll/pitch torque authority at hover thrust (rad/s²): two rotors up and two down by the
         same ``ΔΩ²`` (the most that keeps both pairs within their speed range) give ``4·l·k·ΔΩ²``,
-        over the larger of ``J_x`` and ``J_y``. ~237 rad/s² for ``ardrone2`` about x, ~19 for
-        ``yuksel1kg`` (PHYSICS.md)."""
+        over the larger of ``J_x`` and ``J_y``: ~178 rad/s² for ``ardrone2`` (about y; 237 about x,
+        PHYSICS.md's figure), ~19 for ``yuksel1kg``."""
         hover = self.hover_rotor_speed**2
         margin = min(self.max_rotor_speed**2 - hover, hover - self.min_rotor_speed**2)
         return 4.0 * self.arm * self.kf * margin / max(self.inertia[0], self.inertia[1])

@@ -75,7 +75,7 @@ def test_yaw_rate_command_turns_and_holds(make_env):
 @pytest.mark.parametrize("axis", [0, 1])
 def test_flies_a_1_m_per_s_square_wave_without_crash_or_lasting_saturation(make_env, vehicle, axis):
     """±1 m/s velocity commands flipping every 0.5 s for 10 s, fan off: the rate gains respect the
-    preset's torque authority (``yuksel1kg``'s ~19 rad/s² against ~237 for ``ardrone2``), so the mixer
+    preset's torque authority (``yuksel1kg``'s ~19 rad/s² against ~178 for ``ardrone2``), so the mixer
     saturates under 10 % of the time and the vehicle neither crashes nor loses height."""
     env = make_env(vehicle=vehicle, episode_seconds=10.0, **NO_FAN)
     env.reset(seed=0, options={"offset_y": 0.0, "fan_motion": "static"})

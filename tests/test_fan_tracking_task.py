@@ -69,12 +69,39 @@ def test_same_seed_same_episode_and_the_paper_cases_stay_named(make_env):
     assert env.unwrapped.fleet.state.position[0, 1] == pytest.approx(2.0)
 
 
-def test_episode_draw_fits_a_fast_motion_into_the_range():
-    episodes = FanEpisodes(motions=("constant_speed",), max_speed=1.0, y_range=1.0)
-    rng = np.random.default_rng(0)
-    for _ in range(20):
+@pytest.mark.parametrize(
+    "episodes",
+    [
+        FanEpisodes(motions=("constant_speed",), max_speed=1.0, y_range=1.0),
+        FanEpisodes(max_speed=0.5, max_amplitude=3.0),
+    ],
+)
+def test_episode_draw_fits_a_fast_motion_into_the_range(episodes):
+    rng = np.random.default_rng(8)
+    for _ in range(50):
         path = episodes.draw(rng, 30.0).y(np.linspace(0.0, 30.0, 301))
-        assert np.all(np.abs(path) <= 1.0 + 1e-9)
+        assert np.all(np.abs(path) <= episodes.y_range + 1e-9)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [
+        ({"episodes": {"max_segment_seconds": float("nan")}}, "max_segment_seconds=nan"),
+        ({"episodes": {"segments": True}}, "segments=True"),
+        ({"max_initial_offset": -1.0}, "max_initial_offset=-1.0"),
+        ({"standoff_distance": "2.3"}, "standoff_distance='2.3'"),
+        ({"episodes": {"y_range": 3.5}}, "y_range=3.5"),
+    ],
+)
+def test_bad_task_config_names_the_value(make_env, kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        make_env(**kwargs)
+
+
+def test_bad_offset_option_names_it(make_env):
+    env = make_env()
+    with pytest.raises(ValueError, match="offset_y='abc'"):
+        env.reset(seed=0, options={"offset_y": "abc"})
 
 
 @pytest.mark.parametrize("backend", ["numpy", "numba"])

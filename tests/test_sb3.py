@@ -63,20 +63,44 @@ def test_config_to_run_folder_to_reloaded_agent_to_evaluation(tmp_path, algorith
     assert isinstance(policy, SB3Policy) and policy.scaling is not None
     result = evaluate(policy, FAN_TRACKING, [5], episode_seconds=6.0)
     assert math.isfinite(result.per_seed[0]["mean_abs_error_after_5s"])
-    best = min(float(r["metric"]) for r in rows)  # the kept model is the best one on the eval seeds
+    trained = [float(r["metric"]) for r in rows if int(r["steps"]) > config.num_envs]
+    best = min(trained)  # the kept model is the best trained one on the eval seeds
     again = evaluate(load_policy(folder), FAN_TRACKING, [1], episode_seconds=6.0)
     assert again.per_seed[0]["mean_abs_error_after_5s"] == pytest.approx(best, rel=1e-6)
 
 
-def test_a_run_resumes_from_its_last_checkpoint(tmp_path):
+def test_a_run_resumes_from_its_newest_model_and_keeps_its_best(tmp_path):
     values = {**SMALL, "total_steps": 1024, "hyperparameters": HYPERPARAMETERS["ppo"]}
     folder = train(build(TrainConfig, values), tmp_path / "run", progress=False)
     with pytest.raises(FileExistsError, match="not empty"):
         train(build(TrainConfig, values), folder, progress=False)
+    before = _curve(folder)
+    best_before = min(float(r["metric"]) for r in before if int(r["steps"]) > 4)
     train(build(TrainConfig, {**values, "total_steps": 2048}), folder, resume=True, progress=False)
     assert PPO.load(folder / "final" / "model.zip").num_timesteps >= 2048
-    steps = [int(r["steps"]) for r in _curve(folder)]
-    assert steps == sorted(steps) and steps[-1] >= 2048
+    rows = _curve(folder)
+    steps = [int(r["steps"]) for r in rows]
+    walls = [float(r["wall_seconds"]) for r in rows]
+    assert steps == sorted(steps) and steps[-1] >= 2048 and walls == sorted(walls)
+    after = [float(r["metric"]) for r in rows[len(before) :]]
+    kept = evaluate(load_policy(folder), FAN_TRACKING, [1], episode_seconds=6.0).per_seed[0]
+    assert kept["mean_abs_error_after_5s"] == pytest.approx(min([best_before, *after]), rel=1e-6)
+
+
+def test_an_untrained_policy_is_never_kept_and_unnormalised_runs_work(tmp_path):
+    values = {
+        **SMALL,
+        "total_steps": 4,
+        "normalize_observations": False,
+        "hyperparameters": HYPERPARAMETERS["ppo"],
+    }
+    folder = train(build(TrainConfig, values), tmp_path / "run", progress=False)
+    first = _curve(folder)[0]
+    assert int(first["steps"]) == 4  # the evaluation of the untrained policy, at the first step ...
+    best = PPO.load(folder / "best" / "model.zip")
+    assert best.num_timesteps > 4  # ... is never the kept one, even where it scored best
+    policy = load_policy(folder)
+    assert policy.scaling is None and not (folder / "best" / "scaling.npz").exists()
 
 
 def test_bad_training_config_names_the_key():
@@ -84,6 +108,10 @@ def test_bad_training_config_names_the_key():
         build(TrainConfig, {"algorithm": "a2c"})
     with pytest.raises(ValueError, match="num_envs=0"):
         build(TrainConfig, {"num_envs": 0})
+    with pytest.raises(ValueError, match="every_steps='1e5'"):
+        build(TrainConfig, {"evaluation": {"every_steps": "1e5"}})
+    with pytest.raises(ValueError, match="lower_is_better='yes'"):
+        build(TrainConfig, {"evaluation": {"lower_is_better": "yes"}})
 
 
 @pytest.mark.parametrize("name", shipped_agents())

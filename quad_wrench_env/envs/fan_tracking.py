@@ -117,7 +117,10 @@ class FanEpisodes:
             raise ValueError(
                 f"episodes.motions={list(self.motions)!r} must name one or more of {sorted(MOTIONS)}"
             )
-        check_numbers("episodes", self, ("y_range", "min_frequency", "max_frequency", "min_segment_seconds"))
+        check_numbers(
+            "episodes", self,
+            ("y_range", "min_frequency", "max_frequency", "min_segment_seconds", "max_segment_seconds"),
+        )  # fmt: skip
         check_numbers("episodes", self, ("max_speed", "max_amplitude"), positive=False)
         if self.min_frequency > self.max_frequency or self.min_segment_seconds > self.max_segment_seconds:
             raise ValueError(
@@ -125,7 +128,9 @@ class FanEpisodes:
                 f"min_segment_seconds={self.min_segment_seconds} <= max_segment_seconds="
                 f"{self.max_segment_seconds} are required"
             )
-        if not (isinstance(self.segments, int) and self.segments >= 1):
+        if not (
+            isinstance(self.segments, int) and not isinstance(self.segments, bool) and self.segments >= 1
+        ):
             raise ValueError(f"episodes.segments={self.segments!r} must be an integer >= 1")
 
     def draw(self, rng: np.random.Generator, seconds: float) -> FanMotion:
@@ -153,7 +158,8 @@ class FanEpisodes:
             shrink = 2.0 * self.y_range / width
             params = _scaled(name, params, shrink)
             low, high = low * shrink, high * shrink
-        y0 = float(rng.uniform(-self.y_range - low, self.y_range - high))
+        lowest, highest = -self.y_range - low, self.y_range - high
+        y0 = float(rng.uniform(lowest, max(lowest, highest)))  # equal to rounding when scaled to fit
         return make_motion(name, **params, y0=y0)
 
 
@@ -175,6 +181,11 @@ class FanTrackingConfig(EnvConfig):
     max_initial_offset: float = 0.8
     reward: FanTrackingReward = field(default_factory=FanTrackingReward)
 
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        check_numbers("env", self, ("standoff_distance",))
+        check_numbers("env", self, ("max_initial_offset",), positive=False)
+
 
 class FanTracking:
     """The task (see the module docstring) for N vehicles, each in front of a fan of its own."""
@@ -188,6 +199,12 @@ class FanTracking:
             raise ValueError(
                 f"standoff_distance={cfg.standoff_distance} must lie inside the arena "
                 f"({arena.x_min}, {arena.x_max})"
+            )
+        margin = arena.y_half_width - vehicle.hull_radius
+        if cfg.episodes.y_range + cfg.max_initial_offset >= margin:
+            raise ValueError(
+                f"episodes.y_range={cfg.episodes.y_range} + max_initial_offset={cfg.max_initial_offset} must "
+                f"stay below the arena's half-width minus the hull radius ({margin:.3g} m)"
             )
         self.cfg = cfg
         self.vehicle = vehicle
@@ -226,7 +243,10 @@ class FanTracking:
         motion = self._motion(options.get("fan_motion"), rng)
         fan_y0 = float(motion.y(np.asarray(0.0)))
         if "offset_y" in options:
-            offset = float(options["offset_y"])
+            value = options["offset_y"]
+            if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
+                raise ValueError(f"offset_y={value!r} must be a number (m from the jet axis)")
+            offset = float(value)
         else:
             offset = float(rng.uniform(-cfg.max_initial_offset, cfg.max_initial_offset))
         start_y = fan_y0 + offset
