@@ -197,6 +197,10 @@ class FanJet:
         self._radius2 = (0.5 * config.outlet_diameter) ** 2
         self._core = 0.5 * config.outlet_diameter / config.spread
         """Length ``x_c = D/(2c)`` of the core, where the centre-line speed is still ``U0``."""
+        self._kernel = np.array(
+            (1.0, config.outlet_speed, self._core, 0.5 * config.outlet_diameter, config.spread, config.height,
+             config.turbulence_intensity)
+        )  # fmt: skip
         self.noise = np.zeros((count, 3))
         """(N, 3) unit-variance Ornstein-Uhlenbeck state of each vehicle's turbulence."""
         first = Static() if config.motion == RANDOM else config.make_motion(config.motion)
@@ -244,9 +248,7 @@ class FanJet:
     def kernel_parameters(self) -> np.ndarray:
         """The jet as the kernels read it: on (1), outlet speed, core length ``x_c``, outlet radius,
         spread, height, turbulence intensity (each vehicle's motion is in :attr:`motion_tables`)."""
-        c = self.config
-        radius = 0.5 * c.outlet_diameter
-        return np.array((1.0, c.outlet_speed, self._core, radius, c.spread, c.height, c.turbulence_intensity))
+        return self._kernel.copy()
 
     def reset(self, index: int, rng: np.random.Generator) -> None:
         self.noise[index] = rng.standard_normal(3)  # the stationary distribution of the OU process
@@ -277,14 +279,14 @@ class FanJet:
         x = np.asarray(x, dtype=float)
         t = np.asarray(t, dtype=float)
         if self._compiled and x.shape == t.shape == (self.count,) and index == slice(None):
-            return jet_axis_y(x, t, self.motion_tables, self.kernel_parameters())
+            return jet_axis_y(x, t, self.motion_tables, self._kernel)
         return self._y(np.broadcast_to(t, x.shape) - self.transit_time(x), index)
 
     def fan_y(self, t: np.ndarray, index: np.ndarray | slice = slice(None)) -> np.ndarray:
         """The fans' y (n,) now, at times ``t`` (n,)."""
         t = np.asarray(t, dtype=float)
         if self._compiled and t.shape == (self.count,) and index == slice(None):
-            return jet_axis_y(np.zeros(self.count), t, self.motion_tables, self.kernel_parameters())
+            return jet_axis_y(np.zeros(self.count), t, self.motion_tables, self._kernel)
         return self._y(t, index)
 
     def advance(self, dt: float, positions: np.ndarray, normals: np.ndarray) -> None:

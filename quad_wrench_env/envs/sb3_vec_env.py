@@ -1,9 +1,13 @@
 """stable-baselines3's ``VecEnv`` interface over a :class:`QuadWrenchVectorEnv`, so its algorithms
 train on N vehicles flown in one world directly:
 
-    venv = SB3VecEnv(gym.make_vec("QuadWrench/FanTracking-v1", num_envs=64,
+    venv = SB3VecEnv(gym.make_vec("QuadWrench/FanTracking-v1", num_envs=32,
                                   vectorization_mode="vector_entry_point"))
-    PPO("MlpPolicy", VecMonitor(venv)).learn(1_000_000)
+    model = PPO("MlpPolicy", VecNormalize(VecMonitor(venv)), n_steps=256, batch_size=1024, n_epochs=5)
+    model.learn(1_000_000)
+
+(PPO's default ``n_steps=2048`` would fly 65k samples before its first update; ``scripts/train.py``
+runs the project's configs.)
 
 Both restart an episode in the step that ends it; the adapter moves the ended episode's last
 observation to ``infos[i]["terminal_observation"]`` and marks time-outs with
