@@ -30,7 +30,7 @@ import numpy as np
 
 from quad_wrench_env.rotations import cross, quat_from_euler_zyx, rotation_matrices, wrap_angle
 from quad_wrench_env.vehicle import GRAVITY, Mixer, VehicleParams
-from quad_wrench_env.world import RigidBodyState
+from quad_wrench_env.engine.world import RigidBodyState
 
 _E_Z = np.array((0.0, 0.0, 1.0))
 

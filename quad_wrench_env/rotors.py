@@ -59,6 +59,11 @@ class Rotors:
         """(N, 4) true ``[c_t, tau_x, tau_y, tau_z]`` in the body frame from the current speeds."""
         return np.einsum("nij,nj->ni", self.allocations, self.speeds * self.speeds)
 
+    def thrusts(self, index: np.ndarray | slice = slice(None)) -> np.ndarray:
+        """(n, 4) true thrust ``k_i·Ω_i²`` of each rotor of vehicles ``index`` (N)."""
+        speeds = self.speeds[index]
+        return self.allocations[index, 0, :] * (speeds * speeds)
+
     def speeds_for(self, index: np.ndarray, thrust_and_torque: np.ndarray) -> np.ndarray:
         """(n, 4) speeds of vehicles ``index`` that give (n, 4) ``[c_t, tau]``, clipped to the
         motors' range."""

@@ -1,12 +1,39 @@
-"""Interfaces of the wind fields and of the loads they cause on the body.
+"""The seams of the engine: what a wind field, a point load and a rotor modifier are.
+
+Each kind of component is a small :class:`~typing.Protocol` with a numpy reference (the methods
+below, for N vehicles at once) and an optional compiled form (:class:`CompiledForm`: numba kernels
+beside the component, named by module and function), which the engine composes into its compiled
+physics step (:mod:`quad_wrench_env.engine.compose`) without listing any component itself.
 
 A :class:`WindField` gives the air velocity at world points; the body's drag (:mod:`.drag`) turns it
-into forces at body points, and the resultant about the centre of mass (:func:`resultant`) is what the
-world applies. Torques are never written as formulas: they come out of ``Σ r_j × F_j``.
+into forces at body points. A :class:`PointLoad` adds forces at body points (a payload, a scheduled
+wrench). A :class:`RotorModifier` adds thrust to each rotor from the state (ground effect), applied
+at the hubs. The resultant about the centre of mass (:func:`resultant`) is what the world applies
+beyond the nominal rotors (``wrench_true``): torques are never written as formulas, they come out of
+``Σ r_j × F_j``.
+
+Compiled kernels take the component's packed numbers first, always in this order: ``params`` (1-D,
+:meth:`kernel_parameters`), ``table`` ((N, W) per-vehicle numbers, :attr:`CompiledForm.table`, or an
+empty (1, 0) array) and ``state`` ((N, ``state_width``) per-vehicle state, a view of the engine's step
+buffer that the component's numpy form reads and writes too). Then, by role:
+
+=====================  ===========================================================================
+role                   kernel arguments after ``params, table, state``
+=====================  ===========================================================================
+wind ``velocity``      ``points`` (N, P, 3) world points, ``time`` (N,), ``out`` (N, P, 3): adds
+                       the air velocity at each point to ``out``
+wind ``advance``       ``position`` (N, 3), ``velocity`` (N, 3), ``dt``, ``normals`` (N, width): one
+                       physics step of the field's random processes on its own standard normal draws
+point load ``load``    ``time`` (N,), ``rotation`` (N, 3, 3), ``out`` (N, 6): adds ``[F, τ]`` about
+                       the centre of mass (world frame)
+rotor ``thrust``       ``hubs`` (N, 4, 3) world hub positions, ``rotation`` (N, 3, 3), ``thrusts``
+                       (N, 4) true rotor thrusts (N), ``out`` (N, 4): adds thrust to each rotor
+=====================  ===========================================================================
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Protocol, runtime_checkable
 
 import numpy as np
@@ -14,23 +41,73 @@ import numpy as np
 from quad_wrench_env.rotations import cross
 
 
+@dataclass(frozen=True)
+class CompiledForm:
+    """Where a component's numba kernels live, and what of it they read besides its parameters."""
+
+    module: str
+    """Import path of the module holding the kernels (beside the component)."""
+    kernels: tuple[tuple[str, str], ...]
+    """``(role, function name)`` pairs; roles as in the module docstring's table."""
+    state: str | None = None
+    """Name of the component's (N, width) state array, which the compiled step turns into a view of
+    its buffer (both paths then update the same numbers), or None without state."""
+    table: str | None = None
+    """Name of the component's (N, W) per-vehicle table attribute (e.g. each vehicle's fan motion),
+    read again at every episode start, or None."""
+
+
 @runtime_checkable
-class WindField(Protocol):
+class Component(Protocol):
+    """What every component has: its name in errors, its compiled form and its packed numbers."""
+
+    name: str
+    compiled: CompiledForm | None
+    """None: numpy only (``backend="numba"`` refuses it, ``"auto"`` warns and runs numpy)."""
+
+    def kernel_parameters(self) -> np.ndarray:
+        """The component's numbers as its kernels read them (1-D float array)."""
+
+
+@runtime_checkable
+class WindField(Component, Protocol):
     """Air velocity over the world, possibly moving and turbulent, as each of N vehicles meets it
     (every vehicle flies in a copy of the field of its own, with its own time and random state)."""
+
+    noise_width: int
+    """Standard normal draws the field takes per vehicle and physics step (its own columns)."""
 
     def reset(self, index: int, rng: np.random.Generator) -> None:
         """Start a new episode of vehicle ``index``; its random draws at reset come from ``rng``."""
 
-    def advance(self, dt: float, positions: np.ndarray, normals: np.ndarray) -> None:
-        """Advance internal random processes by ``dt`` (s); ``positions`` (N, 3) are where the
-        vehicles are and ``normals`` (N, 3) standard normal draws from each vehicle's generator."""
+    def advance(self, dt: float, position: np.ndarray, velocity: np.ndarray, normals: np.ndarray) -> None:
+        """Advance internal random processes by ``dt`` (s); ``position`` and ``velocity`` (N, 3) are
+        the vehicles' (world frame), ``normals`` (N, ``noise_width``) the field's own draws."""
 
     def velocity_at(
         self, points: np.ndarray, t: np.ndarray, index: np.ndarray | slice, mean: bool = False
     ) -> np.ndarray:
         """(n, P, 3) air velocity (m/s, world frame) at (n, P, 3) world points of the vehicles
         ``index`` at their times ``t`` (n,) (s); ``mean=True`` leaves out the turbulent part."""
+
+
+@runtime_checkable
+class PointLoad(Component, Protocol):
+    """Forces at body points besides the air's (a hung payload, a scheduled wrench)."""
+
+    def point_load(self, t: np.ndarray, rotation: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+        """``(offsets (n, K, 3) from the centres of mass, forces (n, K, 3))``, world frame, for n
+        vehicles at times ``t`` (n,) with attitudes ``rotation`` (n, 3, 3); None when it never acts."""
+
+
+@runtime_checkable
+class RotorModifier(Component, Protocol):
+    """Thrust each rotor gains (or loses) from the state, e.g. ground effect; the engine applies it
+    along the body z axis at the hubs, as an external load (it is in ``wrench_true``)."""
+
+    def added_thrust(self, hubs: np.ndarray, rotation: np.ndarray, thrusts: np.ndarray) -> np.ndarray:
+        """(n, 4) thrust (N) added to each rotor of n vehicles with world hub positions ``hubs``
+        (n, 4, 3), attitudes ``rotation`` (n, 3, 3) and true rotor thrusts ``thrusts`` (n, 4)."""
 
 
 def resultant(offsets: np.ndarray, forces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

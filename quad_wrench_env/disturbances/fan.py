@@ -21,8 +21,9 @@ from typing import Protocol
 import numpy as np
 
 from quad_wrench_env.config import check_numbers
+from quad_wrench_env.disturbances.base import CompiledForm
+from quad_wrench_env.disturbances.jet_kernels import jet_axis_y
 from quad_wrench_env.kernels import resolve_backend
-from quad_wrench_env.kernels.physics import jet_axis_y
 
 
 class FanMotion(Protocol):
@@ -112,6 +113,16 @@ class PiecewiseVelocity:
         return _table(segments=list(rows))
 
 
+def half_width(x: np.ndarray, radius2: float, spread: float) -> np.ndarray:
+    """``b(x) = sqrt(R² + (c·x)²)`` of a round jet of outlet radius² ``radius2`` and spread ``c``."""
+    return np.sqrt(radius2 + (spread * x) ** 2)
+
+
+def centreline_speed(x: np.ndarray, u0: float, radius2: float, spread: float) -> np.ndarray:
+    """``u_c = U0·min(1, D/(√2·b))``: the outlet's momentum flux, spread over the profile."""
+    return u0 * np.minimum(1.0, np.sqrt(2.0 * radius2) / half_width(x, radius2, spread))
+
+
 RANDOM = "random"
 """The motion name that asks the task to draw each episode's motion (FanTracking's default)."""
 
@@ -187,7 +198,18 @@ class FanConfig:
 
 class FanJet:
     """The moving, turbulent jet of a fan, one copy per vehicle (each with its own fan motion and
-    turbulence): a :class:`~quad_wrench_env.disturbances.base.WindField`."""
+    turbulence): a :class:`~quad_wrench_env.disturbances.base.WindField`. Switched off
+    (``enabled=False``) it blows no air and draws nothing at reset, but still moves and keeps its
+    columns of each step's draws, so that every other random number stays as it was."""
+
+    name = "fan"
+    noise_width = 3
+    compiled = CompiledForm(
+        "quad_wrench_env.disturbances.jet_kernels",
+        (("velocity", "fan_velocity"), ("advance", "fan_advance")),
+        state="noise",
+        table="motion_tables",
+    )
 
     def __init__(self, config: FanConfig, count: int = 1, backend: str = "numpy") -> None:
         self.config = config
@@ -198,7 +220,7 @@ class FanJet:
         self._core = 0.5 * config.outlet_diameter / config.spread
         """Length ``x_c = D/(2c)`` of the core, where the centre-line speed is still ``U0``."""
         self._kernel = np.array(
-            (1.0, config.outlet_speed, self._core, 0.5 * config.outlet_diameter, config.spread, config.height,
+            (float(config.enabled), config.outlet_speed, self._core, 0.5 * config.outlet_diameter, config.spread, config.height,
              config.turbulence_intensity)
         )  # fmt: skip
         self.noise = np.zeros((count, 3))
@@ -246,19 +268,19 @@ class FanJet:
 
     # -- the field --------------------------------------------------------------------------------
     def kernel_parameters(self) -> np.ndarray:
-        """The jet as the kernels read it: on (1), outlet speed, core length ``x_c``, outlet radius,
+        """The jet as the kernels read it: on (1, or 0 when disabled), outlet speed, core length ``x_c``, outlet radius,
         spread, height, turbulence intensity (each vehicle's motion is in :attr:`motion_tables`)."""
         return self._kernel.copy()
 
     def reset(self, index: int, rng: np.random.Generator) -> None:
-        self.noise[index] = rng.standard_normal(3)  # the stationary distribution of the OU process
+        if self.config.enabled:  # a fan switched off draws nothing at reset
+            self.noise[index] = rng.standard_normal(3)  # the stationary distribution of the OU process
 
     def centreline_speed(self, x: np.ndarray) -> np.ndarray:
-        """``u_c = U0·min(1, D/(√2·b))``: the outlet's momentum flux, spread over the profile."""
-        return self._u0 * np.minimum(1.0, np.sqrt(2.0 * self._radius2) / self.half_width(x))
+        return centreline_speed(x, self._u0, self._radius2, self.config.spread)
 
     def half_width(self, x: np.ndarray) -> np.ndarray:
-        return np.sqrt(self._radius2 + (self.config.spread * x) ** 2)
+        return half_width(x, self._radius2, self.config.spread)
 
     def transit_time(self, x: np.ndarray) -> np.ndarray:
         """``∫₀ˣ dξ / u_c(ξ)``: how long ago the air now at distance x left the fan (s). Beyond the
@@ -289,16 +311,18 @@ class FanJet:
             return jet_axis_y(np.zeros(self.count), t, self.motion_tables, self._kernel)
         return self._y(t, index)
 
-    def advance(self, dt: float, positions: np.ndarray, normals: np.ndarray) -> None:
-        if self.config.turbulence_intensity == 0.0:
+    def advance(self, dt: float, position: np.ndarray, velocity: np.ndarray, normals: np.ndarray) -> None:
+        if self.config.turbulence_intensity == 0.0 or not self.config.enabled:
             return
-        x = np.maximum(positions[:, 0], 1e-3)
+        x = np.maximum(position[:, 0], 1e-3)
         decay = np.exp(-dt * self.centreline_speed(x) / self.half_width(x))
         self.noise[:] = decay[:, None] * self.noise + np.sqrt(1.0 - decay * decay)[:, None] * normals
 
     def velocity_at(
         self, points: np.ndarray, t: np.ndarray, index: np.ndarray | slice, mean: bool = False
     ) -> np.ndarray:
+        if not self.config.enabled:
+            return np.zeros(points.shape)
         x = points[..., 0]
         u_c = self.centreline_speed(x)
         b = self.half_width(x)

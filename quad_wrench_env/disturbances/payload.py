@@ -13,6 +13,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from quad_wrench_env.disturbances.base import CompiledForm
+from quad_wrench_env.kernels import njit
 from quad_wrench_env.vehicle import GRAVITY
 
 
@@ -39,7 +41,11 @@ class PayloadConfig:
 
 
 class Payload:
-    """Point load of a hanging mass (world frame), present between attach and release."""
+    """Point load of a hanging mass (world frame), present between attach and release: a
+    :class:`~quad_wrench_env.disturbances.base.PointLoad`."""
+
+    name = "payload"
+    compiled = CompiledForm("quad_wrench_env.disturbances.payload", (("load", "payload_load"),))
 
     def __init__(self, config: PayloadConfig) -> None:
         self.config = config
@@ -65,3 +71,19 @@ class Payload:
         offsets = rotation @ self._point
         forces = self.attached(t)[:, None] * self._weight
         return offsets[:, None, :], forces[:, None, :]
+
+
+@njit
+def payload_load(payload, table, state, time, rotation, out):
+    """``Payload.point_load``'s resultant added to ``out`` (N, 6), numbers as
+    ``Payload.kernel_parameters``."""
+    if payload[0] <= 0.0:
+        return
+    for n in range(time.shape[0]):
+        if payload[5] <= time[n] < payload[6]:
+            r = rotation[n]
+            o0 = r[0, 0] * payload[1] + r[0, 1] * payload[2] + r[0, 2] * payload[3]
+            o1 = r[1, 0] * payload[1] + r[1, 1] * payload[2] + r[1, 2] * payload[3]
+            out[n, 2] += payload[4]
+            out[n, 3] += o1 * payload[4]
+            out[n, 4] += -(o0 * payload[4])

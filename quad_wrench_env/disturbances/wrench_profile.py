@@ -12,6 +12,8 @@ import math
 
 import numpy as np
 
+from quad_wrench_env.disturbances.base import CompiledForm
+from quad_wrench_env.kernels import njit
 from quad_wrench_env.rotations import cross
 
 _COUPLE_ARM = 0.1
@@ -38,10 +40,18 @@ def validate_segments(segments: list) -> np.ndarray:
 
 
 class WrenchProfile:
-    """Piecewise-constant external force and torque, applied as point forces."""
+    """Piecewise-constant external force and torque, applied as point forces: a
+    :class:`~quad_wrench_env.disturbances.base.PointLoad`."""
+
+    name = "external_wrench"
+    compiled = CompiledForm("quad_wrench_env.disturbances.wrench_profile", (("load", "profile_load"),))
 
     def __init__(self, segments: list) -> None:
         self.segments = validate_segments(segments)
+
+    def kernel_parameters(self) -> np.ndarray:
+        """The segments, (K, 8) flattened."""
+        return self.segments.ravel()
 
     def wrench(self, t: np.ndarray) -> np.ndarray:
         """(n, 6) ``[f, τ]`` (world) acting at times ``t`` (n,)."""
@@ -65,3 +75,19 @@ class WrenchProfile:
         couple = cross(torque, u) / (2.0 * _COUPLE_ARM)
         offsets = np.stack((np.zeros_like(u), _COUPLE_ARM * u, -_COUPLE_ARM * u), axis=1)
         return offsets, np.stack((force, couple, -couple), axis=1)
+
+
+@njit
+def profile_load(segments, table, state, time, rotation, out):
+    """``WrenchProfile.point_load``'s resultant added to ``out`` (N, 6): the sum of the segments acting
+    at each vehicle's time (``segments``: (K, 8) flattened)."""
+    count = segments.shape[0] // 8
+    w = np.empty(6)
+    for n in range(time.shape[0]):
+        w[:] = 0.0
+        for k in range(count):
+            if segments[8 * k] <= time[n] < segments[8 * k + 1]:
+                for i in range(6):
+                    w[i] += segments[8 * k + 2 + i]
+        for i in range(6):
+            out[n, i] += w[i]

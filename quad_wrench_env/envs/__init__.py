@@ -1,6 +1,2 @@
-"""Gymnasium environments of quad-wrench-env."""
-
-from quad_wrench_env.envs.base import QuadWrenchEnv
-from quad_wrench_env.envs.fan_tracking import FanTrackingEnv
-
-__all__ = ["FanTrackingEnv", "QuadWrenchEnv"]
+"""Gymnasium environments of quad-wrench-env: the single env (:mod:`.base`), the vector env
+(:mod:`.vector`) and the classes generated for every task (:mod:`.registry`)."""

@@ -23,7 +23,7 @@ import numpy as np
 from quad_wrench_env.autopilot import Autopilot
 from quad_wrench_env.config import check_numbers
 from quad_wrench_env.vehicle import GRAVITY
-from quad_wrench_env.world import RigidBodyState
+from quad_wrench_env.engine.world import RigidBodyState
 
 ACTION_TYPES = ("velocity", "attitude", "wrench", "motors")
 

@@ -7,9 +7,11 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from quad_wrench_env.disturbances.payload import PayloadConfig
+from quad_wrench_env.disturbances.registry import wind_config
 from quad_wrench_env.disturbances.wrench_profile import validate_segments
 from quad_wrench_env.envs.actions import ActionLimits
 from quad_wrench_env.kernels import resolve_backend
+from quad_wrench_env.scene import make_scene_part
 from quad_wrench_env.sensors import SensorConfig
 
 
@@ -50,6 +52,14 @@ class EnvConfig:
     payload: PayloadConfig = field(default_factory=PayloadConfig)
     external_wrench: list[list[float]] = field(default_factory=list)
     """Scheduled wrench segments ``[start, end, fx, fy, fz, tx, ty, tz]`` (world frame)."""
+    wind: list[dict[str, Any]] = field(default_factory=list)
+    """Extra wind fields, each ``{"model": name, **settings}``: ``dryden`` (``w20``, ``altitude``,
+    ``mean``), ``one_cosine`` (``peak``, ``start``, ``duration``, ``hold``), ``jet`` (``position``,
+    ``direction``, ``speed``, ``diameter``, ``spread``); see :mod:`quad_wrench_env.disturbances`."""
+    ground_effect: bool = False
+    """Cheeseman-Bennett ground effect on each rotor over the ground and the scene's tops."""
+    scene: list[dict[str, Any]] = field(default_factory=list)
+    """Static parts, each ``{"kind": "table"|"wall"|"ceiling", ...}`` (:mod:`quad_wrench_env.scene`)."""
     arena: ArenaConfig = field(default_factory=ArenaConfig)
     observe_wrench: bool = True
     """False zeroes the force and torque blocks of the observation (the ablation that asks whether
@@ -72,6 +82,10 @@ class EnvConfig:
         if not (0.0 <= self.kf_spread < 0.5):
             raise ValueError(f"kf_spread={self.kf_spread!r} must be in [0, 0.5)")
         validate_segments(self.external_wrench)
+        for position, spec in enumerate(self.wind):
+            wind_config(spec, position)
+        for spec in self.scene:
+            make_scene_part(spec)
         resolve_backend(self.backend)
         if not isinstance(self.observe_wrench, bool):
             raise ValueError(f"observe_wrench={self.observe_wrench!r} must be true or false")

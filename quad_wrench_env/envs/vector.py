@@ -28,14 +28,15 @@ from gymnasium.vector.utils import batch_space
 from quad_wrench_env.envs.base import (
     QuadWrenchEnv,
     build_config,
+    build_fleet,
     check_options,
     clip_actions,
+    closed_error,
     info_entries,
-    observation_layout,
-    observation_space,
+    observations,
+    termination_codes,
+    termination_reasons,
 )
-from quad_wrench_env.envs.fleet import TERMINATION_REASONS, Fleet
-from quad_wrench_env.vehicle import make_vehicle
 
 
 def _masked(entries: Mapping[str, Any], mask: np.ndarray) -> dict[str, Any]:
@@ -73,13 +74,13 @@ class QuadWrenchVectorEnv(VectorEnv):
         cfg = self.cfg
         self.num_envs = num_envs
         self.render_mode = None
-        self.vehicle = make_vehicle(cfg.vehicle, **cfg.vehicle_params)
-        self.task = task_class(cfg, self.vehicle, num_envs)
+        self.task, self.fleet = build_fleet(task_class, cfg, num_envs)
+        self.vehicle = self.fleet.vehicle
         self.reset_options = task_class.reset_options
-        self.fleet = Fleet(cfg, self.vehicle, num_envs, self.task.wind_fields())
+        self.termination_reasons = termination_reasons(self.task)
         self.max_steps = round(cfg.episode_seconds * cfg.policy_hz)
-        self.obs_layout = observation_layout()
-        self.single_observation_space = observation_space(self.vehicle)
+        self.obs_layout = self.fleet.layout.slices
+        self.single_observation_space = self.fleet.layout.space(self.vehicle)
         self.single_action_space = spaces.Box(-1.0, 1.0, shape=(4,), dtype=np.float32)
         self.observation_space = batch_space(self.single_observation_space, num_envs)
         self.action_space = batch_space(self.single_action_space, num_envs)
@@ -87,6 +88,7 @@ class QuadWrenchVectorEnv(VectorEnv):
         self._steps = np.zeros(num_envs, dtype=int)
         self._last_actions = np.zeros((num_envs, 4))
         self._started = False
+        self._closed = False
 
     # -- Gymnasium API -----------------------------------------------------------------------------
     def reset(
@@ -94,6 +96,8 @@ class QuadWrenchVectorEnv(VectorEnv):
     ) -> tuple[np.ndarray, dict[str, Any]]:
         """Restart every vehicle; vehicle ``i`` gets seed ``seed + i`` (or ``seed[i]`` for a list)
         and the same task ``options``."""
+        if self._closed:
+            raise closed_error(self)
         if seed is None or isinstance(seed, (int, np.integer)):
             seeds = [None if seed is None else int(seed) + i for i in range(self.num_envs)]
         else:
@@ -116,13 +120,15 @@ class QuadWrenchVectorEnv(VectorEnv):
             self._start(i, check_options(vehicle_options, self.reset_options))
         self.fleet.refresh(np.asarray(list(indices), dtype=int))
         self._started = True
-        return self.fleet.observations(self._last_actions), _masked(
+        return observations(self.fleet, self.task, self._last_actions), _masked(
             self._infos(), np.ones(self.num_envs, bool)
         )
 
     def step(
         self, actions: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
+        if self._closed:
+            raise closed_error(self)
         if not self._started:
             raise RuntimeError("call reset() before step()")
         a = clip_actions(actions, (self.num_envs, 4))
@@ -130,27 +136,28 @@ class QuadWrenchVectorEnv(VectorEnv):
         fleet.step(a)
         self._steps += 1
         self._last_actions = a
-        codes = fleet.terminations()
+        codes = termination_codes(fleet, self.task)
         terminated = codes > 0
         terms = self.task.reward_terms(fleet, a, terminated)
         rewards = np.sum(list(terms.values()), axis=0)
         truncated = ~terminated & (self._steps >= self.max_steps)
-        observations = fleet.observations(a)
+        step_observations = observations(fleet, self.task, a)
+        reasons = self.termination_reasons
         step_entries = {
             **self._infos(),
             "reward_terms": terms,
-            "termination_reason": np.array([TERMINATION_REASONS[c] for c in codes.tolist()], dtype=object),
+            "termination_reason": np.array([reasons[c] for c in codes.tolist()], dtype=object),
         }
         done = terminated | truncated
         if not np.any(done):
             info = _masked(step_entries, np.ones(self.num_envs, bool))
             info["_termination_reason"] = terminated
-            return observations, rewards, terminated, truncated, info
+            return step_observations, rewards, terminated, truncated, info
         final_info = _masked(step_entries, done)
         final_info["_termination_reason"] = terminated
         final_obs = np.full(self.num_envs, None, dtype=object)
         for i in np.flatnonzero(done).tolist():
-            final_obs[i] = observations[i]
+            final_obs[i] = step_observations[i]
             self._start(i, {})
         fleet.refresh(np.flatnonzero(done))
         info = _masked(self._infos(), np.ones(self.num_envs, bool))
@@ -158,10 +165,11 @@ class QuadWrenchVectorEnv(VectorEnv):
         info["termination_reason"] = step_entries["termination_reason"]
         info["_termination_reason"] = np.zeros(self.num_envs, bool)
         info.update(final_obs=final_obs, _final_obs=done, final_info=final_info, _final_info=done)
-        return fleet.observations(self._last_actions), rewards, terminated, truncated, info
+        return observations(fleet, self.task, self._last_actions), rewards, terminated, truncated, info
 
     def close_extras(self, **kwargs: Any) -> None:
         """Release the PyBullet client; safe to call more than once."""
+        self._closed = True
         self.fleet.close()
 
     # -- helpers -----------------------------------------------------------------------------------

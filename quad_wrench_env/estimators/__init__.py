@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from dataclasses import dataclass
 from typing import Any
 
 from quad_wrench_env.config import build
@@ -20,8 +21,19 @@ MEASUREMENT_NOISE_KEYS = ("position", "attitude", "velocity", "body_rate")
 """Noise settings the env fills from its sensor config; an estimator drops those it does not use."""
 
 
-def _oracle(vehicle: VehicleParams, dt: float, backend: str, **noise: Any) -> Estimator:
-    return OracleEstimator()
+@dataclass(frozen=True)
+class EstimatorEntry:
+    """One estimator of the registry: how its settings are read, its single form and its batch form.
+
+    ``settings(noise)`` turns the keyword settings of :func:`make_estimator` into the settings object
+    (dropping the measurement-noise keys it does not use; unknown keys raise ``ValueError``);
+    ``single(vehicle, dt, settings, backend)`` builds one estimator and ``bank(vehicle, dt, settings,
+    count, backend)`` a batch of ``count``.
+    """
+
+    settings: Callable[[dict[str, Any]], Any]
+    single: Callable[[VehicleParams, float, Any, str], Estimator]
+    bank: Callable[[VehicleParams, float, Any, int, str], EstimatorBank]
 
 
 def _ukf_noise(noise: dict[str, Any]) -> FilterNoise:
@@ -29,16 +41,8 @@ def _ukf_noise(noise: dict[str, Any]) -> FilterNoise:
     return build(FilterNoise, noise, prefix="estimator_params.")
 
 
-def _ukf(vehicle: VehicleParams, dt: float, backend: str, **noise: Any) -> Estimator:
-    return UnscentedWrenchEstimator(vehicle, dt, _ukf_noise(noise), backend)
-
-
 def _ekf_noise(noise: dict[str, Any]) -> EKFNoise:
     return build(EKFNoise, noise, prefix="estimator_params.")
-
-
-def _ekf(vehicle: VehicleParams, dt: float, backend: str, **noise: Any) -> Estimator:
-    return ExtendedWrenchEstimator(vehicle, dt, _ekf_noise(noise), backend)
 
 
 def _observer_gains(settings: dict[str, Any]) -> ObserverGains:
@@ -46,29 +50,33 @@ def _observer_gains(settings: dict[str, Any]) -> ObserverGains:
     return build(ObserverGains, gains, prefix="estimator_params.")
 
 
-def _observer(vehicle: VehicleParams, dt: float, backend: str, **settings: Any) -> Estimator:
-    return NonlinearWrenchObserver(vehicle, dt, _observer_gains(settings), backend)
+def _oracle_settings(noise: dict[str, Any]) -> None:
+    unknown = sorted(set(noise) - set(MEASUREMENT_NOISE_KEYS))
+    if unknown:
+        raise ValueError(f"the oracle takes no noise settings, got {unknown}")
 
 
-FACTORIES: dict[str, Callable[..., Estimator]] = {
-    "ukf": _ukf,
-    "ekf": _ekf,
-    "observer": _observer,
-    "oracle": _oracle,
+REGISTRY: dict[str, EstimatorEntry] = {
+    "ukf": EstimatorEntry(_ukf_noise, UnscentedWrenchEstimator, UnscentedFilterBank),
+    "ekf": EstimatorEntry(_ekf_noise, ExtendedWrenchEstimator, ExtendedFilterBank),
+    "observer": EstimatorEntry(_observer_gains, NonlinearWrenchObserver, ObserverBank),
+    "oracle": EstimatorEntry(
+        _oracle_settings,
+        lambda vehicle, dt, settings, backend: OracleEstimator(),
+        lambda vehicle, dt, settings, count, backend: OracleBank(count),
+    ),
 }
-ESTIMATORS = tuple(FACTORIES)
-"""Names accepted by :func:`make_estimator`."""
+"""Every estimator, by name: adding one is one entry here."""
+ESTIMATORS = tuple(REGISTRY)
+"""Names accepted by :func:`make_estimator` and :func:`make_estimator_bank`."""
 
 
-def _check(name: str, dt: float, noise: dict[str, Any]) -> None:
-    if name not in FACTORIES:
+def _entry(name: str, dt: float) -> EstimatorEntry:
+    if name not in REGISTRY:
         raise ValueError(f"unknown estimator {name!r}; allowed: {list(ESTIMATORS)}")
     if not (math.isfinite(dt) and dt > 0):
         raise ValueError(f"estimator time step dt={dt!r} must be a finite number > 0")
-    if name == "oracle":
-        unknown = sorted(set(noise) - set(MEASUREMENT_NOISE_KEYS))
-        if unknown:
-            raise ValueError(f"the oracle takes no noise settings, got {unknown}")
+    return REGISTRY[name]
 
 
 def make_estimator(
@@ -81,8 +89,8 @@ def make_estimator(
     and the oracle ignore the measurement-noise keys, which the env always passes. ``backend``
     picks the arithmetic (numpy reference or compiled, see :mod:`quad_wrench_env.kernels`).
     """
-    _check(name, dt, noise)
-    return FACTORIES[name](vehicle, dt, backend, **noise)
+    entry = _entry(name, dt)
+    return entry.single(vehicle, dt, entry.settings(noise), backend)
 
 
 def make_estimator_bank(
@@ -90,24 +98,21 @@ def make_estimator_bank(
 ) -> EstimatorBank:
     """``count`` estimators called ``name`` (settings and ``backend`` as :func:`make_estimator`),
     stepped together as one batched computation."""
-    _check(name, dt, noise)
+    entry = _entry(name, dt)
+    settings = entry.settings(noise)
     if not (isinstance(count, int) and count >= 1):
         raise ValueError(f"count={count!r} must be an integer >= 1")
-    if name == "ukf":
-        return UnscentedFilterBank(vehicle, dt, _ukf_noise(noise), count, backend)
-    if name == "ekf":
-        return ExtendedFilterBank(vehicle, dt, _ekf_noise(noise), count, backend)
-    if name == "observer":
-        return ObserverBank(vehicle, dt, _observer_gains(noise), count, backend)
-    return OracleBank(count)
+    return entry.bank(vehicle, dt, settings, count, backend)
 
 
 __all__ = [
     "ESTIMATORS",
     "MEASUREMENT_NOISE_KEYS",
+    "REGISTRY",
     "EKFNoise",
     "Estimator",
     "EstimatorBank",
+    "EstimatorEntry",
     "ExtendedFilterBank",
     "ExtendedWrenchEstimator",
     "FilterNoise",

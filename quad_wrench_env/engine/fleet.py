@@ -1,69 +1,76 @@
 """N vehicles of one configuration flown in one PyBullet world: the core every env runs.
 
 One physics step (ARCHITECTURE.md) for all N at once: the autopilot turns the actions into motor
-commands, the true rotors lag towards them, the wind fields, the body's drag and the point loads give
-forces at body points whose resultants PyBullet integrates; then the sensors measure and the
-estimators step. Every component holds arrays with a leading vehicle axis, so a single env is a
-fleet of one and a vector env a fleet of N running the same code: the same seeds give the same
-numbers either way. Each vehicle has its own generator (its env's ``np_random``), time and episode.
+commands, the true rotors lag towards them, the wind fields, the body's drag, the rotor modifiers and
+the point loads give forces at body points whose resultants PyBullet integrates; then the wind
+fields advance, the sensors measure and the estimators step. Every component holds arrays with a
+leading vehicle axis, so a single env is a fleet of one and a vector env a fleet of N running the
+same code: the same seeds give the same numbers either way. Each vehicle has its own generator (its
+env's ``np_random``), time and episode.
+
+The fleet knows components only through their seams (:mod:`quad_wrench_env.disturbances.base`,
+:mod:`quad_wrench_env.scene`): the task's and the config's (``wind``, ``ground_effect``, ``scene``,
+``payload``, ``external_wrench``) alike. With ``backend="numba"`` the step runs on the components'
+compiled forms (:class:`~quad_wrench_env.engine.compiled.CompiledStep`); a component without one is
+refused by name, and ``backend="auto"`` then warns once and runs the numpy reference.
 """
 
 from __future__ import annotations
 
 import math
+import warnings
 
 import numpy as np
 
 from quad_wrench_env.autopilot import Autopilot, attitude_from_thrust
-from quad_wrench_env.disturbances.base import WindField, resultant
+from quad_wrench_env.disturbances.base import resultant
 from quad_wrench_env.disturbances.drag import QuadraticDrag
-from quad_wrench_env.disturbances.payload import Payload
-from quad_wrench_env.disturbances.wrench_profile import WrenchProfile
+from quad_wrench_env.engine.compiled import CompiledStep
+from quad_wrench_env.engine.components import Components
+from quad_wrench_env.engine.kernels import assemble_observations, termination_codes
+from quad_wrench_env.engine.noise import NoiseBlocks
+from quad_wrench_env.engine.observation import ObservationLayout
+from quad_wrench_env.engine.world import RigidBodyState, World
 from quad_wrench_env.envs.actions import ActionMap
-from quad_wrench_env.envs.compiled_step import CompiledStep, supports
 from quad_wrench_env.envs.config import EnvConfig
-from quad_wrench_env.envs.noise import NoiseBlocks
 from quad_wrench_env.estimators import OracleBank, make_estimator_bank
 from quad_wrench_env.kernels import resolve_backend
-from quad_wrench_env.kernels.physics import assemble_observations, termination_codes
 from quad_wrench_env.rotations import cross, quat_from_matrix, rotation_matrices
 from quad_wrench_env.rotors import Rotors
 from quad_wrench_env.sensors import MotionCapture, MotorSpeedSensor
 from quad_wrench_env.vehicle import GRAVITY, VehicleParams
-from quad_wrench_env.world import RigidBodyState, World
 
-OBSERVATION_FIELDS: tuple[tuple[str, int], ...] = (
-    ("position", 3),
-    ("velocity", 3),
-    ("attitude", 6),
-    ("body_rates", 3),
-    ("force", 3),
-    ("torque", 3),
-    ("last_action", 4),
-)
-"""Observation blocks in order: the estimator's state and wrench, and the previous action. The
-attitude is the first two columns of the rotation matrix (body x and y axes in the world frame), a
-representation without the jumps of a quaternion kept to one hemisphere."""
+ENGINE_TERMINATIONS = ("crash", "flip", "out_of_arena")
+"""Reasons the engine ends an episode for (codes 1, 2, 3 of :meth:`Fleet.terminations`; 0: the
+episode goes on); a task's own reasons follow."""
+
+SENSOR_NOISE_WIDTH, STATE_ESTIMATOR_NOISE_WIDTH = 6, 6
+"""Standard normal draws per vehicle and physics step of the motion capture (position, attitude) and,
+with an onboard state estimator, of its velocity and body rates; they follow the wind fields' own."""
+
+_WARNED: set[str] = set()
+"""Numpy-only settings already warned about (``backend="auto"`` warns once per setting)."""
 
 
-OBSERVATION_SIZE = sum(size for _, size in OBSERVATION_FIELDS)
-
-TERMINATION_REASONS = ("", "crash", "flip", "out_of_arena")
-"""Codes of :meth:`Fleet.terminations` (0: the episode goes on)."""
-
-_WIND, _MOCAP, _MOTION = slice(0, 3), slice(3, 9), slice(9, 15)
-"""Columns of a vehicle's standard normal draws per physics step."""
+def numpy_only(cfg: EnvConfig, components: Components) -> list[str]:
+    """What of a fleet has no compiled form: components by name, motion-capture latency."""
+    names = [c.name for _, c in components.ordered() if c.compiled is None]
+    if cfg.sensors.latency_steps:
+        names.append(f"sensors.latency_steps={cfg.sensors.latency_steps}")
+    return names
 
 
 class Fleet:
-    """``count`` vehicles, their autopilots, sensors and estimators, and the world they fly in."""
+    """``count`` vehicles, their autopilots, sensors and estimators, the components acting on them and
+    the world they fly in."""
 
     def __init__(
         self,
         cfg: EnvConfig,
         vehicle: VehicleParams,
         count: int,
-        wind_fields: list[WindField],
+        components: Components,
+        observation: ObservationLayout,
         gui: bool = False,
     ) -> None:
         self.cfg = cfg
@@ -71,6 +78,8 @@ class Fleet:
         self.count = count
         self.dt = 1.0 / cfg.physics_hz
         self.substeps = cfg.physics_hz // cfg.policy_hz
+        self.components = components
+        self.layout = observation
         dt = self.dt
         # The estimator's measurement noise defaults to the motion capture's; a noise-free capture
         # leaves the estimator's own default (a filter needs G > 0 to stay well conditioned).
@@ -79,7 +88,7 @@ class Fleet:
         if sensors.state_estimator:
             measured += [("velocity", sensors.velocity_noise), ("body_rate", sensors.body_rate_noise)]
         measurement_noise = {key: value for key, value in measured if value > 0}
-        self.backend = resolve_backend(cfg.backend)
+        self.backend = self._backend(cfg, components)
         self.estimator = make_estimator_bank(
             cfg.estimator,
             vehicle,
@@ -91,28 +100,35 @@ class Fleet:
         self.truth_fed = isinstance(self.estimator, OracleBank)
         self.mocap = MotionCapture(sensors, count)
         self.motor_sensor = MotorSpeedSensor(vehicle.max_rotor_speed, sensors.motor_speed_bits)
-        self.point_loads = [Payload(cfg.payload), WrenchProfile(cfg.external_wrench)]
         self.autopilot = Autopilot(vehicle, dt, count=count)
         self._nominal_allocation_t = self.autopilot.mixer.allocation.T.copy()
         self.actions = ActionMap(cfg.action_type, self.autopilot, cfg.action_limits)
         self.rotors = Rotors(vehicle, dt, count)
         self.drag_points = vehicle.drag_points()
         self.drag = QuadraticDrag(vehicle.drag_area, len(self.drag_points))
-        self.wind_fields = wind_fields
-        self.noise = NoiseBlocks(count, _MOTION.stop if sensors.state_estimator else _MOCAP.stop)
+        self.noise_columns: dict[int, tuple[int, int]] = {}
+        """Each wind field's own columns of the per-step normal draws (by ``id``)."""
+        column = 0
+        for wind in components.winds:
+            self.noise_columns[id(wind)] = (column, column + wind.noise_width)
+            column += wind.noise_width
+        self.sensor_noise_column = column
+        """The first column of the sensors' draws, after the wind fields'."""
+        width = SENSOR_NOISE_WIDTH + (STATE_ESTIMATOR_NOISE_WIDTH if sensors.state_estimator else 0)
+        self.noise = NoiseBlocks(count, column + width)
         arena = cfg.arena
         # Frames apart by the arena's larger side and two box diagonals (< 4 hull radii) and a metre
         # more: boxes of vehicles inside their arenas never overlap (see World's docstring).
         spacing = max(arena.x_max - arena.x_min, 2.0 * arena.y_half_width) + 4.0 * vehicle.hull_radius + 1.0
-        self.world = World(vehicle, dt, count, gui=gui, spacing=spacing)
+        self.world = World(vehicle, dt, count, gui=gui, spacing=spacing, scene=components.scene)
         self._flip_cos = math.cos(math.radians(cfg.flip_tilt_deg))
         self.time = np.zeros(count)
         self.state: RigidBodyState | None = None
         self.wrench_true = np.zeros((count, 6))
-        self.compiled = CompiledStep(self) if self.backend == "numba" and supports(self) else None
-        """The physics step on the compiled kernels, or None (numpy reference, or a setting the
-        kernels do not cover: motion-capture latency, a wind field other than one fan jet)."""
-        arena = cfg.arena
+        self.wind_velocity = np.zeros((count, 3))
+        """(N, 3) air velocity at each centre of mass (world frame), after the last step or reset."""
+        self.compiled = CompiledStep(self) if self.backend == "numba" else None
+        """The physics step on the compiled kernels, or None (the numpy reference)."""
         self._limits = np.array(
             (
                 cfg.crash_height, self._flip_cos, arena.x_min, arena.x_max, arena.y_half_width, arena.z_max,
@@ -124,13 +140,35 @@ class Fleet:
         """Counts the changes of the fleet's state (steps and resets): a key for what tasks cache."""
         self._estimates: tuple[int, np.ndarray, np.ndarray] = (-1, np.empty(0), np.empty(0))
 
+    @staticmethod
+    def _backend(cfg: EnvConfig, components: Components) -> str:
+        """The backend the fleet runs: ``backend="numba"`` refuses what has no compiled form, ``"auto"``
+        warns once per such setting and runs the numpy reference (never silently)."""
+        backend = resolve_backend(cfg.backend)
+        missing = numpy_only(cfg, components)
+        if backend != "numba" or not missing:
+            return backend
+        if cfg.backend == "numba":
+            raise ValueError(
+                f"backend='numba': {missing} have no compiled form; allowed: backend='numpy' or 'auto' "
+                "(which runs the numpy reference)"
+            )
+        new = sorted(set(missing) - _WARNED)
+        if new:
+            _WARNED.update(new)
+            warnings.warn(
+                f"backend='auto' runs the numpy reference (30-50x slower): {new} have no compiled form",
+                stacklevel=3,
+            )
+        return "numpy"
+
     # -- episodes ----------------------------------------------------------------------------------
     def reset_vehicle(self, index: int, rng: np.random.Generator, position: np.ndarray, yaw: float) -> None:
         """Start vehicle ``index``'s episode at ``position`` heading ``yaw``, trimmed (see
         :meth:`equilibrium`); its random draws come from ``rng`` from now on. Call :meth:`refresh`
         after the last vehicle is reset."""
         self.rotors.reset(index, rng, self.cfg.kf_spread)
-        for wind in self.wind_fields:
+        for wind in self.components.winds:
             wind.reset(index, rng)
         self.time[index] = 0.0
         rotation, rotor_speeds = self.equilibrium(index, position, yaw)
@@ -144,10 +182,12 @@ class Fleet:
         self.noise.reset(index, rng)
 
     def refresh(self, index: np.ndarray) -> None:
-        """Read the true states after the vehicles ``index`` were reset (their external wrenches
-        now, the others' unchanged) and hand the truth to a truth-fed estimator."""
+        """Read the true states after the vehicles ``index`` were reset (their external wrenches and
+        air velocities now, the others' unchanged) and hand the truth to a truth-fed estimator."""
         self.state = self.world.state()
-        self.wrench_true[index] = self.external_loads(self.state.select(index), index)
+        selected = self.state.select(index)
+        self.wrench_true[index] = self.external_loads(selected, index)
+        self.wind_velocity[index] = self.air_at(selected.position[:, None, :], index)[:, 0]
         self._feed_truth()
         self.revision += 1
 
@@ -193,36 +233,51 @@ class Fleet:
         self.time += self.dt
         after = self.world.state()
         normals = self.noise.take()
-        for wind in self.wind_fields:
-            wind.advance(self.dt, after.position, normals[:, _WIND])
+        for wind in self.components.winds:
+            start, stop = self.noise_columns[id(wind)]
+            wind.advance(self.dt, after.position, after.velocity, normals[:, start:stop])
         self.state = after
         self.wrench_true = loads
+        self.wind_velocity = self.air_at(after.position[:, None, :], slice(None))[:, 0]
         self._feed_truth()
         measured_speeds = self.motor_sensor.measure(self.rotors.speeds)
         nominal = (measured_speeds * measured_speeds) @ self._nominal_allocation_t
-        position, quaternion = self.mocap.measure(after.position, after.quaternion, normals[:, _MOCAP])
-        velocity, body_rates = self.mocap.measure_motion(
-            after.velocity, after.body_rates, normals[:, _MOTION]
-        )
+        sensors = normals[:, self.sensor_noise_column :]
+        position, quaternion = self.mocap.measure(after.position, after.quaternion, sensors[:, :6])
+        velocity, body_rates = self.mocap.measure_motion(after.velocity, after.body_rates, sensors[:, 6:12])
         self.estimator.step(nominal[:, 0], nominal[:, 1:], position, quaternion, velocity, body_rates)
+
+    def air_at(self, points: np.ndarray, index: np.ndarray | slice, mean: bool = False) -> np.ndarray:
+        """(n, P, 3) air velocity of all wind fields at (n, P, 3) world points of vehicles ``index``."""
+        wind = np.zeros_like(points)
+        time = self.time[index]
+        for field in self.components.winds:
+            wind += field.velocity_at(points, time, index, mean)
+        return wind
 
     def external_loads(
         self, state: RigidBodyState, index: np.ndarray | slice, mean: bool = False
     ) -> np.ndarray:
-        """(n, 6) ``[F, τ]`` of everything but gravity, thrust and rotor reaction torque, about the
-        centres of mass (world frame), for the vehicles ``index`` in the (n) states ``state``."""
+        """(n, 6) ``[F, τ]`` of everything but gravity, the nominal rotors' thrust and reaction torque,
+        about the centres of mass (world frame), for the vehicles ``index`` in the (n) states ``state``:
+        drag in the wind, the rotor modifiers' thrust at the hubs, the point loads."""
         rotation = state.rotation
         offsets = self.drag_points @ rotation.transpose(0, 2, 1)  # (n, P, 3)
         point_velocity = state.velocity[:, None, :] + cross(state.angular_velocity[:, None, :], offsets)
-        time = self.time[index]
-        wind = np.zeros_like(offsets)
-        for field in self.wind_fields:
-            wind += field.velocity_at(state.position[:, None, :] + offsets, time, index, mean)
-        relative_air = wind - point_velocity
+        relative_air = self.air_at(state.position[:, None, :] + offsets, index, mean) - point_velocity
         forces = self.drag.forces(relative_air)
         forces[:, :4] += self.rotors.drag_forces(-relative_air[:, :4], rotation[:, :, 2], index)
-        for load in self.point_loads:
-            extra = load.point_load(time, rotation)
+        if self.components.rotors:
+            hubs = offsets[:, :4]
+            thrusts = self.rotors.thrusts(index)
+            added = sum(
+                modifier.added_thrust(state.position[:, None, :] + hubs, rotation, thrusts)
+                for modifier in self.components.rotors
+            )
+            offsets = np.concatenate((offsets, hubs), axis=1)
+            forces = np.concatenate((forces, added[:, :, None] * rotation[:, None, :, 2]), axis=1)
+        for load in self.components.loads:
+            extra = load.point_load(self.time[index], rotation)
             if extra is not None:
                 offsets = np.concatenate((offsets, extra[0]), axis=1)
                 forces = np.concatenate((forces, extra[1]), axis=1)
@@ -244,30 +299,28 @@ class Fleet:
         return self._estimates[1], self._estimates[2]
 
     def observations(self, last_actions: np.ndarray) -> np.ndarray:
-        """(N, 25) float32 observations (:data:`OBSERVATION_FIELDS`): the estimators' states (the
-        attitude as two columns of the rotation matrix) and wrenches (zeros unless
-        ``observe_wrench``), and the last actions."""
-        out = np.empty((self.count, OBSERVATION_SIZE), dtype=np.float32)
+        """(N, width) float32 observations laid out as :attr:`layout` with the engine's blocks filled:
+        the estimators' states (the attitude as two columns of the rotation matrix) and wrenches
+        (zeros unless ``observe_wrench``), and the last actions; the task's blocks are zeros (the
+        env fills them)."""
+        layout = self.layout
+        out = np.zeros((self.count, layout.size), dtype=np.float32)
         states, wrenches = self.estimates()
         if self.compiled is not None:
-            assemble_observations(states, wrenches, last_actions, self._observe_wrench, out)
-            return out
-        rotation = rotation_matrices(states[:, 6:10] / np.linalg.norm(states[:, 6:10], axis=1, keepdims=True))
-        out[:, :6] = states[:, :6]
-        out[:, 6:12] = rotation[:, :, :2].transpose(0, 2, 1).reshape(-1, 6)
-        out[:, 12:15] = states[:, 10:13]
-        out[:, 15:21] = wrenches * self._observe_wrench
-        out[:, 21:25] = last_actions
+            assemble_observations(states, wrenches, last_actions, self._observe_wrench, layout.kernel_starts, out)
+        else:
+            layout.fill_engine_blocks(states, wrenches, last_actions, self._observe_wrench, out)
         return out
 
     def terminations(self) -> np.ndarray:
-        """(N,) codes into :data:`TERMINATION_REASONS`: crash (below ``crash_height`` or touching the
-        ground), flip (tilt beyond ``flip_tilt_deg``), out_of_arena; 0 while the episode goes on."""
+        """(N,) codes into :data:`ENGINE_TERMINATIONS` (1-based): crash (below ``crash_height`` or
+        touching the ground or a scene part that ends episodes), flip (tilt beyond ``flip_tilt_deg``),
+        out_of_arena; 0 while the episode goes on."""
         s = self.state
         if self.compiled is not None:
             codes = np.empty(self.count, dtype=np.int64)
             if termination_codes(s.position, s.rotation, self._limits, codes):
-                codes[self.world.ground_contacts()] = 1
+                codes[self.world.crash_contacts()] = 1
             return codes
         cfg, arena = self.cfg, self.cfg.arena
         x, y, z = s.position[:, 0], s.position[:, 1], s.position[:, 2]
@@ -276,7 +329,7 @@ class Fleet:
             (x < arena.x_min) | (x > arena.x_max) | (np.abs(y) > arena.y_half_width) | (z > arena.z_max)
         ] = 3
         codes[s.rotation[:, 2, 2] < self._flip_cos] = 2
-        codes[(z < cfg.crash_height) | self.world.ground_contacts()] = 1
+        codes[(z < cfg.crash_height) | self.world.crash_contacts()] = 1
         return codes
 
     def close(self) -> None:

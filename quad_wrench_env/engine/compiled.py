@@ -1,14 +1,16 @@
-"""A fleet's physics step on the compiled kernels (:mod:`quad_wrench_env.kernels.physics`).
+"""A fleet's physics step on compiled kernels: the engine's (:mod:`.kernels`) and its components', in
+the step :mod:`.compose` writes for them.
 
 The numbers the kernels need are packed here once from the fleet's own components
-(:func:`~quad_wrench_env.kernels.physics.physics_constants`), so the kernels read exactly the
-parameters the numpy reference uses. The per-vehicle arrays the kernels fill (true state, time,
-applied loads, measurements) are views of one flat buffer
-(:func:`~quad_wrench_env.kernels.physics.step_views`) that the fleet adopts as its own ``state``,
-``time`` and ``wrench_true``. The state the components keep (autopilot setpoints and integrators,
-rotor speeds and allocations, fan turbulence) becomes views of the same buffer, which the components
-go on owning and updating in place, so both paths can be mixed and compared at any step; the mixer's
-saturation flags, the fan's motion tables and the noise blocks stay arrays of their own.
+(:func:`~quad_wrench_env.engine.kernels.physics_constants`, then each component's
+``kernel_parameters``), so the kernels read exactly the parameters the numpy reference uses. The
+per-vehicle arrays the kernels fill (true state, time, applied loads, measurements, air at the
+centres) are views of one flat buffer (:func:`~quad_wrench_env.engine.kernels.step_views`) that the
+fleet adopts as its own ``state``, ``time``, ``wrench_true`` and ``wind_velocity``. The state the
+components keep (autopilot setpoints and integrators, rotor speeds and allocations, each component's
+declared state, e.g. the fan's turbulence) becomes views of the same buffer, which the components go on
+owning and updating in place, so both paths can be mixed and compared at any step; the mixer's
+saturation flags, the components' per-vehicle tables and the noise blocks stay arrays of their own.
 
 Every kernel is called in its compiled form on arguments bound once per episode
 (:func:`~quad_wrench_env.kernels.bind`). A fleet of one vehicle (the single env) meets PyBullet with
@@ -24,31 +26,19 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from quad_wrench_env.disturbances.fan import FanJet
-from quad_wrench_env.estimators.bank import FilterBank
-from quad_wrench_env.kernels import bind, specialised
-from quad_wrench_env.kernels.physics import (
+from quad_wrench_env.engine.compose import Slot, compose
+from quad_wrench_env.engine.kernels import (
     STEP_WIDTH,
-    after_world_step,
-    after_world_step_one,
-    before_world_step,
-    before_world_step_one,
+    component_parameters,
     physics_constants,
     step_views,
 )
-from quad_wrench_env.world import RigidBodyState
+from quad_wrench_env.engine.world import RigidBodyState
+from quad_wrench_env.estimators.bank import FilterBank
+from quad_wrench_env.kernels import bind, specialised
 
 if TYPE_CHECKING:
-    from quad_wrench_env.envs.fleet import Fleet
-
-
-def supports(fleet: Fleet) -> bool:
-    """Whether the kernels cover this fleet: its wind fields (a fan jet or none) and sensors (no
-    motion-capture latency)."""
-    winds = fleet.wind_fields
-    return (
-        len(winds) <= 1 and all(isinstance(w, FanJet) for w in winds) and not fleet.cfg.sensors.latency_steps
-    )
+    from quad_wrench_env.engine.fleet import Fleet
 
 
 class CompiledStep:
@@ -57,67 +47,87 @@ class CompiledStep:
     def __init__(self, fleet: Fleet) -> None:
         self.fleet = fleet
         ap, sensors, count = fleet.autopilot, fleet.cfg.sensors, fleet.count
-        self.fan: FanJet | None = fleet.wind_fields[0] if fleet.wind_fields else None
-        payload, profile = fleet.point_loads
         action_type, scales = fleet.actions.kernel_parameters()
         sensing = (
             fleet.motor_sensor.levels, fleet.motor_sensor.step, sensors.position_noise,
             sensors.attitude_noise, sensors.velocity_noise, sensors.body_rate_noise,
             float(sensors.state_estimator),
         )  # fmt: skip
-        self.constants = physics_constants(
-            action_type, scales, ap.kernel_parameters(), ap.mixer.inverse,
-            np.append(fleet.rotors.kernel_parameters(), fleet.drag.coefficient),
-            np.zeros(7) if self.fan is None else self.fan.kernel_parameters(), payload.kernel_parameters(),
-            np.array(sensing), ap.mixer.allocation, fleet.dt, fleet.drag_points, profile.segments,
+        engine = physics_constants(
+            {
+                "action_type": action_type, "scales": scales, "autopilot": ap.kernel_parameters(),
+                "inverse": ap.mixer.inverse, "motors": np.append(fleet.rotors.kernel_parameters(), fleet.drag.coefficient),
+                "sensing": np.array(sensing), "nominal_allocation": ap.mixer.allocation, "dt": fleet.dt,
+                "noise_column": fleet.sensor_noise_column,
+            },
+            fleet.drag_points,
         )  # fmt: skip
+        components = fleet.components.ordered()
+        self.constants = component_parameters(engine, [c.kernel_parameters() for _, c in components])
+        widths = [
+            0 if c.compiled.state is None else getattr(c, c.compiled.state).shape[1] for _, c in components
+        ]
+        slots = [
+            Slot(kind, c.compiled, width, fleet.noise_columns.get(id(c), (0, 0)))
+            for (kind, c), width in zip(components, widths, strict=True)
+        ]
+        self._step = compose(slots, STEP_WIDTH)
         self.single = count == 1
         """A fleet of one vehicle: it meets PyBullet with tuples (module docstring)."""
-        self.buffer = np.zeros(count * STEP_WIDTH)
+        self.buffer = np.zeros(count * (STEP_WIDTH + sum(widths)))
         self.actions = np.zeros((count, 4))
         """The policy step's (N, 4) clipped normalised actions, copied in (bound to the kernel)."""
         (
             self.time, position, quaternion, velocity, angular_velocity, rotation, body_rates,
             self.forces, self.torques, self.loads, self.thrusts, self.body_torques,
-            self.measured_position, self.measured_quaternion, motion, self.truth, *components,
+            self.measured_position, self.measured_quaternion, motion, self.truth, *engine_state,
+            self.wind_velocity,
         ) = step_views(self.buffer, count)  # fmt: skip
         rotors = fleet.rotors
-        owners = ((ap, "yaw_setpoint"), (ap, "velocity_integral"), (ap, "rate_integral"), (rotors, "speeds"),
-                  (rotors, "allocations"), (self.fan, "noise"))  # fmt: skip
-        for (owner, name), view in zip(owners, components, strict=True):
+        owners = [(ap, "yaw_setpoint"), (ap, "velocity_integral"), (ap, "rate_integral"), (rotors, "speeds"),
+                  (rotors, "allocations"), (None, "rotor_wrench")]  # fmt: skip
+        views = list(engine_state)
+        start = STEP_WIDTH
+        for (_, component), width in zip(components, widths, strict=True):
+            if width:
+                owners.append((component, component.compiled.state))
+                views.append(self.buffer[start * count : (start + width) * count].reshape(count, width))
+                start += width
+        for (owner, name), view in zip(owners, views, strict=True):
             if owner is not None:  # the components' state is theirs, kept here (updated in place)
                 view[...] = getattr(owner, name)
                 setattr(owner, name, view)
+        self._table_owners = [(c, c.compiled.table) for _, c in components if c.compiled.table]
         self.state = RigidBodyState(position, quaternion, velocity, angular_velocity, rotation, body_rates)
         self.velocity_measured = motion[:, :3] if sensors.state_estimator else None
         self.body_rates_measured = motion[:, 3:] if sensors.state_estimator else None
         self.time[:] = fleet.time
         fleet.time = self.time
-        self._motion_tables = np.zeros((count, 4)) if self.fan is None else self.fan.motion_tables
         self._bound: object | None = None
         """The estimator bank :attr:`estimate` is bound to."""
 
     def _adopt(self) -> None:
         """Take over the state the fleet read after a reset (into the kernels' own arrays) and bind
-        the kernels' arguments, all of them arrays updated in place from then on."""
+        the kernels' arguments, all of them arrays updated in place from then on (the components'
+        tables are read again: a reset may have replaced them)."""
         fleet, mine = self.fleet, self.state
         for name in ("position", "quaternion", "velocity", "angular_velocity", "rotation", "body_rates"):
             getattr(mine, name)[:] = getattr(fleet.state, name)
         self.loads[:] = fleet.wrench_true
-        fleet.state, fleet.wrench_true = mine, self.loads
-        if self.fan is not None:
-            self._motion_tables = self.fan.motion_tables
-        one, world = self.single, fleet.world
+        self.wind_velocity[:] = fleet.wind_velocity
+        fleet.state, fleet.wrench_true, fleet.wind_velocity = mine, self.loads, self.wind_velocity
+        tables = [getattr(owner, name) for owner, name in self._table_owners]
+        one, world, step = self.single, fleet.world, self._step
         self._before = bind(
-            before_world_step_one if one else before_world_step, self.actions, self.buffer,
-            fleet.autopilot.saturated, self._motion_tables, self.constants,
+            step.before_world_step_one if one else step.before_world_step, self.actions, self.buffer,
+            fleet.autopilot.saturated, self.constants, *tables,
         )  # fmt: skip
         """Returns the loads as ``World.step_one`` takes them for one vehicle (PyBullet's sequences:
         Python builds no lists from arrays), nothing for more (they are in the buffer)."""
-        self._after = (self.buffer, fleet.noise.buffer, fleet.noise.cursor, self.constants)
+        self._after = (self.buffer, fleet.noise.buffer, fleet.noise.cursor, self.constants, *tables)
         self.read_world = world.read_first if one else world.read_flat
         self._after_kernel = specialised(
-            after_world_step_one if one else after_world_step, self.read_world(), *self._after
+            step.after_world_step_one if one else step.after_world_step, self.read_world(), *self._after
         )
         """Takes :attr:`read_world`'s result first: a new object of the same type every step (PyBullet's
         tuples of floats for one vehicle, a float array of rows for more)."""

@@ -66,20 +66,21 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
 from quad_wrench_env.config import check_numbers
-from quad_wrench_env.disturbances.base import WindField
 from quad_wrench_env.disturbances.fan import MOTIONS, RANDOM, FanConfig, FanJet, FanMotion, make_motion
-from quad_wrench_env.envs.base import QuadWrenchEnv
+from quad_wrench_env.disturbances.jet_kernels import jet_speed, motion_y, transit_time
+from quad_wrench_env.engine.components import Components
 from quad_wrench_env.envs.config import EnvConfig
-from quad_wrench_env.envs.fleet import Fleet
-from quad_wrench_env.envs.vector import QuadWrenchVectorEnv
-from quad_wrench_env.kernels import resolve_backend
-from quad_wrench_env.kernels.physics import FAN_TRACKING_NUMBERS, fan_tracking_terms
+from quad_wrench_env.kernels import njit, resolve_backend
+from quad_wrench_env.tasks.base import TaskDefaults
 from quad_wrench_env.vehicle import VehicleParams
+
+if TYPE_CHECKING:
+    from quad_wrench_env.engine.fleet import Fleet
 
 
 @dataclass
@@ -187,11 +188,14 @@ class FanTrackingConfig(EnvConfig):
         check_numbers("env", self, ("max_initial_offset",), positive=False)
 
 
-class FanTracking:
-    """The task (see the module docstring) for N vehicles, each in front of a fan of its own."""
+class FanTracking(TaskDefaults):
+    """Track the centre of a moving fan's jet from the estimated wrench (see the module docstring),
+    for N vehicles, each in front of a fan of its own."""
 
+    env_id: ClassVar[str] = "QuadWrench/FanTracking-v1"
     config_class: ClassVar[type[EnvConfig]] = FanTrackingConfig
     reset_options: ClassVar[tuple[str, ...]] = ("offset_y", "fan_motion")
+    trace_keys: ClassVar[tuple[str, ...]] = ("fan_position", "jet_axis_y", "axis_error", "standoff_error")
 
     def __init__(self, cfg: FanTrackingConfig, vehicle: VehicleParams, count: int) -> None:
         arena = cfg.arena
@@ -218,8 +222,9 @@ class FanTracking:
         """What ``fan_tracking_terms`` reads besides the jet (see its docstring)."""
         self._cache: tuple[int, np.ndarray] = (-1, np.zeros((count, FAN_TRACKING_NUMBERS)))
 
-    def wind_fields(self) -> list[WindField]:
-        return [self.fan] if self.cfg.fan.enabled else []
+    def components(self) -> Components:
+        """The fan's jet (switched off with ``fan.enabled=False``, it still takes its draws)."""
+        return Components(winds=[self.fan])
 
     def _motion(self, option: Any, rng: np.random.Generator) -> FanMotion:
         fan = self.cfg.fan
@@ -307,19 +312,55 @@ class FanTracking:
             "standoff_error": numbers[:, 9],
         }  # fmt: skip
 
+    @staticmethod
+    def metrics(trace: Mapping[str, np.ndarray], settle_time: float = 5.0, band: float = 0.15) -> dict[str, float]:
+        """Paper 000 Fig. 7 scores: mean |y - y_axis| after ``settle_time`` (m), fraction of time within
+        ``band`` of the axis, time to first come within ``band`` (s; inf if never), and the mean
+        |x - standoff_distance| after ``settle_time`` (m), so that tracking from closer to the fan,
+        where the torque is stronger, does not pass for better tracking."""
+        t = trace["time"]
+        error = np.abs(trace["axis_error"])
+        standoff = np.abs(trace["standoff_error"])
+        late = t >= settle_time
+        inside = error <= band
+        first = np.flatnonzero(inside)
+        return {
+            "mean_abs_error_after_5s": float(np.mean(error[late])) if np.any(late) else math.nan,
+            "fraction_within_0.15m": float(np.mean(inside)),
+            "time_to_0.15m": float(t[first[0]]) if first.size else math.inf,
+            "mean_abs_standoff_error_after_5s": float(np.mean(standoff[late])) if np.any(late) else math.nan,
+        }
 
-class FanTrackingEnv(QuadWrenchEnv):
-    """Track the centre of a moving fan's jet from the estimated wrench (see the module docstring)."""
 
-    task_class: ClassVar[type] = FanTracking
-    cfg: FanTrackingConfig
-
-    @property
-    def fan(self) -> FanJet:
-        return self.task.fan
+FAN_TRACKING_NUMBERS = 10
+"""Columns of :func:`fan_tracking_terms`' output."""
 
 
-class FanTrackingVectorEnv(QuadWrenchVectorEnv):
-    """N vehicles tracking their fans' jets, flown together (``gym.make_vec``'s vector entry point)."""
-
-    env_class: ClassVar[type[QuadWrenchEnv]] = FanTrackingEnv
+@njit
+def fan_tracking_terms(position, time, actions, ended, motion_tables, fan, weights, out):
+    """FanTracking's per-vehicle numbers into ``out`` (N, 10): the reward terms ``tracking``,
+    ``standoff``, ``effort`` and ``crash``; the signed ``axis_error`` y - jet axis, the jet axis y at
+    the vehicle, the fan's position ``(0, y, height)`` and the signed stand-off error ``x - x_ref``
+    (``FanTracking.reward_terms`` and ``FanTracking.info``). ``fan``: the jet
+    (``FanJet.kernel_parameters``); ``weights``: the stand-off ``x_ref``, the reward's axis scale,
+    stand-off weight, effort weight and crash penalty."""
+    height = fan[5]
+    x_ref, axis_scale, standoff_weight, effort_weight, crash_penalty = (
+        weights[0], weights[1], weights[2], weights[3], weights[4],
+    )  # fmt: skip
+    for n in range(position.shape[0]):
+        _, b = jet_speed(fan, max(position[n, 0], 0.0))
+        axis = motion_y(motion_tables[n], time[n] - transit_time(fan, position[n, 0], b))
+        dy, dz = position[n, 1] - axis, position[n, 2] - height
+        standoff = position[n, 0] - x_ref
+        out[n, 0] = math.exp(-math.sqrt(dy * dy + dz * dz) / axis_scale)
+        out[n, 1] = -standoff_weight * abs(standoff)
+        effort = 0.0
+        for i in range(actions.shape[1]):
+            effort += actions[n, i] * actions[n, i]
+        out[n, 2] = (-effort_weight / actions.shape[1]) * effort
+        out[n, 3] = -crash_penalty * ended[n]
+        out[n, 4] = dy
+        out[n, 5] = axis
+        out[n, 6], out[n, 7], out[n, 8] = 0.0, motion_y(motion_tables[n], time[n]), height
+        out[n, 9] = standoff

@@ -1,4 +1,5 @@
-"""The PyBullet world: one client, a ground plane and the rigid bodies of N vehicles.
+"""The PyBullet world: one client, a ground plane, the static scene parts and the rigid bodies of N
+vehicles.
 
 Every PyBullet call passes ``physicsClientId``; the calls of every physics step (:meth:`World.step`,
 :meth:`World.read`) pass it as their last positional argument, which PyBullet parses about 0.13 µs
@@ -33,6 +34,7 @@ import numpy as np
 import pybullet as p
 
 from quad_wrench_env.rotations import from_pybullet, rotation_matrices, to_pybullet
+from quad_wrench_env.scene import ScenePart
 from quad_wrench_env.vehicle import GRAVITY, VehicleParams
 
 _GROUND_GROUP, _VEHICLE_GROUP = 1, 2
@@ -95,7 +97,13 @@ class World:
     """A PyBullet client holding a ground plane and ``count`` vehicle bodies."""
 
     def __init__(
-        self, vehicle: VehicleParams, dt: float, count: int = 1, gui: bool = False, spacing: float = 0.0
+        self,
+        vehicle: VehicleParams,
+        dt: float,
+        count: int = 1,
+        gui: bool = False,
+        spacing: float = 0.0,
+        scene: list[ScenePart] | None = None,
     ) -> None:
         if not (isinstance(count, int) and count >= 1):
             raise ValueError(f"count={count!r} must be an integer >= 1 (vehicles in the world)")
@@ -114,16 +122,23 @@ class World:
         self.client = p.connect(p.GUI if gui else p.DIRECT)
         if self.client < 0:
             raise RuntimeError("could not connect to a PyBullet physics server")
+        self.scene = list(scene or [])
         self.bodies: list[int] = []
         self.plane = -1
+        self._crash_bodies: list[int] = []
+        """The ground and the scene parts whose contact ends an episode, once built."""
         self._index_of: dict[int, int] = {}
         self.half_extents = (vehicle.arm + vehicle.rotor_radius,) * 2 + (0.5 * vehicle.hull_height,)
         """Half extents (m) of each vehicle's collision box."""
-        self.clear_height = (
-            float(np.linalg.norm(self.half_extents)) + _CONTACT_THRESHOLD + _MAX_FALL_SPEED * dt
+        highest = max(
+            [0.0] + [c[2] + h[2] for part in self.scene if part.ends_episode_on_contact for c, h in part.boxes()]
         )
-        """Height (m) of a body's centre above which it cannot touch the ground: its box's bounding
-        radius, the contact threshold and one step's fall. The envs ask for contacts only below it."""
+        self.clear_height = (
+            highest + float(np.linalg.norm(self.half_extents)) + _CONTACT_THRESHOLD + _MAX_FALL_SPEED * dt
+        )
+        """Height (m) of a body's centre above which it cannot touch the ground or a scene part whose
+        contact ends an episode: the highest such top, the box's bounding radius, the contact threshold
+        and one step's fall. The envs ask for contacts only below it."""
         columns = math.ceil(math.sqrt(count))
         grid = np.arange(count)
         self.origins = np.column_stack((grid % columns, grid // columns, np.zeros(count))) * spacing
@@ -146,6 +161,21 @@ class World:
         # a static rigid body (maximal coordinates), not a fixed multibody: ~0.1 µs less per step
         self.plane = p.createMultiBody(0.0, plane_shape, useMaximalCoordinates=1, physicsClientId=cid)
         p.setCollisionFilterGroupMask(self.plane, -1, _GROUND_GROUP, _VEHICLE_GROUP, physicsClientId=cid)
+        self._crash_bodies = [self.plane]
+        for part in self.scene:  # a copy in every vehicle's frame
+            for centre, half in part.boxes():
+                shape = p.createCollisionShape(p.GEOM_BOX, halfExtents=half, physicsClientId=cid)
+                look = p.createVisualShape(
+                    p.GEOM_BOX, halfExtents=half, rgbaColor=(0.55, 0.45, 0.35, 1.0), physicsClientId=cid
+                )
+                for origin in self.origins:
+                    body = p.createMultiBody(
+                        0.0, shape, look, basePosition=(origin + centre).tolist(), useMaximalCoordinates=1,
+                        physicsClientId=cid,
+                    )  # fmt: skip
+                    p.setCollisionFilterGroupMask(body, -1, _GROUND_GROUP, _VEHICLE_GROUP, physicsClientId=cid)
+                    if part.ends_episode_on_contact:
+                        self._crash_bodies.append(body)
         v, half_extents = self.vehicle, self.half_extents
         hull = p.createCollisionShape(p.GEOM_BOX, halfExtents=half_extents, physicsClientId=cid)
         visual = p.createVisualShape(
@@ -241,11 +271,14 @@ class World:
         p.applyExternalTorque(body, -1, torque, p.WORLD_FRAME, cid)
         p.stepSimulation(cid)
 
-    def ground_contacts(self) -> np.ndarray:
-        """(N,) bool: which vehicles touch the ground."""
+    def crash_contacts(self) -> np.ndarray:
+        """(N,) bool: which vehicles touch the ground or a scene part whose contact ends an episode."""
         touching = np.zeros(self.count, dtype=bool)
-        for contact in p.getContactPoints(bodyA=self.plane, physicsClientId=self.client):
-            touching[self._index_of[contact[2]]] = True
+        for body in self._crash_bodies:
+            for contact in p.getContactPoints(bodyA=body, physicsClientId=self.client):
+                index = self._index_of.get(contact[2])
+                if index is not None:
+                    touching[index] = True
         return touching
 
     def close(self) -> None:

@@ -1,0 +1,113 @@
+"""Dryden turbulence (MIL-F-8785C, low altitude) on a mean wind (PHYSICS.md, paper 003's gusts).
+
+At altitude h (ft): ``L_w = h``, ``L_u = L_v = h/(0.177 + 0.000823·h)^1.2``, ``σ_w = 0.1·W20`` and
+``σ_u = σ_v = σ_w/(0.177 + 0.000823·h)^0.4`` (W20: the wind speed at 20 ft). Each component is a
+first-order (exponentially correlated) process with correlation length L, stepped with the exact
+discrete filter ``u_{k+1} = a·u_k + σ·sqrt(1 - a²)·η_k``, ``a = exp(-V·T/L)``,
+``V = max(airspeed, |mean wind|, 1 m/s)``: its variance is σ² and its autocorrelation at lag L/V is
+e^-1 at any physics step T (uniform noise without the ``sqrt(1 - a²)`` scaling, as one peer has, gets
+neither). The horizontal components are along world x and y (σ_u = σ_v, L_u = L_v: either pair of
+horizontal axes gives the same statistics), the vertical along z. The gust is uniform over the
+vehicle: it moves the body, the fan's jet makes the torques.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from quad_wrench_env.config import check_numbers
+from quad_wrench_env.disturbances.base import CompiledForm
+from quad_wrench_env.disturbances.registry import wind_model
+from quad_wrench_env.kernels import njit
+
+FEET = 0.3048
+"""m per ft."""
+
+
+@dataclass
+class DrydenConfig:
+    w20: float = 1.0
+    """Wind speed (m/s) at 20 ft: ``σ_w = 0.1·w20``. Outdoor light turbulence is w20 = 7.7 m/s
+    (σ_u ≈ 1.5 m/s at 2 m); indoors use far less."""
+    altitude: float = 1.0
+    """Height (m) the scales are taken at (the model's h, converted to ft)."""
+    mean: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    """Mean wind (m/s, world frame)."""
+
+    def __post_init__(self) -> None:
+        self.mean = tuple(self.mean)
+        check_numbers("wind.dryden", self, ("altitude",))
+        check_numbers("wind.dryden", self, ("w20",), positive=False)
+        if len(self.mean) != 3 or not all(math.isfinite(v) for v in self.mean):
+            raise ValueError(f"wind.dryden: mean={list(self.mean)!r} must be 3 finite numbers (m/s)")
+
+    def scales(self) -> tuple[np.ndarray, np.ndarray]:
+        """(3,) σ (m/s) and (3,) correlation lengths L (m) of the x, y, z components."""
+        h = self.altitude / FEET
+        low = 0.177 + 0.000823 * h
+        sigma_w = 0.1 * self.w20
+        sigma_u = sigma_w / low**0.4
+        length_u = h / low**1.2 * FEET
+        return np.array((sigma_u, sigma_u, sigma_w)), np.array((length_u, length_u, h * FEET))
+
+
+@wind_model("dryden", DrydenConfig)
+class DrydenGust:
+    """The Dryden field of N vehicles: a :class:`~quad_wrench_env.disturbances.base.WindField`."""
+
+    name = "dryden"
+    noise_width = 3
+    compiled = CompiledForm(
+        "quad_wrench_env.disturbances.dryden", (("velocity", "dryden_velocity"), ("advance", "dryden_advance")),
+        state="gust",
+    )  # fmt: skip
+
+    def __init__(self, config: DrydenConfig, count: int = 1) -> None:
+        self.config = config
+        self.sigma, self.length = config.scales()
+        self.mean = np.array(config.mean, dtype=float)
+        self.gust = np.zeros((count, 3))
+        """(N, 3) turbulent part of each vehicle's wind (m/s)."""
+
+    def kernel_parameters(self) -> np.ndarray:
+        """Mean (3), σ (3), L (3)."""
+        return np.concatenate((self.mean, self.sigma, self.length))
+
+    def reset(self, index: int, rng: np.random.Generator) -> None:
+        self.gust[index] = self.sigma * rng.standard_normal(3)  # the stationary distribution
+
+    def advance(self, dt: float, position: np.ndarray, velocity: np.ndarray, normals: np.ndarray) -> None:
+        airspeed = np.linalg.norm(velocity - self.mean, axis=1)
+        speed = np.maximum(np.maximum(airspeed, np.linalg.norm(self.mean)), 1.0)
+        decay = np.exp(-speed[:, None] * dt / self.length)
+        self.gust[:] = decay * self.gust + self.sigma * np.sqrt(1.0 - decay * decay) * normals
+
+    def velocity_at(
+        self, points: np.ndarray, t: np.ndarray, index: np.ndarray | slice, mean: bool = False
+    ) -> np.ndarray:
+        wind = self.mean if mean else self.mean + self.gust[index]
+        return np.broadcast_to(np.reshape(wind, (-1, 1, 3)), points.shape).copy()
+
+
+@njit
+def dryden_velocity(params, table, gust, points, time, out):
+    """``DrydenGust.velocity_at`` added to ``out``: mean plus each vehicle's gust at every point."""
+    for n in range(points.shape[0]):
+        for p in range(points.shape[1]):
+            for i in range(3):
+                out[n, p, i] += params[i] + gust[n, i]
+
+
+@njit
+def dryden_advance(params, table, gust, position, velocity, dt, normals):
+    """``DrydenGust.advance``: the exact discrete first-order filter, one step."""
+    mean_speed = math.sqrt(params[0] * params[0] + params[1] * params[1] + params[2] * params[2])
+    for n in range(gust.shape[0]):
+        a0, a1, a2 = velocity[n, 0] - params[0], velocity[n, 1] - params[1], velocity[n, 2] - params[2]
+        speed = max(max(math.sqrt(a0 * a0 + a1 * a1 + a2 * a2), mean_speed), 1.0)
+        for i in range(3):
+            decay = math.exp(-speed * dt / params[6 + i])
+            gust[n, i] = decay * gust[n, i] + params[3 + i] * math.sqrt(1.0 - decay * decay) * normals[n, i]

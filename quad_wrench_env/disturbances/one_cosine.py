@@ -1,0 +1,90 @@
+"""A 1-cosine gust (PHYSICS.md): ``V(t) = (V_m/2)·(1 - cos(π·(t - t0)/t_g))`` for
+``0 <= t - t0 <= t_g``, then ``V_m`` (``hold``) or back down the same way over another ``t_g`` (a
+bump); uniform in space, ``V_m`` a vector (m/s, world frame)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from quad_wrench_env.config import check_numbers
+from quad_wrench_env.disturbances.base import CompiledForm
+from quad_wrench_env.disturbances.registry import wind_model
+from quad_wrench_env.kernels import njit
+
+
+@dataclass
+class OneCosineConfig:
+    peak: tuple[float, float, float] = (1.0, 0.0, 0.0)
+    """``V_m`` (m/s, world frame)."""
+    start: float = 1.0
+    """``t0`` (s)."""
+    duration: float = 1.0
+    """``t_g`` (s): rise time from 0 to the peak."""
+    hold: bool = True
+    """True: stay at the peak after ``t_g``; False: back to zero over another ``t_g``."""
+
+    def __post_init__(self) -> None:
+        self.peak = tuple(self.peak)
+        check_numbers("wind.one_cosine", self, ("duration",))
+        check_numbers("wind.one_cosine", self, ("start",), positive=False)
+        if len(self.peak) != 3 or not all(math.isfinite(v) for v in self.peak):
+            raise ValueError(f"wind.one_cosine: peak={list(self.peak)!r} must be 3 finite numbers (m/s)")
+
+
+def gust_shape(t: np.ndarray, start: float, duration: float, hold: bool) -> np.ndarray:
+    """The gust's fraction of its peak at times ``t``."""
+    phase = np.clip((np.asarray(t, dtype=float) - start) / duration, 0.0, 1.0 if hold else 2.0)
+    return 0.5 * (1.0 - np.cos(math.pi * phase))
+
+
+@wind_model("one_cosine", OneCosineConfig)
+class OneCosineGust:
+    """The gust of N vehicles, each at its own time: a :class:`~quad_wrench_env.disturbances.base.WindField`."""
+
+    name = "one_cosine"
+    noise_width = 0
+    compiled = CompiledForm(
+        "quad_wrench_env.disturbances.one_cosine", (("velocity", "one_cosine_velocity"), ("advance", "still"))
+    )
+
+    def __init__(self, config: OneCosineConfig, count: int = 1) -> None:
+        self.config = config
+
+    def kernel_parameters(self) -> np.ndarray:
+        """Peak (3), start, duration, hold (1 or 0)."""
+        c = self.config
+        return np.array((*c.peak, c.start, c.duration, float(c.hold)))
+
+    def reset(self, index: int, rng: np.random.Generator) -> None:
+        """Nothing random."""
+
+    def advance(self, dt: float, position: np.ndarray, velocity: np.ndarray, normals: np.ndarray) -> None:
+        """Nothing random."""
+
+    def velocity_at(
+        self, points: np.ndarray, t: np.ndarray, index: np.ndarray | slice, mean: bool = False
+    ) -> np.ndarray:
+        c = self.config
+        fraction = gust_shape(t, c.start, c.duration, c.hold)
+        wind = fraction[:, None] * np.array(c.peak)
+        return np.broadcast_to(wind[:, None, :], points.shape).copy()
+
+
+@njit
+def one_cosine_velocity(params, table, state, points, time, out):
+    """``OneCosineGust.velocity_at`` added to ``out``."""
+    top = 1.0 if params[5] > 0.0 else 2.0
+    for n in range(points.shape[0]):
+        phase = min(max((time[n] - params[3]) / params[4], 0.0), top)
+        fraction = 0.5 * (1.0 - math.cos(math.pi * phase))
+        for p in range(points.shape[1]):
+            for i in range(3):
+                out[n, p, i] += fraction * params[i]
+
+
+@njit
+def still(params, table, state, position, velocity, dt, normals):
+    """No random process to advance."""

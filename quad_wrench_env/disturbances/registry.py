@@ -1,0 +1,54 @@
+"""Wind models by name, discovered from the modules of :mod:`quad_wrench_env.disturbances`.
+
+A wind model registers itself where it is defined (``@wind_model("dryden", DrydenConfig)``); nothing
+lists them. ``wind=[{"model": "dryden", ...}, ...]`` in any env's config builds them by name.
+"""
+
+from __future__ import annotations
+
+import importlib
+import pkgutil
+from collections.abc import Callable, Mapping
+from typing import Any
+
+from quad_wrench_env.config import build
+
+WIND_MODELS: dict[str, tuple[type, Callable[..., Any]]] = {}
+"""Model name -> (its config dataclass, its factory ``(config, count) -> WindField``)."""
+
+
+def wind_model(name: str, config_class: type) -> Callable[[type], type]:
+    """Class decorator: register a wind field class, built as ``cls(config, count)``, as ``name``."""
+
+    def register(cls: type) -> type:
+        WIND_MODELS[name] = (config_class, cls)
+        return cls
+
+    return register
+
+
+def _discover() -> None:
+    package = importlib.import_module("quad_wrench_env.disturbances")
+    for module in pkgutil.iter_modules(package.__path__):
+        importlib.import_module(f"{package.__name__}.{module.name}")
+
+
+def wind_config(spec: Mapping[str, Any], position: int = 0) -> tuple[str, Any]:
+    """The model name and built config of one ``wind`` entry, bad names and keys named."""
+    if not WIND_MODELS:
+        _discover()
+    if not isinstance(spec, Mapping) or "model" not in spec:
+        raise ValueError(
+            f"wind[{position}]={spec!r} must be a mapping with a 'model'; models: {sorted(WIND_MODELS)}"
+        )
+    fields = dict(spec)
+    name = fields.pop("model")
+    if name not in WIND_MODELS:
+        raise ValueError(f"wind[{position}]: unknown model {name!r}; allowed: {sorted(WIND_MODELS)}")
+    return name, build(WIND_MODELS[name][0], fields, prefix=f"wind[{position}].")
+
+
+def make_wind(spec: Mapping[str, Any], count: int, position: int = 0) -> Any:
+    """The wind field of one ``wind`` entry for ``count`` vehicles."""
+    name, config = wind_config(spec, position)
+    return WIND_MODELS[name][1](config, count)

@@ -1,0 +1,73 @@
+"""The observation's layout, declared once by name: the engine's blocks, then the task's.
+
+Both paths read this declaration: the numpy reference fills each block through its slice, the
+compiled kernel (:func:`~quad_wrench_env.engine.kernels.assemble_observations`) through
+:attr:`ObservationLayout.kernel_starts`; ``env.unwrapped.obs_layout`` is :attr:`ObservationLayout.slices`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from gymnasium import spaces
+
+from quad_wrench_env.rotations import rotation_matrices
+from quad_wrench_env.vehicle import GRAVITY, VehicleParams
+
+ENGINE_BLOCKS: tuple[tuple[str, int], ...] = (
+    ("position", 3),
+    ("velocity", 3),
+    ("attitude", 6),
+    ("body_rates", 3),
+    ("force", 3),
+    ("torque", 3),
+    ("last_action", 4),
+)
+"""The engine's observation blocks in order: the estimator's state and wrench, and the previous action.
+The attitude is the first two columns of the rotation matrix (body x and y axes in the world frame), a
+representation without the jumps of a quaternion kept to one hemisphere."""
+
+
+class ObservationLayout:
+    """The engine's blocks followed by a task's ``(name, width, bound)`` blocks."""
+
+    def __init__(self, task_blocks: tuple[tuple[str, int, float], ...] = ()) -> None:
+        names = [name for name, _ in ENGINE_BLOCKS]
+        clashes = sorted({name for name, _, _ in task_blocks} & {*names, "wrench"})
+        if clashes:
+            raise ValueError(f"task observation blocks {clashes} clash with the engine's {names}")
+        self.fields = ENGINE_BLOCKS + tuple((name, width) for name, width, _ in task_blocks)
+        self.task_bounds = {name: bound for name, _, bound in task_blocks}
+        self.slices: dict[str, slice] = {}
+        start = 0
+        for name, width in self.fields:
+            self.slices[name] = slice(start, start + width)
+            start += width
+        self.size = start
+        self.slices["wrench"] = slice(self.slices["force"].start, self.slices["torque"].stop)
+        self.kernel_starts = np.array([self.slices[name].start for name in names], dtype=np.int64)
+        self.task_columns = slice(self.slices[ENGINE_BLOCKS[-1][0]].stop, self.size)
+
+    def space(self, vehicle: VehicleParams) -> spaces.Box:
+        """Finite bounds far outside anything a flight that has not ended can reach (SI units)."""
+        weight = vehicle.mass * GRAVITY
+        bound = {
+            "position": 100.0, "velocity": 100.0, "attitude": 1.0, "body_rates": 100.0,
+            "force": 100.0 * weight, "torque": 100.0 * weight * vehicle.hull_radius, "last_action": 1.0,
+            **self.task_bounds,
+        }  # fmt: skip
+        high = np.concatenate([np.full(n, bound[name]) for name, n in self.fields]).astype(np.float32)
+        return spaces.Box(-high, high, dtype=np.float32)
+
+    def fill_engine_blocks(
+        self, states: np.ndarray, wrenches: np.ndarray, last_actions: np.ndarray, observe_wrench: float,
+        out: np.ndarray,
+    ) -> None:  # fmt: skip
+        """The numpy form of ``assemble_observations``: the engine's blocks of ``out``."""
+        s = self.slices
+        rotation = rotation_matrices(states[:, 6:10] / np.linalg.norm(states[:, 6:10], axis=1, keepdims=True))
+        out[:, s["position"]] = states[:, :3]
+        out[:, s["velocity"]] = states[:, 3:6]
+        out[:, s["attitude"]] = rotation[:, :, :2].transpose(0, 2, 1).reshape(-1, 6)
+        out[:, s["body_rates"]] = states[:, 10:13]
+        out[:, s["wrench"]] = wrenches * observe_wrench
+        out[:, s["last_action"]] = last_actions

@@ -1,0 +1,138 @@
+"""Static scene parts: tables, walls and ceilings, as boxes in every vehicle's frame.
+
+A :class:`ScenePart` is the seam for static bodies. The world (:class:`~quad_wrench_env.engine.world.World`)
+builds its boxes once per vehicle frame of the vector env (each vehicle flies in a copy of the scene,
+as in its own episode); a part whose contact ends an episode (a table: the vehicle crashed on it) is
+named by :attr:`ScenePart.ends_episode_on_contact`; a horizontal top (:meth:`ScenePart.top`) is a
+surface the ground effect sees under a rotor. Config: ``scene=[{"kind": "table", "center": [x, y],
+"size": [sx, sy], "height": h}, {"kind": "wall", "x": 3.0}, {"kind": "ceiling", "height": 2.5}]``.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any, Protocol, runtime_checkable
+
+import numpy as np
+
+from quad_wrench_env.config import build
+
+
+@runtime_checkable
+class ScenePart(Protocol):
+    """A static body of the scene, in a vehicle's frame (m)."""
+
+    name: str
+    ends_episode_on_contact: bool
+
+    def boxes(self) -> list[tuple[tuple[float, float, float], tuple[float, float, float]]]:
+        """``(centre, half extents)`` of each of the part's boxes."""
+
+    def top(self) -> tuple[float, float, float, float, float] | None:
+        """``(x_min, x_max, y_min, y_max, z)`` of the part's horizontal top, or None."""
+
+
+def _check(kind: str, **values: Any) -> None:
+    for key, value in values.items():
+        numbers = value if isinstance(value, (tuple, list)) else (value,)
+        if not all(isinstance(v, (int, float)) and math.isfinite(v) for v in numbers):
+            raise ValueError(f"scene {kind}: {key}={value!r} must be finite numbers")
+
+
+@dataclass
+class Table:
+    """A table: a box on the ground of ``size`` (m, x and y) and ``height`` (m) centred at ``center``."""
+
+    center: tuple[float, float] = (2.0, 0.0)
+    size: tuple[float, float] = (1.0, 1.0)
+    height: float = 0.75
+    name = "table"
+    ends_episode_on_contact = True
+
+    def __post_init__(self) -> None:
+        self.center, self.size = tuple(self.center), tuple(self.size)
+        _check("table", center=self.center, size=self.size, height=self.height)
+        if len(self.center) != 2 or len(self.size) != 2 or min(self.size) <= 0 or self.height <= 0:
+            raise ValueError(
+                f"scene table: center={list(self.center)} and size={list(self.size)} must be 2 numbers "
+                f"each, size and height={self.height} > 0"
+            )
+
+    def boxes(self):
+        (x, y), (sx, sy), h = self.center, self.size, self.height
+        return [((x, y, 0.5 * h), (0.5 * sx, 0.5 * sy, 0.5 * h))]
+
+    def top(self):
+        (x, y), (sx, sy) = self.center, self.size
+        return (x - 0.5 * sx, x + 0.5 * sx, y - 0.5 * sy, y + 0.5 * sy, self.height)
+
+
+@dataclass
+class Wall:
+    """A wall facing -x whose face is at ``x`` (m), ``width`` along y and ``height`` from the ground."""
+
+    x: float = 4.0
+    width: float = 8.0
+    height: float = 3.0
+    thickness: float = 0.2
+    name = "wall"
+    ends_episode_on_contact = False
+
+    def __post_init__(self) -> None:
+        _check("wall", x=self.x, width=self.width, height=self.height, thickness=self.thickness)
+        if min(self.width, self.height, self.thickness) <= 0:
+            raise ValueError(f"scene wall: width, height and thickness must be > 0; got {self}")
+
+    def boxes(self):
+        half = (0.5 * self.thickness, 0.5 * self.width, 0.5 * self.height)
+        return [((self.x + half[0], 0.0, half[2]), half)]
+
+    def top(self):
+        return None
+
+
+@dataclass
+class Ceiling:
+    """A ceiling whose underside is at ``height`` (m), ``size`` (m, x and y) centred on ``center``."""
+
+    height: float = 2.5
+    center: tuple[float, float] = (3.0, 0.0)
+    size: tuple[float, float] = (8.0, 8.0)
+    thickness: float = 0.2
+    name = "ceiling"
+    ends_episode_on_contact = False
+
+    def __post_init__(self) -> None:
+        self.center, self.size = tuple(self.center), tuple(self.size)
+        _check("ceiling", height=self.height, center=self.center, size=self.size, thickness=self.thickness)
+        if len(self.center) != 2 or len(self.size) != 2 or min(*self.size, self.height, self.thickness) <= 0:
+            raise ValueError(f"scene ceiling: 2-number center and size, positive sizes required; got {self}")
+
+    def boxes(self):
+        (x, y), (sx, sy) = self.center, self.size
+        return [((x, y, self.height + 0.5 * self.thickness), (0.5 * sx, 0.5 * sy, 0.5 * self.thickness))]
+
+    def top(self):
+        return None
+
+
+SCENE_KINDS: dict[str, type] = {"table": Table, "wall": Wall, "ceiling": Ceiling}
+
+
+def make_scene_part(spec: Mapping[str, Any]) -> ScenePart:
+    """A scene part from its config ``{"kind": ..., **fields}``; bad kinds and keys are named."""
+    if not isinstance(spec, Mapping) or "kind" not in spec:
+        raise ValueError(f"scene entry {spec!r} must be a mapping with a 'kind'; kinds: {sorted(SCENE_KINDS)}")
+    fields = dict(spec)
+    kind = fields.pop("kind")
+    if kind not in SCENE_KINDS:
+        raise ValueError(f"unknown scene kind {kind!r}; allowed: {sorted(SCENE_KINDS)}")
+    return build(SCENE_KINDS[kind], fields, prefix=f"scene.{kind}.")
+
+
+def surface_tops(parts: list[ScenePart]) -> np.ndarray:
+    """(K, 5) ``[x_min, x_max, y_min, y_max, z]`` of the parts' horizontal tops."""
+    tops = [part.top() for part in parts]
+    return np.array([t for t in tops if t is not None], dtype=float).reshape(-1, 5)
