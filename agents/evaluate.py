@@ -1,12 +1,11 @@
 """One harness that runs any policy on any env id over a list of seeds and scores it.
 
 The harness is the only code that reads ``info`` (the truth), and only to score: the policy sees
-observations alone. Per-task metrics are registered in :data:`METRICS` by env id.
+observations alone. Each task scores its own episodes (``Task.metrics``, found by env id).
 """
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -16,12 +15,14 @@ import gymnasium as gym
 import numpy as np
 
 from agents.base import Policy
+from quad_wrench_env.tasks import TASKS
 
-TRACE_KEYS = (
-    "time", "position", "wrench_true", "wrench_est", "fan_position", "jet_axis_y", "axis_error",
-    "standoff_error",
-)  # fmt: skip
-"""``info`` entries recorded at every step when present (plus ``reward``)."""
+TRACE_KEYS = ("time", "position", "wrench_true", "wrench_est", "wind_velocity")
+"""``info`` entries recorded at every step of every task (plus ``reward`` and the task's own
+``trace_keys``)."""
+
+TASKS_BY_ID: dict[str, type] = {task.env_id: task for task in TASKS}
+"""Each env id's task, whose ``metrics`` score its episodes (generated from the tasks)."""
 
 
 @dataclass
@@ -50,39 +51,16 @@ class Evaluation:
         return {k: float(np.mean([m[k] for m in self.per_seed])) for k in keys}
 
 
-def fan_tracking_metrics(episode: Episode, settle_time: float = 5.0, band: float = 0.15) -> dict[str, float]:
-    """Paper 000 Fig. 7 scores: mean |y - y_axis| after ``settle_time`` (m), fraction of time within
-    ``band`` of the axis, time to first come within ``band`` (s; inf if never), and the mean
-    |x - standoff_distance| after ``settle_time`` (m), so that tracking from closer to the fan, where
-    the torque is stronger, does not pass for better tracking."""
-    t = episode.trace["time"]
-    error = np.abs(episode.trace["axis_error"])
-    standoff = np.abs(episode.trace["standoff_error"])
-    late = t >= settle_time
-    inside = error <= band
-    first = np.flatnonzero(inside)
+def episode_metrics(env_id: str, episode: Episode) -> dict[str, float]:
+    """The task's own scores of ``episode`` (its ``metrics``) and those of every task: the episode's
+    length, return and whether it ended early."""
+    task = TASKS_BY_ID.get(_canonical_id(env_id))
     return {
-        "mean_abs_error_after_5s": float(np.mean(error[late])) if np.any(late) else math.nan,
-        "fraction_within_0.15m": float(np.mean(inside)),
-        "time_to_0.15m": float(t[first[0]]) if first.size else math.inf,
-        "mean_abs_standoff_error_after_5s": float(np.mean(standoff[late])) if np.any(late) else math.nan,
-        "episode_seconds": float(t[-1]),
-        "return": episode.total_reward,
-        "terminated_early": float(episode.termination_reason is not None),
-    }
-
-
-def generic_metrics(episode: Episode) -> dict[str, float]:
-    return {
+        **(task.metrics(episode.trace) if task is not None else {}),
         "episode_seconds": float(episode.trace["time"][-1]),
         "return": episode.total_reward,
         "terminated_early": float(episode.termination_reason is not None),
     }
-
-
-METRICS: dict[str, Callable[[Episode], dict[str, float]]] = {
-    "QuadWrench/FanTracking-v1": fan_tracking_metrics,
-}
 
 
 def _canonical_id(env_id: str) -> str:
@@ -93,7 +71,8 @@ def run_episode(policy: Policy, env: gym.Env, seed: int, options: Mapping[str, A
     """Run ``policy`` on ``env`` for one episode from ``reset(seed=seed, options=options)``."""
     observation, info = env.reset(seed=seed, options=dict(options or {}))
     policy.reset(env)
-    records: dict[str, list] = {k: [info[k]] for k in TRACE_KEYS if k in info}
+    keys = (*TRACE_KEYS, *env.unwrapped.task.trace_keys)
+    records: dict[str, list] = {k: [info[k]] for k in keys if k in info}
     rewards = [0.0]
     total, length, reason = 0.0, 0, None
     while True:
@@ -131,13 +110,12 @@ def evaluate(
     seeds = [int(s) for s in seeds]
     if not seeds:
         raise ValueError("seeds must name at least one seed")
-    score = METRICS.get(_canonical_id(env_id), generic_metrics)
     env = gym.make(env_id, **env_kwargs)
     try:
         episodes = [run_episode(policy, env, seed, options) for seed in seeds]
     finally:
         env.close()
-    return Evaluation(env_id, seeds, [score(e) for e in episodes], episodes)
+    return Evaluation(env_id, seeds, [episode_metrics(env_id, e) for e in episodes], episodes)
 
 
 def write_report(out: Path, header: list[str], parts: Mapping[str, Callable[[], list[str]]]) -> str:

@@ -86,7 +86,7 @@ class EvaluationConfig:
     options: dict[str, Any] = field(default_factory=dict)
     """Reset options of the evaluation episodes ({}: the env's default distribution)."""
     metric: str = "return"
-    """A metric of the env id's harness scores (``agents.evaluate.METRICS``); the best checkpoint is
+    """A metric of the harness's scores (``agents.evaluate.episode_metrics``); the best checkpoint is
     the one with the best mean over the seeds."""
     lower_is_better: bool = False
 

@@ -18,7 +18,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 
 from agents import make_agent
-from agents.evaluate import Episode, fan_tracking_metrics, run_episode, write_report
+from agents.evaluate import Episode, episode_metrics, run_episode, write_report
 from quad_wrench_env.config import load_yaml
 
 LABELS = ("f_x", "f_y", "f_z", "tau_x", "tau_y", "tau_z")
@@ -192,7 +192,7 @@ def fig7(config: dict, out: Path) -> list[str]:
         ep = _episode(
             config, make_agent("admittance", **c["agent"]), seed, c["options"], episode_seconds=c["seconds"]
         )
-        m = fan_tracking_metrics(ep)
+        m = episode_metrics(config["env_id"], ep)
         rows.append(
             f"| {seed} | {m['mean_abs_error_after_5s']:.3f} | {m['fraction_within_0.15m']:.0%} | "
             f"{m['time_to_0.15m']:.2f} |"

@@ -1,29 +1,41 @@
-"""The compiled kernels against the numpy reference: the same flights to rounding, feature by feature."""
+"""The compiled kernels against the numpy reference: the same flights to rounding, feature by feature
+and component by component (every component with a compiled form has a case here)."""
 
 from __future__ import annotations
+
+import importlib
+import inspect
+import pkgutil
+import warnings
 
 import gymnasium as gym
 import numpy as np
 import pytest
 
+import quad_wrench_env.disturbances
+from quad_wrench_env.engine import fleet as fleet_module
+from quad_wrench_env.engine.kernels import (
+    CONSTANT_FIELDS,
+    CONSTANT_WIDTH,
+    STEP_FIELDS,
+    STEP_WIDTH,
+    component_parameters,
+    component_slice,
+    drag_points,
+    offsets,
+    physics_constants,
+    step_views,
+)
 from quad_wrench_env.estimators import make_estimator_bank
 from quad_wrench_env.kernels import NUMBA_AVAILABLE, bind, resolve_backend, specialised
 from quad_wrench_env.kernels.linalg import weighted_gram
-from quad_wrench_env.kernels.physics import (
-    STEP_FIELDS,
-    STEP_WIDTH,
-    after_world_step,
-    after_world_step_one,
-    physics_constants,
-    step_views,
-    unpack_constants,
-)
 from quad_wrench_env.rotations import quat_exp, quat_multiply_rows
 from quad_wrench_env.vehicle import GRAVITY, make_vehicle
 from tests.conftest import FAN_TRACKING
 
 needs_numba = pytest.mark.skipif(not NUMBA_AVAILABLE, reason="numba is not installed")
 
+_TABLE = {"kind": "table", "center": [2.3, 0.1], "size": [1.0, 1.0], "height": 0.9}
 CASES = {
     "velocity, ukf": {},
     "attitude, oracle": {"action_type": "attitude", "estimator": "oracle"},
@@ -36,32 +48,92 @@ CASES = {
     },
     "state estimator, ekf": {"estimator": "ekf", "sensors": {"state_estimator": True}},
     "crazyflie, observer": {"vehicle": "crazyflie2", "estimator": "observer"},
+    "dryden in a mean wind": {"wind": [{"model": "dryden", "w20": 2.0, "altitude": 1.0, "mean": [0.5, 0.2, 0.0]}]},
+    "one-cosine gust, no fan": {
+        "fan": {"enabled": False},
+        "wind": [{"model": "one_cosine", "peak": [0.0, 1.5, 0.2], "start": 0.3, "duration": 0.5, "hold": False}],
+    },
+    "second jet": {"wind": [{"model": "jet", "position": [2.3, -1.5, 1.0], "direction": [0, 1, 0], "speed": 10.0}]},
+    "ground effect over a table": {
+        "fan": {"height": 1.0}, "ground_effect": True, "scene": [_TABLE], "estimator": "oracle",
+    },
+    "everything at once, vector": {
+        "num_envs": 3, "ground_effect": True, "scene": [_TABLE, {"kind": "wall", "x": 5.5}],
+        "wind": [
+            {"model": "dryden", "w20": 1.0, "altitude": 1.0},
+            {"model": "one_cosine", "peak": [0.5, 0.0, 0.0], "start": 0.2, "duration": 0.4},
+            {"model": "jet", "position": [2.3, -1.0, 1.0], "direction": [0, 1, 0], "speed": 3.0},
+        ],
+        "payload": {"mass": 0.05, "point": [0.1, 0.0, 0.0]},
+        "external_wrench": [[0.0, 1.0, 0.1, 0.0, 0.0, 0.0, 0.0, 0.01]],
+    },
 }
+
+
+def _make(backend: str, settings: dict):
+    settings = dict(settings)
+    count = settings.pop("num_envs", 0)
+    if count:
+        return gym.make_vec(
+            FAN_TRACKING, num_envs=count, vectorization_mode="vector_entry_point", backend=backend, **settings
+        )
+    return gym.make(FAN_TRACKING, backend=backend, **settings)
 
 
 @needs_numba
 @pytest.mark.parametrize("case", sorted(CASES))
 def test_compiled_flight_equals_the_numpy_reference(case):
     """100 policy steps of random actions (2 s): observations agree to float32 rounding, the true
-    wrench to 1e-9 N (the two sum in different orders; nothing else differs)."""
-    envs = {b: gym.make(FAN_TRACKING, backend=b, **CASES[case]) for b in ("numpy", "numba")}
+    wrench and the air at the centre of mass to 1e-9 (the two sum in different orders; nothing else
+    differs)."""
+    envs = {b: _make(b, CASES[case]) for b in ("numpy", "numba")}
     try:
         assert envs["numba"].unwrapped.fleet.compiled is not None
+        assert envs["numpy"].unwrapped.fleet.compiled is None
         first = {b: env.reset(seed=3) for b, env in envs.items()}
         np.testing.assert_array_equal(first["numpy"][0], first["numba"][0])
-        actions = np.random.default_rng(3).uniform(-0.6, 0.6, (100, 4))
+        shape = envs["numpy"].action_space.shape
+        actions = np.random.default_rng(3).uniform(-0.6, 0.6, (100, *shape))
         for action in actions:
             (a, ra, ta, ua, ia), (b, rb, tb, ub, ib) = (env.step(action) for env in envs.values())
             np.testing.assert_allclose(a, b, rtol=1e-5, atol=1e-6)
-            np.testing.assert_allclose(ia["wrench_true"], ib["wrench_true"], rtol=1e-7, atol=1e-9)
-            for key in ("axis_error", "jet_axis_y", "fan_position", "wrench_est", "position"):
-                np.testing.assert_allclose(ia[key], ib[key], rtol=1e-7, atol=1e-9)
-            assert ra == pytest.approx(rb, rel=1e-7, abs=1e-9) and (ta, ua) == (tb, ub)
-            if ta or ua:
+            for key in ("wrench_true", "wind_velocity", "axis_error", "jet_axis_y", "fan_position", "wrench_est", "position"):
+                np.testing.assert_allclose(ia[key], ib[key], rtol=1e-7, atol=1e-9, err_msg=key)
+            np.testing.assert_allclose(ra, rb, rtol=1e-7, atol=1e-9)
+            np.testing.assert_array_equal(ta, tb)
+            np.testing.assert_array_equal(ua, ub)
+            if np.any(ta) or np.any(ub):
                 break
     finally:
         for env in envs.values():
             env.close()
+
+
+def _components_with_a_compiled_form() -> set[str]:
+    """The ``name`` of every class under ``quad_wrench_env.disturbances`` that has a compiled form."""
+    package = quad_wrench_env.disturbances
+    names = set()
+    for info in pkgutil.iter_modules(package.__path__):
+        module = importlib.import_module(f"{package.__name__}.{info.name}")
+        for _, cls in inspect.getmembers(module, inspect.isclass):
+            if cls.__module__ == module.__name__ and getattr(cls, "compiled", None) is not None:
+                names.add(cls.name)
+    return names
+
+
+@needs_numba
+def test_every_component_with_a_compiled_form_has_a_backend_case():
+    """A registered component (wind model, point load, rotor modifier) without a case above fails
+    here: the flight cases must cover each one's kernels against its numpy form."""
+    covered = set()
+    for settings in CASES.values():
+        env = _make("numpy", settings)
+        try:
+            covered |= {component.name for _, component in env.unwrapped.fleet.components.ordered()}
+        finally:
+            env.close()
+    missing = _components_with_a_compiled_form() - covered
+    assert not missing, f"components without a backend case in CASES: {sorted(missing)}"
 
 
 @needs_numba
@@ -105,13 +177,23 @@ def test_backend_names_are_checked():
     assert resolve_backend("auto") == ("numba" if NUMBA_AVAILABLE else "numpy")
 
 
-def test_settings_the_kernels_do_not_cover_fall_back_to_numpy():
-    env = gym.make(FAN_TRACKING, backend="auto", sensors={"latency_steps": 2})
+@needs_numba
+def test_a_setting_without_a_compiled_form_is_refused_by_numba_and_warned_about_by_auto(monkeypatch):
+    """No silent fallback: ``backend="numba"`` refuses motion-capture latency by name; ``"auto"`` warns
+    once, naming it, and runs the numpy reference."""
+    with pytest.raises(ValueError, match=r"sensors.latency_steps=2.*no compiled form"):
+        gym.make(FAN_TRACKING, backend="numba", sensors={"latency_steps": 2})
+    monkeypatch.setattr(fleet_module, "_WARNED", set())
+    with pytest.warns(UserWarning, match=r"numpy reference.*sensors.latency_steps=2"):
+        env = gym.make(FAN_TRACKING, backend="auto", sensors={"latency_steps": 2})
     try:
         assert env.unwrapped.fleet.compiled is None
         env.reset(seed=0)
         _, _, terminated, _, _ = env.step(np.zeros(4, dtype=np.float32))
         assert not terminated
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            gym.make(FAN_TRACKING, backend="auto", sensors={"latency_steps": 2}).close()  # once only
     finally:
         env.close()
 
@@ -125,7 +207,7 @@ def test_the_components_state_stays_in_the_compiled_steps_buffer():
         fleet = env.unwrapped.fleet
         parts = (
             fleet.autopilot.yaw_setpoint, fleet.autopilot.velocity_integral, fleet.autopilot.rate_integral,
-            fleet.rotors.speeds, fleet.rotors.allocations, env.unwrapped.fan.noise,
+            fleet.rotors.speeds, fleet.rotors.allocations, env.unwrapped.task.fan.noise,
         )  # fmt: skip
         for seed in (0, 1):
             env.reset(seed=seed)
@@ -133,7 +215,7 @@ def test_the_components_state_stays_in_the_compiled_steps_buffer():
         fleet.rotors.step(fleet.actions.motor_command(np.zeros((1, 4)), fleet.state))  # numpy reference
         now = (
             fleet.autopilot.yaw_setpoint, fleet.autopilot.velocity_integral, fleet.autopilot.rate_integral,
-            fleet.rotors.speeds, fleet.rotors.allocations, env.unwrapped.fan.noise,
+            fleet.rotors.speeds, fleet.rotors.allocations, env.unwrapped.task.fan.noise,
         )  # fmt: skip
         for before, after in zip(parts, now, strict=True):
             assert after is before and np.shares_memory(after, fleet.compiled.buffer)
@@ -155,9 +237,10 @@ def test_one_vehicle_after_step_from_pybullets_tuples_equals_the_one_from_rows()
         readings, row = world.read_first(), world.read_flat()
         np.testing.assert_array_equal(row, np.concatenate([np.concatenate(part) for part in readings]))
         buffers, cursors = [], []
-        for kernel, read in ((after_world_step_one, readings), (after_world_step, row)):
+        step = compiled._step
+        for kernel, read in ((step.after_world_step_one, readings), (step.after_world_step, row)):
             buffer, cursor = compiled.buffer.copy(), fleet.noise.cursor.copy()
-            kernel(read, buffer, fleet.noise.buffer, cursor, compiled.constants)
+            kernel(read, buffer, fleet.noise.buffer, cursor, compiled.constants, env.unwrapped.task.fan.motion_tables)
             buffers.append(buffer)
             cursors.append(cursor)
         np.testing.assert_array_equal(buffers[0], buffers[1])
@@ -176,7 +259,7 @@ def _descend_until_terminated(backend: str) -> tuple[int, float]:
         world = env.unwrapped.world
         for step in range(1500):
             _, _, terminated, _, info = env.step(np.array((0.0, 0.0, -1.0, 0.0), dtype=np.float32))
-            if world.ground_contacts().any():
+            if world.crash_contacts().any():
                 assert info["position"][2] < world.clear_height
             if terminated:
                 assert info["termination_reason"] == "crash"
@@ -199,7 +282,7 @@ def test_touching_the_ground_is_a_crash_on_both_backends():
 
 @pytest.mark.parametrize("count", [1, 3])
 def test_step_views_cut_the_buffer_as_step_fields_say(count):
-    """The kernels' per-vehicle arrays are C-ordered views of one flat buffer in STEP_FIELDS order."""
+    """The engine's per-vehicle arrays are C-ordered views of one flat buffer in STEP_FIELDS order."""
     buffer = np.arange(count * STEP_WIDTH, dtype=float)
     start = 0
     for (name, width), view in zip(STEP_FIELDS, step_views(buffer, count), strict=True):
@@ -240,21 +323,26 @@ def test_a_bound_kernel_reads_its_arrays_afresh_and_equals_the_plain_call():
     assert specialised(np.dot, columns, columns.T) is np.dot  # not a compiled kernel: itself
 
 
-def test_physics_constants_unpack_into_their_parts():
+def test_physics_constants_are_packed_where_their_declaration_says():
+    """Each named part of CONSTANT_FIELDS at its declared offset, the drag points after them, then
+    each component's numbers where ``component_slice`` finds them."""
     rng = np.random.default_rng(0)
-    parts = {
-        "action_type": 2, "scales": rng.random(10), "autopilot": rng.random(23),
-        "inverse": rng.random((4, 4)), "motors": rng.random(6), "fan": rng.random(7),
-        "payload": rng.random(7), "sensing": rng.random(7),
-        "nominal_allocation": rng.random((4, 4)), "dt": 0.005, "drag_points": rng.random((9, 3)),
-        "segments": rng.random((2, 8)),
-    }  # fmt: skip
-    for name, expected, got in zip(
-        parts, parts.values(), unpack_constants(physics_constants(**parts)), strict=True
-    ):
-        np.testing.assert_array_equal(got, expected, err_msg=name)
-    with pytest.raises(ValueError, match="fan has 6 numbers; the kernels read 7"):
-        physics_constants(**{**parts, "fan": rng.random(6)})
+    widths = dict(CONSTANT_FIELDS)
+    parts = {name: rng.random(width) for name, width in CONSTANT_FIELDS if name != "drag_point_count"}
+    points = rng.random((9, 3))
+    packed = physics_constants(parts, points)
+    for name, start in offsets(CONSTANT_FIELDS).items():
+        expected = 9 if name == "drag_point_count" else parts[name]
+        np.testing.assert_array_equal(packed[start : start + widths[name]], np.ravel(expected), err_msg=name)
+    np.testing.assert_array_equal(drag_points(packed), points)
+    components = [rng.random(7), np.zeros(0), rng.random(16)]
+    full = component_parameters(packed, components)
+    np.testing.assert_array_equal(full[: packed.size], packed)
+    for k, numbers in enumerate(components):
+        np.testing.assert_array_equal(component_slice(full, k), numbers)
+    assert CONSTANT_WIDTH == sum(widths.values())
+    with pytest.raises(ValueError, match="scales has 9 numbers; the kernels read 10"):
+        physics_constants({**parts, "scales": rng.random(9)}, points)
 
 
 @pytest.mark.parametrize("backend", ["numpy", pytest.param("numba", marks=needs_numba)])

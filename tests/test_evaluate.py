@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from agents.evaluate import Episode, evaluate, fan_tracking_metrics
+from agents.evaluate import Episode, episode_metrics, evaluate
 from quad_wrench_env.config import load_yaml
 from tests.conftest import FAN_TRACKING
 
@@ -29,7 +29,7 @@ def test_fan_tracking_metrics_on_a_known_trace():
     # 10 s: 0.8 m for the first 2 s, then -0.1 m
     error = np.where(np.arange(501) * 0.02 < 2.0, 0.8, -0.1)
     standoff = np.where(np.arange(501) * 0.02 < 7.5, -0.5, 0.2)  # 2.5 s at 0.5 m after 5 s, then 2.5 s at 0.2
-    m = fan_tracking_metrics(_episode(error, standoff))
+    m = episode_metrics(FAN_TRACKING, _episode(error, standoff))
     assert m["mean_abs_standoff_error_after_5s"] == pytest.approx((125 * 0.5 + 126 * 0.2) / 251)
     assert m["time_to_0.15m"] == pytest.approx(2.0)
     assert m["mean_abs_error_after_5s"] == pytest.approx(0.1)
@@ -37,7 +37,7 @@ def test_fan_tracking_metrics_on_a_known_trace():
 
 
 def test_never_reaching_the_band_is_infinite():
-    assert math.isinf(fan_tracking_metrics(_episode(np.full(100, 0.5)))["time_to_0.15m"])
+    assert math.isinf(episode_metrics(FAN_TRACKING, _episode(np.full(100, 0.5)))["time_to_0.15m"])
 
 
 class _Hover:

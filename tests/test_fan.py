@@ -9,7 +9,7 @@ import pytest
 
 from quad_wrench_env.disturbances.fan import FanConfig, FanJet, make_motion
 from quad_wrench_env.rotations import quat_from_euler_zyx
-from quad_wrench_env.world import RigidBodyState
+from quad_wrench_env.engine.world import RigidBodyState
 
 
 def _still_jet(**config) -> FanJet:
@@ -101,7 +101,7 @@ def test_turbulence_is_a_unit_variance_process_scaled_by_intensity():
     point = np.array([[2.3, 0.0, 1.0]])
     samples = []
     for _ in range(40000):
-        jet.advance(0.005, point, rng.standard_normal((1, 3)))
+        jet.advance(0.005, point, np.zeros((1, 3)), rng.standard_normal((1, 3)))
         samples.append(_field(jet, point)[0])
     samples = np.array(samples)
     # time scale b/u_c ≈ 0.2 s: 200 s hold ~500 independent samples, so the sd is good to ~6 %

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from quad_wrench_env.disturbances.fan import ConstantSpeed, PiecewiseVelocity, Sine, Static
-from quad_wrench_env.envs.fan_tracking import FanEpisodes
+from quad_wrench_env.tasks.fan_tracking import FanEpisodes
 from quad_wrench_env.rotations import rotation_matrix
 
 
@@ -45,7 +45,7 @@ def test_default_episodes_draw_every_motion_family_across_the_y0_range(make_env)
     kinds, y0s = set(), []
     for seed in range(60):
         env.reset(seed=seed)
-        motion = env.unwrapped.fan.motion(0)
+        motion = env.unwrapped.task.fan.motion(0)
         kinds.add(type(motion))
         y0s.append(float(motion.y(np.asarray(0.0))))
         path = motion.y(np.linspace(0.0, env.unwrapped.cfg.episode_seconds, 301))
@@ -59,13 +59,13 @@ def test_default_episodes_draw_every_motion_family_across_the_y0_range(make_env)
 def test_same_seed_same_episode_and_the_paper_cases_stay_named(make_env):
     env = make_env()
     env.reset(seed=7)
-    first = env.unwrapped.fan.motion(0)
+    first = env.unwrapped.task.fan.motion(0)
     env.reset(seed=7)
-    assert env.unwrapped.fan.motion(0) == first
+    assert env.unwrapped.task.fan.motion(0) == first
     env.reset(seed=7, options={"fan_motion": "sine"})
-    assert env.unwrapped.fan.motion(0) == Sine(amplitude=0.5, frequency=1.0 / 30.0, y0=0.0)
+    assert env.unwrapped.task.fan.motion(0) == Sine(amplitude=0.5, frequency=1.0 / 30.0, y0=0.0)
     env.reset(seed=7, options={"fan_motion": {"name": "static", "y0": 1.2}, "offset_y": 0.8})
-    assert env.unwrapped.fan.motion(0) == Static(1.2)
+    assert env.unwrapped.task.fan.motion(0) == Static(1.2)
     assert env.unwrapped.fleet.state.position[0, 1] == pytest.approx(2.0)
 
 

@@ -33,7 +33,7 @@ class SceneRenderer:
     def build(self) -> None:
         """Create the fan's visual bodies in the world (once: the world is built once per env)."""
         env = self.env
-        fan = getattr(env, "fan", None)
+        fan = getattr(env.task, "fan", None)
         if fan is None or self._fan >= 0:
             return
         cid = env.world.client
@@ -54,11 +54,12 @@ class SceneRenderer:
         if self._fan < 0:
             return
         cid = env.world.client
-        z = env.cfg.fan.height
+        fan = env.task.fan
+        z = fan.config.height
         p.resetBasePositionAndOrientation(
-            self._fan, (0.0, float(env.fan.fan_y(env.fleet.time[:1])[0]), z), _ALONG_X, physicsClientId=cid
+            self._fan, (0.0, float(fan.fan_y(env.fleet.time[:1])[0]), z), _ALONG_X, physicsClientId=cid
         )
-        axis_y = float(env.fan.axis_y(np.array((0.5 * self._jet_length,)), env.fleet.time[:1])[0])
+        axis_y = float(fan.axis_y(np.array((0.5 * self._jet_length,)), env.fleet.time[:1])[0])
         p.resetBasePositionAndOrientation(
             self._jet, (0.5 * self._jet_length, axis_y, z), _ALONG_X, physicsClientId=cid
         )
