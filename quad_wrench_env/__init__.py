@@ -11,7 +11,10 @@ from gymnasium.envs.registration import register, registry
 from quad_wrench_env.tasks import TASKS
 
 ENV_IDS = {
-    task.env_id: (f"quad_wrench_env.envs.registry:{task.__name__}Env", f"quad_wrench_env.envs.registry:{task.__name__}VectorEnv")
+    task.env_id: (
+        f"quad_wrench_env.envs.registry:{task.__name__}Env",
+        f"quad_wrench_env.envs.registry:{task.__name__}VectorEnv",
+    )
     for task in TASKS
 }
 """Env id -> (entry point of the single env, entry point of the vector env), generated from the tasks

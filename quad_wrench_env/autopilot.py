@@ -28,9 +28,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from quad_wrench_env.engine.world import RigidBodyState
 from quad_wrench_env.rotations import cross, quat_from_euler_zyx, rotation_matrices, wrap_angle
 from quad_wrench_env.vehicle import GRAVITY, Mixer, VehicleParams
-from quad_wrench_env.engine.world import RigidBodyState
 
 _E_Z = np.array((0.0, 0.0, 1.0))
 
@@ -116,7 +116,7 @@ class Autopilot:
 
     def kernel_parameters(self) -> np.ndarray:
         """The gains and limits as the compiled kernel reads them
-        (:func:`quad_wrench_env.kernels.physics.before_world_step`): velocity P (3) and I (3), set-point
+        (:func:`quad_wrench_env.engine.kernels.controls`): velocity P (3) and I (3), set-point
         weight, tan(max tilt), attitude P (3), max rate, max yaw error, rate P and I, mass, g, dt,
         squared speed limits (2), inertia (3)."""
         g = self.gains

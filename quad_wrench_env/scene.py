@@ -124,7 +124,9 @@ SCENE_KINDS: dict[str, type] = {"table": Table, "wall": Wall, "ceiling": Ceiling
 def make_scene_part(spec: Mapping[str, Any]) -> ScenePart:
     """A scene part from its config ``{"kind": ..., **fields}``; bad kinds and keys are named."""
     if not isinstance(spec, Mapping) or "kind" not in spec:
-        raise ValueError(f"scene entry {spec!r} must be a mapping with a 'kind'; kinds: {sorted(SCENE_KINDS)}")
+        raise ValueError(
+            f"scene entry {spec!r} must be a mapping with a 'kind'; kinds: {sorted(SCENE_KINDS)}"
+        )
     fields = dict(spec)
     kind = fields.pop("kind")
     if kind not in SCENE_KINDS:

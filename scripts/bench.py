@@ -11,6 +11,8 @@ Tables printed (all measured in this run, best of ``--repeats`` for timings):
    policy step and per physics step (4 per policy step), each floor as a share of ours, policy
    steps/s, simulated seconds per wall second with resets counted at the default episode length,
    and the mean reset time;
+   then the same env with the fan, Dryden turbulence, a second jet and ground effect over a table
+   all on (compiled), against the plain one measured alternately in the same run;
 3. the vector env of 64 vehicles on one core: µs per vehicle and physics step, its ratio to the
    64-body floors per body, vehicle-seconds per wall second;
 4. the cost of each part of a step (UKF env, each backend; the 64-vehicle vector env on numba, per
@@ -282,6 +284,31 @@ def env_rows(args: argparse.Namespace, floors: dict[str, float]) -> list[list[st
     return rows
 
 
+ALL_DISTURBANCES = {
+    "wind": [
+        {"model": "dryden", "w20": 1.0, "altitude": 1.0, "mean": [0.5, 0.0, 0.0]},
+        {"model": "jet", "position": [2.3, -2.5, 1.0], "direction": [0.0, 1.0, 0.0], "speed": 10.0},
+    ],
+    "ground_effect": True,
+    "scene": [{"kind": "table", "center": [2.3, 0.0], "size": [1.0, 1.0], "height": 0.7}],
+}
+"""The fan (FanTracking's own), Dryden turbulence, paper 003's second jet and ground effect over a
+table, all on: the open engine's cost on the compiled path (limit: 1.3x the plain env)."""
+
+
+def disturbance_rows(args: argparse.Namespace) -> list[list[str]]:
+    """Plain FanTracking against it with every disturbance on, UKF, compiled, measured alternately."""
+    plain, loaded = [], []
+    for _ in range(args.repeats):
+        plain.append(env_step_seconds(args.steps, estimator="ukf", backend="numba")[0])
+        loaded.append(env_step_seconds(args.steps, estimator="ukf", backend="numba", **ALL_DISTURBANCES)[0])
+    base, heavy = min(plain) / SUBSTEPS, min(loaded) / SUBSTEPS
+    return [
+        ["FanTracking-v1, ukf, numba", f"{base * 1e6:.1f}", "1.00x"],
+        ["+ Dryden, second jet, ground effect over a table", f"{heavy * 1e6:.1f}", f"{heavy / base:.2f}x"],
+    ]
+
+
 def vector_rows(args: argparse.Namespace, floors: dict[str, float]) -> list[list[str]]:
     rows = []
     for estimator, backend in (("ukf", "numba"), ("oracle", "numba"), ("ukf", "numpy")):
@@ -355,6 +382,13 @@ def main() -> None:
         )
         + "\n"
     )
+    if NUMBA_AVAILABLE:
+        print(
+            table(
+                ["disturbances on the compiled path", "µs/physics step", "vs plain"], disturbance_rows(args)
+            )
+            + "\n"
+        )
     print(
         table(
             [

@@ -11,9 +11,9 @@ from agents import make_agent
 from agents.admittance import TORQUE_SLOPES, AdmittancePolicy
 from agents.base import Policy
 from agents.evaluate import evaluate
+from quad_wrench_env.engine.world import RigidBodyState
 from quad_wrench_env.rotations import quat_from_euler_zyx
 from quad_wrench_env.vehicle import PRESETS
-from quad_wrench_env.engine.world import RigidBodyState
 from tests.conftest import FAN_TRACKING
 
 GAINS = {"bandwidth": 2.1, "k_xy": 1.0, "k_z": 1.0, "k_yaw": 1.0}  # configs/fan_tracking.yaml

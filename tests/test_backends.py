@@ -48,17 +48,28 @@ CASES = {
     },
     "state estimator, ekf": {"estimator": "ekf", "sensors": {"state_estimator": True}},
     "crazyflie, observer": {"vehicle": "crazyflie2", "estimator": "observer"},
-    "dryden in a mean wind": {"wind": [{"model": "dryden", "w20": 2.0, "altitude": 1.0, "mean": [0.5, 0.2, 0.0]}]},
+    "dryden in a mean wind": {
+        "wind": [{"model": "dryden", "w20": 2.0, "altitude": 1.0, "mean": [0.5, 0.2, 0.0]}]
+    },
     "one-cosine gust, no fan": {
         "fan": {"enabled": False},
-        "wind": [{"model": "one_cosine", "peak": [0.0, 1.5, 0.2], "start": 0.3, "duration": 0.5, "hold": False}],
+        "wind": [
+            {"model": "one_cosine", "peak": [0.0, 1.5, 0.2], "start": 0.3, "duration": 0.5, "hold": False}
+        ],
     },
-    "second jet": {"wind": [{"model": "jet", "position": [2.3, -1.5, 1.0], "direction": [0, 1, 0], "speed": 10.0}]},
+    "second jet": {
+        "wind": [{"model": "jet", "position": [2.3, -1.5, 1.0], "direction": [0, 1, 0], "speed": 10.0}]
+    },
     "ground effect over a table": {
-        "fan": {"height": 1.0}, "ground_effect": True, "scene": [_TABLE], "estimator": "oracle",
+        "fan": {"height": 1.0},
+        "ground_effect": True,
+        "scene": [_TABLE],
+        "estimator": "oracle",
     },
     "everything at once, vector": {
-        "num_envs": 3, "ground_effect": True, "scene": [_TABLE, {"kind": "wall", "x": 5.5}],
+        "num_envs": 3,
+        "ground_effect": True,
+        "scene": [_TABLE, {"kind": "wall", "x": 5.5}],
         "wind": [
             {"model": "dryden", "w20": 1.0, "altitude": 1.0},
             {"model": "one_cosine", "peak": [0.5, 0.0, 0.0], "start": 0.2, "duration": 0.4},
@@ -97,7 +108,15 @@ def test_compiled_flight_equals_the_numpy_reference(case):
         for action in actions:
             (a, ra, ta, ua, ia), (b, rb, tb, ub, ib) = (env.step(action) for env in envs.values())
             np.testing.assert_allclose(a, b, rtol=1e-5, atol=1e-6)
-            for key in ("wrench_true", "wind_velocity", "axis_error", "jet_axis_y", "fan_position", "wrench_est", "position"):
+            for key in (
+                "wrench_true",
+                "wind_velocity",
+                "axis_error",
+                "jet_axis_y",
+                "fan_position",
+                "wrench_est",
+                "position",
+            ):
                 np.testing.assert_allclose(ia[key], ib[key], rtol=1e-7, atol=1e-9, err_msg=key)
             np.testing.assert_allclose(ra, rb, rtol=1e-7, atol=1e-9)
             np.testing.assert_array_equal(ta, tb)
@@ -240,7 +259,14 @@ def test_one_vehicle_after_step_from_pybullets_tuples_equals_the_one_from_rows()
         step = compiled._step
         for kernel, read in ((step.after_world_step_one, readings), (step.after_world_step, row)):
             buffer, cursor = compiled.buffer.copy(), fleet.noise.cursor.copy()
-            kernel(read, buffer, fleet.noise.buffer, cursor, compiled.constants, env.unwrapped.task.fan.motion_tables)
+            kernel(
+                read,
+                buffer,
+                fleet.noise.buffer,
+                cursor,
+                compiled.constants,
+                env.unwrapped.task.fan.motion_tables,
+            )
             buffers.append(buffer)
             cursors.append(cursor)
         np.testing.assert_array_equal(buffers[0], buffers[1])
@@ -340,7 +366,7 @@ def test_physics_constants_are_packed_where_their_declaration_says():
     np.testing.assert_array_equal(full[: packed.size], packed)
     for k, numbers in enumerate(components):
         np.testing.assert_array_equal(component_slice(full, k), numbers)
-    assert CONSTANT_WIDTH == sum(widths.values())
+    assert sum(widths.values()) == CONSTANT_WIDTH
     with pytest.raises(ValueError, match="scales has 9 numbers; the kernels read 10"):
         physics_constants({**parts, "scales": rng.random(9)}, points)
 

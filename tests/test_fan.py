@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from quad_wrench_env.disturbances.fan import FanConfig, FanJet, make_motion
-from quad_wrench_env.rotations import quat_from_euler_zyx
 from quad_wrench_env.engine.world import RigidBodyState
+from quad_wrench_env.rotations import quat_from_euler_zyx
 
 
 def _still_jet(**config) -> FanJet:

@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from quad_wrench_env.disturbances.fan import ConstantSpeed, PiecewiseVelocity, Sine, Static
-from quad_wrench_env.tasks.fan_tracking import FanEpisodes
 from quad_wrench_env.rotations import rotation_matrix
+from quad_wrench_env.tasks.fan_tracking import FanEpisodes
 
 
 def test_attitude_block_is_the_rotation_matrix_and_moves_no_faster_than_the_body_rates(make_env):

@@ -12,10 +12,10 @@ import math
 import numpy as np
 import pytest
 
+from quad_wrench_env.engine.world import World
 from quad_wrench_env.rotations import quat_from_euler_zyx
 from quad_wrench_env.rotors import Rotors
 from quad_wrench_env.vehicle import GRAVITY, make_vehicle
-from quad_wrench_env.engine.world import World
 
 DT = 1.0 / 200.0
 STEPS = 200

@@ -61,9 +61,10 @@ class DrydenGust:
     name = "dryden"
     noise_width = 3
     compiled = CompiledForm(
-        "quad_wrench_env.disturbances.dryden", (("velocity", "dryden_velocity"), ("advance", "dryden_advance")),
+        "quad_wrench_env.disturbances.dryden",
+        (("velocity", "dryden_velocity"), ("advance", "dryden_advance")),
         state="gust",
-    )  # fmt: skip
+    )
 
     def __init__(self, config: DrydenConfig, count: int = 1) -> None:
         self.config = config

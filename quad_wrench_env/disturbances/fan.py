@@ -220,8 +220,8 @@ class FanJet:
         self._core = 0.5 * config.outlet_diameter / config.spread
         """Length ``x_c = D/(2c)`` of the core, where the centre-line speed is still ``U0``."""
         self._kernel = np.array(
-            (float(config.enabled), config.outlet_speed, self._core, 0.5 * config.outlet_diameter, config.spread, config.height,
-             config.turbulence_intensity)
+            (float(config.enabled), config.outlet_speed, self._core, 0.5 * config.outlet_diameter,
+             config.spread, config.height, config.turbulence_intensity)
         )  # fmt: skip
         self.noise = np.zeros((count, 3))
         """(N, 3) unit-variance Ornstein-Uhlenbeck state of each vehicle's turbulence."""
@@ -268,8 +268,9 @@ class FanJet:
 
     # -- the field --------------------------------------------------------------------------------
     def kernel_parameters(self) -> np.ndarray:
-        """The jet as the kernels read it: on (1, or 0 when disabled), outlet speed, core length ``x_c``, outlet radius,
-        spread, height, turbulence intensity (each vehicle's motion is in :attr:`motion_tables`)."""
+        """The jet as the kernels read it: on (1, or 0 when disabled), outlet speed, core length
+        ``x_c``, outlet radius, spread, height, turbulence intensity (each vehicle's motion is in
+        :attr:`motion_tables`)."""
         return self._kernel.copy()
 
     def reset(self, index: int, rng: np.random.Generator) -> None:

@@ -38,10 +38,13 @@ def thrust_ratio(height: np.ndarray, radius: float, cap: float = CAP) -> np.ndar
 
 
 class GroundEffect:
-    """Added thrust of every rotor near a surface: a :class:`~quad_wrench_env.disturbances.base.RotorModifier`."""
+    """Added thrust of every rotor near a surface: a
+    :class:`~quad_wrench_env.disturbances.base.RotorModifier`."""
 
     name = "ground_effect"
-    compiled = CompiledForm("quad_wrench_env.disturbances.ground_effect", (("thrust", "ground_effect_thrust"),))
+    compiled = CompiledForm(
+        "quad_wrench_env.disturbances.ground_effect", (("thrust", "ground_effect_thrust"),)
+    )
 
     def __init__(self, rotor_radius: float, tops: np.ndarray, cap: float = CAP) -> None:
         self.radius = rotor_radius

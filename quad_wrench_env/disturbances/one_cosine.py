@@ -42,7 +42,8 @@ def gust_shape(t: np.ndarray, start: float, duration: float, hold: bool) -> np.n
 
 @wind_model("one_cosine", OneCosineConfig)
 class OneCosineGust:
-    """The gust of N vehicles, each at its own time: a :class:`~quad_wrench_env.disturbances.base.WindField`."""
+    """The gust of N vehicles, each at its own time: a
+    :class:`~quad_wrench_env.disturbances.base.WindField`."""
 
     name = "one_cosine"
     noise_width = 0

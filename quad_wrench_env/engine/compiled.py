@@ -56,7 +56,8 @@ class CompiledStep:
         engine = physics_constants(
             {
                 "action_type": action_type, "scales": scales, "autopilot": ap.kernel_parameters(),
-                "inverse": ap.mixer.inverse, "motors": np.append(fleet.rotors.kernel_parameters(), fleet.drag.coefficient),
+                "inverse": ap.mixer.inverse,
+                "motors": np.append(fleet.rotors.kernel_parameters(), fleet.drag.coefficient),
                 "sensing": np.array(sensing), "nominal_allocation": ap.mixer.allocation, "dt": fleet.dt,
                 "noise_column": fleet.sensor_noise_column,
             },

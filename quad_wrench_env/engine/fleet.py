@@ -25,17 +25,17 @@ import numpy as np
 from quad_wrench_env.autopilot import Autopilot, attitude_from_thrust
 from quad_wrench_env.disturbances.base import resultant
 from quad_wrench_env.disturbances.drag import QuadraticDrag
+from quad_wrench_env.engine.actions import ActionMap
 from quad_wrench_env.engine.compiled import CompiledStep
 from quad_wrench_env.engine.components import Components
+from quad_wrench_env.engine.config import EnvConfig
 from quad_wrench_env.engine.kernels import assemble_observations, termination_codes
 from quad_wrench_env.engine.noise import NoiseBlocks
 from quad_wrench_env.engine.observation import ObservationLayout
 from quad_wrench_env.engine.world import RigidBodyState, World
-from quad_wrench_env.envs.actions import ActionMap
-from quad_wrench_env.envs.config import EnvConfig
 from quad_wrench_env.estimators import OracleBank, make_estimator_bank
 from quad_wrench_env.kernels import resolve_backend
-from quad_wrench_env.rotations import cross, quat_from_matrix, rotation_matrices
+from quad_wrench_env.rotations import cross, quat_from_matrix
 from quad_wrench_env.rotors import Rotors
 from quad_wrench_env.sensors import MotionCapture, MotorSpeedSensor
 from quad_wrench_env.vehicle import GRAVITY, VehicleParams
@@ -307,7 +307,9 @@ class Fleet:
         out = np.zeros((self.count, layout.size), dtype=np.float32)
         states, wrenches = self.estimates()
         if self.compiled is not None:
-            assemble_observations(states, wrenches, last_actions, self._observe_wrench, layout.kernel_starts, out)
+            assemble_observations(
+                states, wrenches, last_actions, self._observe_wrench, layout.kernel_starts, out
+            )
         else:
             layout.fill_engine_blocks(states, wrenches, last_actions, self._observe_wrench, out)
         return out

@@ -180,12 +180,22 @@ def controls(actions, buffer, saturated, constants):
         _, _, _, velocity, angular_velocity, rotation, _, _, _, _, _, _, _, _, _, _,
         yaw_setpoint, velocity_integral, rate_integral, speeds, allocations, rotor_wrench, _,
     ) = step_views(buffer, actions.shape[0])  # fmt: skip
-    action_type, scales, autopilot = int(constants[0]), constants[_SCALES : _SCALES + 10], constants[_AUTOPILOT:]
+    action_type, scales, autopilot = (
+        int(constants[0]),
+        constants[_SCALES : _SCALES + 10],
+        constants[_AUTOPILOT:],
+    )
     inverse, motors = rows_view(constants, _INVERSE, 4, 4), constants[_MOTORS : _MOTORS + 6]
     vp, vi = autopilot[0:3], autopilot[3:6]
     setpoint_weight, tan_max_tilt = autopilot[6], autopilot[7]
     att_p, max_rate, max_yaw_error = autopilot[8:11], autopilot[11], autopilot[12]
-    rate_p, rate_i, mass, gravity, dt = autopilot[13], autopilot[14], autopilot[15], autopilot[16], autopilot[17]
+    rate_p, rate_i, mass, gravity, dt = (
+        autopilot[13],
+        autopilot[14],
+        autopilot[15],
+        autopilot[16],
+        autopilot[17],
+    )
     w2_min, w2_max, inertia = autopilot[18], autopilot[19], autopilot[20:23]
     alpha_up, alpha_down, min_speed, max_speed = motors[0], motors[1], motors[2], motors[3]
     work = np.empty(30)  # one allocation, cut into views (each allocation costs as much as a view)
@@ -325,7 +335,11 @@ def drag_loads(buffer, constants, offsets, air):
             rel1 = air[m, p, 1] - (velocity[m, 1] + w1)
             rel2 = air[m, p, 2] - (velocity[m, 2] + w2)
             magnitude = math.sqrt(rel0 * rel0 + rel1 * rel1 + rel2 * rel2)
-            g0, g1, g2 = body_drag * magnitude * rel0, body_drag * magnitude * rel1, body_drag * magnitude * rel2
+            g0, g1, g2 = (
+                body_drag * magnitude * rel0,
+                body_drag * magnitude * rel1,
+                body_drag * magnitude * rel2,
+            )
             if p < 4:  # rotor drag at the hubs (Rotors.drag_forces), airspeed = -relative air
                 along = -(rel0 * r[0, 2] + rel1 * r[1, 2] + rel2 * r[2, 2])
                 k_d = rotor_drag * speeds[m, p]
@@ -427,8 +441,8 @@ def sense(buffer, normals, constants):
     into ``truth``. The sensors' draws are the columns of ``normals`` from ``noise_column`` on."""
     n = normals.shape[0]
     (
-        _, position, quaternion, velocity, _, _, body_rates, _, _, _, thrusts, body_torques, measured_position,
-        measured_quaternion, motion, truth, _, _, _, speeds, _, _, _,
+        _, position, quaternion, velocity, _, _, body_rates, _, _, _, thrusts, body_torques,
+        measured_position, measured_quaternion, motion, truth, _, _, _, speeds, _, _, _,
     ) = step_views(buffer, n)  # fmt: skip
     sensing, nominal_allocation = constants[_SENSING : _SENSING + 7], rows_view(constants, _NOMINAL, 4, 4)
     levels, step, position_noise, attitude_noise = sensing[0], sensing[1], sensing[2], sensing[3]

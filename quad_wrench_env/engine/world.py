@@ -131,7 +131,8 @@ class World:
         self.half_extents = (vehicle.arm + vehicle.rotor_radius,) * 2 + (0.5 * vehicle.hull_height,)
         """Half extents (m) of each vehicle's collision box."""
         highest = max(
-            [0.0] + [c[2] + h[2] for part in self.scene if part.ends_episode_on_contact for c, h in part.boxes()]
+            [0.0]
+            + [c[2] + h[2] for part in self.scene if part.ends_episode_on_contact for c, h in part.boxes()]
         )
         self.clear_height = (
             highest + float(np.linalg.norm(self.half_extents)) + _CONTACT_THRESHOLD + _MAX_FALL_SPEED * dt
@@ -173,7 +174,9 @@ class World:
                         0.0, shape, look, basePosition=(origin + centre).tolist(), useMaximalCoordinates=1,
                         physicsClientId=cid,
                     )  # fmt: skip
-                    p.setCollisionFilterGroupMask(body, -1, _GROUND_GROUP, _VEHICLE_GROUP, physicsClientId=cid)
+                    p.setCollisionFilterGroupMask(
+                        body, -1, _GROUND_GROUP, _VEHICLE_GROUP, physicsClientId=cid
+                    )
                     if part.ends_episode_on_contact:
                         self._crash_bodies.append(body)
         v, half_extents = self.vehicle, self.half_extents

@@ -29,9 +29,9 @@ from gymnasium.utils import EzPickle
 
 from quad_wrench_env.config import build, merged, section
 from quad_wrench_env.engine.components import assemble
+from quad_wrench_env.engine.config import EnvConfig
 from quad_wrench_env.engine.fleet import ENGINE_TERMINATIONS, Fleet
 from quad_wrench_env.engine.observation import ObservationLayout
-from quad_wrench_env.envs.config import EnvConfig
 from quad_wrench_env.tasks.base import Task
 from quad_wrench_env.vehicle import make_vehicle
 
@@ -71,7 +71,9 @@ def build_fleet(task_class: type[Task], cfg: Any, count: int, gui: bool = False)
 
 
 def closed_error(env: object) -> RuntimeError:
-    return RuntimeError(f"{type(env).__name__} is closed: make a new env instead of reset() or step() after close()")
+    return RuntimeError(
+        f"{type(env).__name__} is closed: make a new env instead of reset() or step() after close()"
+    )
 
 
 def build_config(

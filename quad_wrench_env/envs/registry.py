@@ -16,7 +16,8 @@ def entry_points(task: type) -> tuple[str, str]:
     return f"{__name__}:{task.__name__}Env", f"{__name__}:{task.__name__}VectorEnv"
 
 
-def _generate(task: type) -> tuple[type, type]:
+def env_classes(task: type) -> tuple[type, type]:
+    """New single and vector env classes for ``task`` (named after it, in this module)."""
     single = type(
         f"{task.__name__}Env",
         (QuadWrenchEnv,),
@@ -25,7 +26,11 @@ def _generate(task: type) -> tuple[type, type]:
     vector = type(
         f"{task.__name__}VectorEnv",
         (QuadWrenchVectorEnv,),
-        {"env_class": single, "__module__": __name__, "__doc__": f"N vehicles of ``{task.env_id}``, flown together."},
+        {
+            "env_class": single,
+            "__module__": __name__,
+            "__doc__": f"N vehicles of ``{task.env_id}``, flown together.",
+        },
     )
     return single, vector
 
@@ -33,6 +38,6 @@ def _generate(task: type) -> tuple[type, type]:
 ENV_CLASSES: dict[str, tuple[Any, Any]] = {}
 """Env id -> (single env class, vector env class)."""
 for _task in TASKS:
-    _single, _vector = _generate(_task)
+    _single, _vector = env_classes(_task)
     globals()[_single.__name__], globals()[_vector.__name__] = _single, _vector
     ENV_CLASSES[_task.env_id] = (_single, _vector)

@@ -1,8 +1,10 @@
-"""Compiled (numba) forms of the per-step hot paths, optional.
+"""Compiled (numba) forms of the per-step hot paths: the estimators' kernels and the helpers every
+kernel shares (this package holds no engine or task code).
 
-The numpy code is the reference and always available; with numba installed (``pip install
-"quad-wrench-env[fast]"``) the envs run these kernels instead (config ``backend``: ``"auto"`` picks
-numba when it imports, ``"numpy"`` forces the reference, ``"numba"`` requires it). Each kernel loops
+numba is a core dependency: the compiled path is the product's speed. The numpy code stays the
+reference, selectable and tested (config ``backend``: ``"auto"`` picks numba when it imports,
+``"numpy"`` forces the reference, ``"numba"`` requires it; ``QUAD_WRENCH_DISABLE_NUMBA=1`` makes
+``"auto"`` pick numpy, e.g. to check the reference alone). Each kernel loops
 over the vehicles (or filters) of a batch and repeats the reference's arithmetic step by step (the
 UKF of a larger bank runs eight filters at a time on SIMD lanes, :mod:`.lanes`); the tests run both
 paths and compare them. Compiled code is cached on disk (numba's ``cache=True``), so
@@ -18,7 +20,7 @@ from typing import Any
 
 BACKENDS = ("auto", "numpy", "numba")
 
-try:  # numba is optional: the numpy reference runs without it
+try:  # a core dependency, but the numpy reference runs without it (e.g. where numba has no wheel)
     import numba as _numba
 except ImportError:  # pragma: no cover - exercised where numba is absent
     _numba = None
@@ -34,7 +36,7 @@ def resolve_backend(backend: str) -> str:
         return "numba" if NUMBA_AVAILABLE else "numpy"
     if backend == "numba" and not NUMBA_AVAILABLE:
         raise ValueError(
-            "backend='numba' needs numba (pip install 'quad-wrench-env[fast]'); "
+            "backend='numba' needs numba (pip install numba, a dependency of quad-wrench-env); "
             "allowed without it: 'numpy', 'auto'"
         )
     return backend

@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING, Any, ClassVar, Protocol
 import numpy as np
 
 from quad_wrench_env.engine.components import Components
-from quad_wrench_env.envs.config import EnvConfig
+from quad_wrench_env.engine.config import EnvConfig
 from quad_wrench_env.vehicle import VehicleParams
 
 if TYPE_CHECKING:

@@ -33,7 +33,7 @@ index  name            meaning
 =====  ==============  ====================================================================
 
 Action: ``Box(-1, 1, (4,), float32)``, meaning set by ``action_type`` (see
-:mod:`quad_wrench_env.envs.actions`); default ``velocity``: ``(v_x, v_y, v_z, yaw rate)``.
+:mod:`quad_wrench_env.engine.actions`); default ``velocity``: ``(v_x, v_y, v_z, yaw rate)``.
 
 Reward per step (terms in ``info["reward_terms"]``), with ``d`` the distance in the y-z plane from
 the jet axis at the vehicle's x (the retarded axis, PHYSICS.md):
@@ -74,7 +74,7 @@ from quad_wrench_env.config import check_numbers
 from quad_wrench_env.disturbances.fan import MOTIONS, RANDOM, FanConfig, FanJet, FanMotion, make_motion
 from quad_wrench_env.disturbances.jet_kernels import jet_speed, motion_y, transit_time
 from quad_wrench_env.engine.components import Components
-from quad_wrench_env.envs.config import EnvConfig
+from quad_wrench_env.engine.config import EnvConfig
 from quad_wrench_env.kernels import njit, resolve_backend
 from quad_wrench_env.tasks.base import TaskDefaults
 from quad_wrench_env.vehicle import VehicleParams
@@ -313,7 +313,9 @@ class FanTracking(TaskDefaults):
         }  # fmt: skip
 
     @staticmethod
-    def metrics(trace: Mapping[str, np.ndarray], settle_time: float = 5.0, band: float = 0.15) -> dict[str, float]:
+    def metrics(
+        trace: Mapping[str, np.ndarray], settle_time: float = 5.0, band: float = 0.15
+    ) -> dict[str, float]:
         """Paper 000 Fig. 7 scores: mean |y - y_axis| after ``settle_time`` (m), fraction of time within
         ``band`` of the axis, time to first come within ``band`` (s; inf if never), and the mean
         |x - standoff_distance| after ``settle_time`` (m), so that tracking from closer to the fan,

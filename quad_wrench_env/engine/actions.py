@@ -22,8 +22,8 @@ import numpy as np
 
 from quad_wrench_env.autopilot import Autopilot
 from quad_wrench_env.config import check_numbers
-from quad_wrench_env.vehicle import GRAVITY
 from quad_wrench_env.engine.world import RigidBodyState
+from quad_wrench_env.vehicle import GRAVITY
 
 ACTION_TYPES = ("velocity", "attitude", "wrench", "motors")
 

@@ -9,7 +9,7 @@ from typing import Any
 from quad_wrench_env.disturbances.payload import PayloadConfig
 from quad_wrench_env.disturbances.registry import wind_config
 from quad_wrench_env.disturbances.wrench_profile import validate_segments
-from quad_wrench_env.envs.actions import ActionLimits
+from quad_wrench_env.engine.actions import ActionLimits
 from quad_wrench_env.kernels import resolve_backend
 from quad_wrench_env.scene import make_scene_part
 from quad_wrench_env.sensors import SensorConfig

@@ -1,0 +1,231 @@
+"""The engine's seams from outside: a new wind field and a new task, each written here in one place
+and nothing in the engine, run on both backends; what has no compiled form is refused or warned about
+by name; and the envs' lifecycle (closed envs, steps past an episode's end)."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any, ClassVar
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+from quad_wrench_env.disturbances.base import CompiledForm
+from quad_wrench_env.engine import fleet as fleet_module
+from quad_wrench_env.engine.components import Components
+from quad_wrench_env.engine.config import EnvConfig
+from quad_wrench_env.envs.registry import env_classes
+from quad_wrench_env.kernels import NUMBA_AVAILABLE, njit
+from quad_wrench_env.tasks.base import TaskDefaults
+from tests.conftest import FAN_TRACKING
+
+needs_numba = pytest.mark.skipif(not NUMBA_AVAILABLE, reason="numba is not installed")
+
+CROSSWIND = 2.0
+"""m/s along +y: the test's own wind field."""
+
+
+class Crosswind:
+    """A uniform wind along +y, numpy form and (unless ``compiled=None``) compiled form, both here."""
+
+    name = "crosswind"
+    noise_width = 0
+    compiled: CompiledForm | None = CompiledForm(
+        __name__, (("velocity", "crosswind_velocity"), ("advance", "calm"))
+    )
+
+    def kernel_parameters(self) -> np.ndarray:
+        return np.array((CROSSWIND,))
+
+    def reset(self, index: int, rng: np.random.Generator) -> None:
+        """Nothing random."""
+
+    def advance(self, dt: float, position: np.ndarray, velocity: np.ndarray, normals: np.ndarray) -> None:
+        """Nothing random."""
+
+    def velocity_at(self, points, t, index, mean=False) -> np.ndarray:
+        wind = np.zeros(points.shape)
+        wind[..., 1] = CROSSWIND
+        return wind
+
+
+class NumpyOnlyCrosswind(Crosswind):
+    name = "numpy_only_crosswind"
+    compiled = None
+
+
+@njit
+def crosswind_velocity(params, table, state, points, time, out):
+    for n in range(points.shape[0]):
+        for p in range(points.shape[1]):
+            out[n, p, 1] += params[0]
+
+
+@njit
+def calm(params, table, state, position, velocity, dt, normals):
+    """Nothing to advance."""
+
+
+@dataclass
+class HoldConfig(EnvConfig):
+    wind_field: str = "compiled"
+    """``"compiled"`` or ``"numpy_only"``: which of the test's crosswinds the task brings."""
+    radius: float = 0.3
+    """m from the reference that ends the episode as ``"left_the_ball"``."""
+
+
+class Hold(TaskDefaults):
+    """Hold a reference point in a crosswind: a task with its own observation block, termination,
+    reward term, info and metric, in one class."""
+
+    env_id: ClassVar[str] = "QuadWrench/TestHold-v0"
+    config_class: ClassVar[type[EnvConfig]] = HoldConfig
+    reset_options: ClassVar[tuple[str, ...]] = ()
+    observation_blocks: ClassVar[tuple[tuple[str, int, float], ...]] = (("reference_position", 3, 10.0),)
+    termination_reasons: ClassVar[tuple[str, ...]] = ("left_the_ball",)
+    trace_keys: ClassVar[tuple[str, ...]] = ("distance",)
+
+    def __init__(self, cfg: HoldConfig, vehicle: Any, count: int) -> None:
+        self.cfg = cfg
+        self.reference = np.tile((2.0, 0.0, 1.0), (count, 1))
+
+    def components(self) -> Components:
+        return Components(winds=[Crosswind() if self.cfg.wind_field == "compiled" else NumpyOnlyCrosswind()])
+
+    def reset_vehicle(self, index: int, rng: np.random.Generator, options: Mapping[str, Any]):
+        return self.reference[index].copy(), 0.0
+
+    def _distance(self, fleet) -> np.ndarray:
+        return np.linalg.norm(fleet.state.position - self.reference, axis=1)
+
+    def reward_terms(self, fleet, actions, ended) -> dict[str, np.ndarray]:
+        return {"distance": -self._distance(fleet)}
+
+    def terminations(self, fleet) -> np.ndarray:
+        return (self._distance(fleet) > self.cfg.radius).astype(int)
+
+    def observe(self, fleet, out: np.ndarray) -> None:
+        out[:] = self.reference
+
+    def info(self, fleet) -> dict[str, np.ndarray]:
+        return {"distance": self._distance(fleet)}
+
+    @staticmethod
+    def metrics(trace: Mapping[str, np.ndarray]) -> dict[str, float]:
+        return {"max_distance": float(np.max(trace["distance"]))}
+
+
+HoldEnv, HoldVectorEnv = env_classes(Hold)
+
+
+@pytest.mark.parametrize("backend", ["numpy", pytest.param("numba", marks=needs_numba)])
+def test_a_task_and_a_wind_field_written_outside_the_engine_fly_on_both_backends(backend):
+    """The test's task brings its own observation block (after the engine's, named in obs_layout),
+    termination (named in info), reward term and info; its crosswind pushes the vehicle along +y
+    and shows in wrench_true (drag of a 2 m/s wind on the hovering vehicle: body drag ρ/2·C_dA·v²
+    plus rotor drag, which decelerates a hovering vehicle at ``rotor_drag_decel`` per m/s, PHYSICS.md)
+    and in wind_velocity."""
+    env = HoldEnv(backend=backend, estimator="oracle")
+    try:
+        layout = env.obs_layout
+        assert layout["reference_position"] == slice(25, 28)
+        assert env.observation_space.shape == (28,)
+        assert (env.unwrapped.fleet.compiled is not None) == (backend == "numba")
+        observation, info = env.reset(seed=0)
+        np.testing.assert_array_equal(observation[layout["reference_position"]], (2.0, 0.0, 1.0))
+        np.testing.assert_allclose(info["wind_velocity"], (0.0, CROSSWIND, 0.0))
+        v = env.unwrapped.vehicle
+        drag = 0.5 * 1.2 * v.drag_area * CROSSWIND**2 + v.rotor_drag_decel * v.mass * CROSSWIND
+        assert info["wrench_true"][1] == pytest.approx(drag, rel=0.02)  # the trim tilts the rotors ~2°
+        for _ in range(500):
+            action = np.array((0.0, 1.0, 0.0, 0.0), dtype=np.float32)  # fly off along +y
+            observation, reward, terminated, _, info = env.step(action)
+            assert reward == pytest.approx(-info["distance"])
+            if terminated:
+                break
+        else:
+            raise AssertionError("flying away never left the ball")
+        assert info["termination_reason"] == "left_the_ball" and info["position"][1] > 0.0
+    finally:
+        env.close()
+
+
+@needs_numba
+def test_the_tasks_blocks_and_terminations_agree_across_backends_in_the_vector_env():
+    envs = [HoldVectorEnv(num_envs=2, backend=b, estimator="oracle") for b in ("numpy", "numba")]
+    try:
+        first = [env.reset(seed=1)[0] for env in envs]
+        np.testing.assert_array_equal(first[0], first[1])
+        actions = np.array(((0.0, 1.0, 0.0, 0.0), (0.0, 0.0, 0.2, 0.0)))
+        for _ in range(200):
+            results = [env.step(actions) for env in envs]
+            np.testing.assert_allclose(results[0][0], results[1][0], rtol=1e-5, atol=1e-6)
+            np.testing.assert_array_equal(results[0][2], results[1][2])
+            if results[0][2].any():
+                reasons = results[0][4]["final_info"]["termination_reason"]
+                assert set(reasons[results[0][2]]) == {"left_the_ball"}
+                break
+        else:
+            raise AssertionError("no vehicle left the ball")
+    finally:
+        for env in envs:
+            env.close()
+
+
+@needs_numba
+def test_a_component_without_a_compiled_form_is_refused_by_numba_and_warned_about_by_auto(monkeypatch):
+    with pytest.raises(ValueError, match=r"numpy_only_crosswind.*no compiled form"):
+        HoldEnv(backend="numba", wind_field="numpy_only")
+    monkeypatch.setattr(fleet_module, "_WARNED", set())
+    with pytest.warns(UserWarning, match="numpy_only_crosswind"):
+        env = HoldEnv(backend="auto", wind_field="numpy_only")
+    assert env.unwrapped.fleet.compiled is None
+    env.close()
+
+
+def test_a_closed_env_says_so_on_step_and_reset():
+    env = gym.make(FAN_TRACKING, backend="numpy")
+    env.reset(seed=0)
+    env.close()
+    env.close()  # idempotent
+    for call in (lambda: env.step(np.zeros(4)), lambda: env.reset(seed=0)):
+        with pytest.raises(RuntimeError, match="is closed"):
+            call()
+    venv = gym.make_vec(FAN_TRACKING, num_envs=2, vectorization_mode="vector_entry_point", backend="numpy")
+    venv.close()
+    with pytest.raises(RuntimeError, match="is closed"):
+        venv.reset(seed=0)
+
+
+def test_stepping_past_the_end_of_an_episode_warns_once(caplog):
+    """Today's silent -10 per step after a crash becomes a warning, once per ended episode."""
+    env = gym.make(FAN_TRACKING, backend="numpy", estimator="oracle", episode_seconds=0.1)
+    try:
+        env.reset(seed=0)
+        for _ in range(5):
+            *_, truncated, _ = env.step(np.zeros(4))
+        assert truncated
+        with pytest.warns(UserWarning, match="after the episode ended") as record:
+            env.step(np.zeros(4))
+            env.step(np.zeros(4))
+        assert len([w for w in record if "after the episode ended" in str(w.message)]) == 1
+        env.reset(seed=1)
+        with pytest.warns(UserWarning, match="after the episode ended"):
+            for _ in range(6):
+                env.step(np.zeros(4))
+    finally:
+        env.close()
+
+
+def test_a_metric_of_the_task_reaches_the_harness():
+    from agents.evaluate import Episode, episode_metrics
+
+    trace = {"time": np.arange(3) * 0.02, "distance": np.array((0.0, 0.2, 0.1))}
+    scores = Hold.metrics(trace)
+    assert scores == {"max_distance": 0.2}
+    generic = episode_metrics("QuadWrench/Unknown-v0", Episode(0, trace, 1.0, 2, None))
+    assert set(generic) == {"episode_seconds", "return", "terminated_early"}
+    assert math.isclose(generic["episode_seconds"], 0.04)
