@@ -179,3 +179,15 @@ def check_numbers(owner: str, obj: Any, names: tuple[str, ...], *, positive: boo
             raise ValueError(
                 f"{owner}.{name}={value!r} must be a finite number {'> 0' if positive else '>= 0'}"
             )
+
+
+def build_named(spec: Any, key: str, classes: Mapping[str, type], where: str) -> tuple[str, Any]:
+    """``(name, built dataclass)`` of a config entry ``{key: name, **fields}`` whose name picks one of
+    ``classes``; a bad entry, name or field is refused naming ``where`` (e.g. ``"wind[0]"``)."""
+    if not isinstance(spec, Mapping) or key not in spec:
+        raise ValueError(f"{where}={spec!r} must be a mapping with a {key!r}; allowed: {sorted(classes)}")
+    fields = dict(spec)
+    name = fields.pop(key)
+    if name not in classes:
+        raise ValueError(f"{where}: unknown {key} {name!r}; allowed: {sorted(classes)}")
+    return name, build(classes[name], fields, prefix=f"{where}.")

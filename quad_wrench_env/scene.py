@@ -17,7 +17,7 @@ from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
-from quad_wrench_env.config import build
+from quad_wrench_env.config import build_named
 
 
 @runtime_checkable
@@ -121,17 +121,9 @@ class Ceiling:
 SCENE_KINDS: dict[str, type] = {"table": Table, "wall": Wall, "ceiling": Ceiling}
 
 
-def make_scene_part(spec: Mapping[str, Any]) -> ScenePart:
+def make_scene_part(spec: Mapping[str, Any], position: int = 0) -> ScenePart:
     """A scene part from its config ``{"kind": ..., **fields}``; bad kinds and keys are named."""
-    if not isinstance(spec, Mapping) or "kind" not in spec:
-        raise ValueError(
-            f"scene entry {spec!r} must be a mapping with a 'kind'; kinds: {sorted(SCENE_KINDS)}"
-        )
-    fields = dict(spec)
-    kind = fields.pop("kind")
-    if kind not in SCENE_KINDS:
-        raise ValueError(f"unknown scene kind {kind!r}; allowed: {sorted(SCENE_KINDS)}")
-    return build(SCENE_KINDS[kind], fields, prefix=f"scene.{kind}.")
+    return build_named(spec, "kind", SCENE_KINDS, f"scene[{position}]")[1]
 
 
 def surface_tops(parts: list[ScenePart]) -> np.ndarray:

@@ -284,13 +284,13 @@ def test_a_table_counts_only_under_a_rotor_above_its_top():
     np.testing.assert_allclose(added, _cheeseman_bennett(heights) - 1.0, rtol=1e-9)
 
 
-def _hover(make_env, table: dict, **kwargs):
+def _hover(make_env, table: dict):
     """A FanTracking env, fan off, oracle estimator, hovering 8 cm above the top of ``table``
     (the hubs are at body z = 0, so the rotors are 8 cm above it), after 2 s of zero actions."""
     height = table["height"] + 0.08
     env = make_env(
         fan={"enabled": False, "height": height}, estimator="oracle", ground_effect=True, scene=[table],
-        backend="numpy", **kwargs,
+        backend="numpy",
     )  # fmt: skip
     env.reset(seed=0, options=STEADY)
     for _ in range(100):
@@ -307,9 +307,9 @@ def test_hover_over_a_table_gains_the_cheeseman_bennett_thrust(make_env):
     Derivation: each rotor over the table gains (ratio - 1)·T_i, so the gain is A = (ratio - 1)·T with
     T = ΣT_i the rotors' own thrust; in a trimmed hover in still air T + A = W (no drag at rest), so
     A = (ratio - 1)·(W - A), i.e. A = W·(ratio - 1)/ratio = W·(1 - 1/ratio) = 0.0977·W = 0.402 N with
-    ratio = 1/(1 - (0.1/0.32)²) = 1.108. (ratio - 1)·W would be 11 % more: the test tells them
-    apart.) Catches the gain missing from the load or from wrench_true, heights from the ground
-    instead of the top, and a gain applied to nominal instead of true thrusts."""
+    ratio = 1/(1 - (0.1/0.32)²) = 1.108; (ratio - 1)·W, the gain on the weight, would be 11 % more, and
+    the test tells them apart. Catches the gain missing from the load or from wrench_true, and heights
+    from the ground instead of the top."""
     env, info = _hover(make_env, {"kind": "table", "center": [2.3, 0.0], "size": [1.0, 1.0], "height": 0.75})
     weight = env.vehicle.mass * GRAVITY
     ratio = float(_cheeseman_bennett(0.08))
@@ -321,8 +321,8 @@ def test_hover_over_a_table_gains_the_cheeseman_bennett_thrust(make_env):
 
 
 EDGES = {
-    "table behind in x": ([1.8, 0.0], 1, +1.0),  # x_max = 2.3: rotors at world x < 2.3 over it
-    "table ahead in x": ([2.8, 0.0], 1, -1.0),  # x_min = 2.3
+    "table at -x": ([1.8, 0.0], 1, +1.0),  # x_max = 2.3: rotors at world x < 2.3 over it
+    "table at +x": ([2.8, 0.0], 1, -1.0),  # x_min = 2.3
     "table at -y": ([2.3, -0.5], 0, -1.0),  # y_max = 0: rotors at world y < 0 over it
     "table at +y": ([2.3, 0.5], 0, +1.0),
 }

@@ -38,6 +38,7 @@ from typing import Protocol, runtime_checkable
 
 import numpy as np
 
+from quad_wrench_env.kernels import njit
 from quad_wrench_env.rotations import cross
 
 
@@ -48,7 +49,8 @@ class CompiledForm:
     module: str
     """Import path of the module holding the kernels (beside the component)."""
     kernels: tuple[tuple[str, str], ...]
-    """``(role, function name)`` pairs; roles as in the module docstring's table."""
+    """``(role, function name)`` pairs; roles as in the module docstring's table. A name
+    ``"module:function"`` takes the function from another module (e.g. :data:`STILL`)."""
     state: str | None = None
     """Name of the component's (N, width) state array, which the compiled step turns into a view of
     its buffer (both paths then update the same numbers), or None without state."""
@@ -108,6 +110,28 @@ class RotorModifier(Component, Protocol):
     def added_thrust(self, hubs: np.ndarray, rotation: np.ndarray, thrusts: np.ndarray) -> np.ndarray:
         """(n, 4) thrust (N) added to each rotor of n vehicles with world hub positions ``hubs``
         (n, 4, 3), attitudes ``rotation`` (n, 3, 3) and true rotor thrusts ``thrusts`` (n, 4)."""
+
+
+class Steady:
+    """What a wind field without random processes shares: no draws, nothing to reset or advance, and
+    the compiled ``advance`` that does nothing (:func:`still`)."""
+
+    noise_width = 0
+
+    def reset(self, index: int, rng: np.random.Generator) -> None:
+        """Nothing random."""
+
+    def advance(self, dt: float, position: np.ndarray, velocity: np.ndarray, normals: np.ndarray) -> None:
+        """Nothing random."""
+
+
+@njit
+def still(params, table, state, position, velocity, dt, normals):
+    """The compiled ``advance`` of a :class:`Steady` field."""
+
+
+STILL = ("advance", "quad_wrench_env.disturbances.base:still")
+"""The ``advance`` entry of a :class:`Steady` field's :attr:`CompiledForm.kernels`."""
 
 
 def resultant(offsets: np.ndarray, forces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

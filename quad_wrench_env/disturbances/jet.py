@@ -11,7 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from quad_wrench_env.config import check_numbers
-from quad_wrench_env.disturbances.base import CompiledForm
+from quad_wrench_env.disturbances.base import STILL, CompiledForm, Steady
 from quad_wrench_env.disturbances.fan import centreline_speed, half_width
 from quad_wrench_env.disturbances.registry import wind_model
 
@@ -41,14 +41,12 @@ class JetConfig:
 
 
 @wind_model("jet", JetConfig)
-class Jet:
+class Jet(Steady):
     """The same fixed jet for every vehicle: a :class:`~quad_wrench_env.disturbances.base.WindField`."""
 
     name = "jet"
-    noise_width = 0
     compiled = CompiledForm(
-        "quad_wrench_env.disturbances.jet_kernels",
-        (("velocity", "fixed_jet_velocity"), ("advance", "still")),
+        "quad_wrench_env.disturbances.jet_kernels", (("velocity", "fixed_jet_velocity"), STILL)
     )
 
     def __init__(self, config: JetConfig, count: int = 1) -> None:
@@ -62,12 +60,6 @@ class Jet:
         c = self.config
         radius = 0.5 * c.diameter
         return np.array((1.0, c.speed, radius / c.spread, radius, c.spread, *self.origin, *self.direction))
-
-    def reset(self, index: int, rng: np.random.Generator) -> None:
-        """Nothing random."""
-
-    def advance(self, dt: float, position: np.ndarray, velocity: np.ndarray, normals: np.ndarray) -> None:
-        """Nothing random."""
 
     def velocity_at(
         self, points: np.ndarray, t: np.ndarray, index: np.ndarray | slice, mean: bool = False

@@ -112,8 +112,3 @@ def fixed_jet_velocity(jet, table, state, points, time, out):
             out[n, p, 0] += speed * d0
             out[n, p, 1] += speed * d1
             out[n, p, 2] += speed * d2
-
-
-@njit
-def still(params, table, state, position, velocity, dt, normals):
-    """No random process to advance (a fixed jet)."""

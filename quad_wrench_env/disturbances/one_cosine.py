@@ -10,7 +10,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from quad_wrench_env.config import check_numbers
-from quad_wrench_env.disturbances.base import CompiledForm
+from quad_wrench_env.disturbances.base import STILL, CompiledForm, Steady
 from quad_wrench_env.disturbances.registry import wind_model
 from quad_wrench_env.kernels import njit
 
@@ -41,14 +41,13 @@ def gust_shape(t: np.ndarray, start: float, duration: float, hold: bool) -> np.n
 
 
 @wind_model("one_cosine", OneCosineConfig)
-class OneCosineGust:
+class OneCosineGust(Steady):
     """The gust of N vehicles, each at its own time: a
     :class:`~quad_wrench_env.disturbances.base.WindField`."""
 
     name = "one_cosine"
-    noise_width = 0
     compiled = CompiledForm(
-        "quad_wrench_env.disturbances.one_cosine", (("velocity", "one_cosine_velocity"), ("advance", "still"))
+        "quad_wrench_env.disturbances.one_cosine", (("velocity", "one_cosine_velocity"), STILL)
     )
 
     def __init__(self, config: OneCosineConfig, count: int = 1) -> None:
@@ -58,12 +57,6 @@ class OneCosineGust:
         """Peak (3), start, duration, hold (1 or 0)."""
         c = self.config
         return np.array((*c.peak, c.start, c.duration, float(c.hold)))
-
-    def reset(self, index: int, rng: np.random.Generator) -> None:
-        """Nothing random."""
-
-    def advance(self, dt: float, position: np.ndarray, velocity: np.ndarray, normals: np.ndarray) -> None:
-        """Nothing random."""
 
     def velocity_at(
         self, points: np.ndarray, t: np.ndarray, index: np.ndarray | slice, mean: bool = False
@@ -84,8 +77,3 @@ def one_cosine_velocity(params, table, state, points, time, out):
         for p in range(points.shape[1]):
             for i in range(3):
                 out[n, p, i] += fraction * params[i]
-
-
-@njit
-def still(params, table, state, position, velocity, dt, normals):
-    """No random process to advance."""

@@ -11,7 +11,7 @@ import pkgutil
 from collections.abc import Callable, Mapping
 from typing import Any
 
-from quad_wrench_env.config import build
+from quad_wrench_env.config import build_named
 
 WIND_MODELS: dict[str, tuple[type, Callable[..., Any]]] = {}
 """Model name -> (its config dataclass, its factory ``(config, count) -> WindField``)."""
@@ -37,15 +37,8 @@ def wind_config(spec: Mapping[str, Any], position: int = 0) -> tuple[str, Any]:
     """The model name and built config of one ``wind`` entry, bad names and keys named."""
     if not WIND_MODELS:
         _discover()
-    if not isinstance(spec, Mapping) or "model" not in spec:
-        raise ValueError(
-            f"wind[{position}]={spec!r} must be a mapping with a 'model'; models: {sorted(WIND_MODELS)}"
-        )
-    fields = dict(spec)
-    name = fields.pop("model")
-    if name not in WIND_MODELS:
-        raise ValueError(f"wind[{position}]: unknown model {name!r}; allowed: {sorted(WIND_MODELS)}")
-    return name, build(WIND_MODELS[name][0], fields, prefix=f"wind[{position}].")
+    configs = {name: config for name, (config, _) in WIND_MODELS.items()}
+    return build_named(spec, "model", configs, f"wind[{position}]")
 
 
 def make_wind(spec: Mapping[str, Any], count: int, position: int = 0) -> Any:

@@ -75,7 +75,8 @@ def source(slots: list[Slot], state_start: int) -> str:
     for k, slot in enumerate(slots):
         names = dict(slot.form.kernels)
         for role in ROLES[slot.kind]:
-            imports.append(f"from {slot.form.module} import {names[role]} as c{k}_{role}")
+            module, _, function = names[role].rpartition(":")
+            imports.append(f"from {module or slot.form.module} import {function} as c{k}_{role}")
         head = _arguments(k, slot, start)
         start += slot.state_width
         if slot.kind == "wind":
@@ -186,7 +187,8 @@ _LOADED: dict[str, ModuleType] = {}
 def _fingerprint(text: str, slots: list[Slot]) -> str:
     """Hash of the step's source and of every module whose kernels it calls."""
     digest = hashlib.sha256(text.encode())
-    modules = sorted({"quad_wrench_env.engine.kernels", *(slot.form.module for slot in slots)})
+    named = {name.rpartition(":")[0] for slot in slots for _, name in slot.form.kernels} - {""}
+    modules = sorted({"quad_wrench_env.engine.kernels", *named, *(slot.form.module for slot in slots)})
     for name in modules:
         spec = importlib.util.find_spec(name)
         if spec is None or spec.origin is None:
