@@ -260,6 +260,28 @@ def test_ground_effect_against_cheeseman_bennett_over_ground_and_table():
     assert _cheeseman_bennett(0.08) == pytest.approx(1.0 / (1.0 - (0.1 / 0.32) ** 2))  # ≈ 1.108
 
 
+def test_a_higher_cap_leaves_the_formula_alone_below_it():
+    """With a cap of 3 the ratio follows 1/(1 - (R/4z)²) up to 3 on both paths: at (R/4z)² = 0.6 it is
+    2.5 (a clamp meant only for the capped branch once gave 2 there)."""
+    height = 0.1 / (4.0 * math.sqrt(0.6))
+    effect = GroundEffect(0.1, np.zeros((0, 5)), cap=3.0)
+    hubs = np.tile((0.0, 0.0, height), (1, 4, 1))
+    thrusts = np.ones((1, 4))
+    np.testing.assert_allclose(effect.added_thrust(hubs, np.eye(3)[None], thrusts), 1.5)
+    if NUMBA_AVAILABLE:
+        out = np.zeros((1, 4))
+        ground_effect_thrust(
+            effect.kernel_parameters(),
+            np.zeros((1, 0)),
+            np.zeros((1, 0)),
+            hubs,
+            np.eye(3)[None],
+            thrusts,
+            out,
+        )
+        np.testing.assert_allclose(out, 1.5)
+
+
 def test_a_table_counts_only_under_a_rotor_above_its_top():
     """The surface under a hub is the highest top whose footprint holds it and that is not above it:
     a hub below the top (beside the table's leg, say) or outside the footprint measures from the

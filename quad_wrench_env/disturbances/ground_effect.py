@@ -34,7 +34,8 @@ def surface_below(points: np.ndarray, tops: np.ndarray) -> np.ndarray:
 def thrust_ratio(height: np.ndarray, radius: float, cap: float = CAP) -> np.ndarray:
     """``T_IGE/T_OGE = 1/(1 - (R/4z)²)`` at heights ``z`` above the surface, capped at ``cap``."""
     ratio2 = (radius / (4.0 * np.maximum(height, 1e-9))) ** 2
-    return np.where(ratio2 >= 1.0 - 1.0 / cap, cap, 1.0 / (1.0 - np.minimum(ratio2, 0.5)))
+    limit = 1.0 - 1.0 / cap  # where the formula reaches the cap; the clamp keeps the other branch finite
+    return np.where(ratio2 >= limit, cap, 1.0 / (1.0 - np.minimum(ratio2, limit)))
 
 
 class GroundEffect:
@@ -75,5 +76,5 @@ def ground_effect_thrust(params, table, state, hubs, rotation, thrusts, out):
                 if t[0] <= x <= t[1] and t[2] <= y <= t[3] and t[4] <= z:
                     surface = max(surface, t[4])
             ratio2 = (radius / (4.0 * max(z - surface, 1e-9))) ** 2
-            factor = cap if ratio2 >= limit else 1.0 / (1.0 - min(ratio2, 0.5))
+            factor = cap if ratio2 >= limit else 1.0 / (1.0 - ratio2)
             out[n, i] += (factor - 1.0) * thrusts[n, i]

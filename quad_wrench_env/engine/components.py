@@ -10,7 +10,9 @@ from quad_wrench_env.disturbances.ground_effect import GroundEffect
 from quad_wrench_env.disturbances.payload import Payload
 from quad_wrench_env.disturbances.registry import make_wind
 from quad_wrench_env.disturbances.wrench_profile import WrenchProfile
+from quad_wrench_env.engine.config import EnvConfig
 from quad_wrench_env.scene import ScenePart, make_scene_part, surface_tops
+from quad_wrench_env.vehicle import VehicleParams
 
 
 @dataclass
@@ -37,11 +39,11 @@ class Components:
         )  # fmt: skip
 
 
-def assemble(cfg: Any, vehicle: Any, count: int, task: Components) -> Components:
+def assemble(cfg: EnvConfig, vehicle: VehicleParams, count: int, task: Components) -> Components:
     """The task's components followed by those every env takes from its config: ``scene`` parts,
     ``wind`` fields, ``ground_effect`` (over the ground and every horizontal top of the scene, the
     task's included), ``payload`` and ``external_wrench`` (each only when it acts)."""
-    scene = task.scene + [make_scene_part(spec) for spec in cfg.scene]
+    scene = task.scene + [make_scene_part(spec, i) for i, spec in enumerate(cfg.scene)]
     winds = task.winds + [make_wind(spec, count, i) for i, spec in enumerate(cfg.wind)]
     rotors = list(task.rotors)
     if cfg.ground_effect:

@@ -84,8 +84,8 @@ class EnvConfig:
         validate_segments(self.external_wrench)
         for position, spec in enumerate(self.wind):
             wind_config(spec, position)
-        for spec in self.scene:
-            make_scene_part(spec)
+        for position, spec in enumerate(self.scene):
+            make_scene_part(spec, position)
         resolve_backend(self.backend)
         if not isinstance(self.observe_wrench, bool):
             raise ValueError(f"observe_wrench={self.observe_wrench!r} must be true or false")
