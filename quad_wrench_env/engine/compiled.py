@@ -26,7 +26,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from quad_wrench_env.engine.compose import Slot, compose
+from quad_wrench_env.engine.compose import Slot, compose, scratch_width
 from quad_wrench_env.engine.kernels import (
     STEP_WIDTH,
     component_parameters,
@@ -72,10 +72,11 @@ class CompiledStep:
             Slot(kind, c.compiled, width, fleet.noise_columns.get(id(c), (0, 0)))
             for (kind, c), width in zip(components, widths, strict=True)
         ]
-        self._step = compose(slots, STEP_WIDTH)
+        points, noise_width = len(fleet.drag_points), fleet.noise.buffer.shape[2]
+        self._step = compose(slots, STEP_WIDTH, points, noise_width)
         self.single = count == 1
         """A fleet of one vehicle: it meets PyBullet with tuples (module docstring)."""
-        self.buffer = np.zeros(count * (STEP_WIDTH + sum(widths)))
+        self.buffer = np.zeros(count * (STEP_WIDTH + sum(widths) + scratch_width(points, noise_width)))
         self.actions = np.zeros((count, 4))
         """The policy step's (N, 4) clipped normalised actions, copied in (bound to the kernel)."""
         (
@@ -132,6 +133,8 @@ class CompiledStep:
         )
         """Takes :attr:`read_world`'s result first: a new object of the same type every step (PyBullet's
         tuples of floats for one vehicle, a float array of rows for more)."""
+        self._centre_wind = bind(step.centre_wind, fleet.count, self.buffer, self.constants, *tables)
+        """The air at the centres of mass, after a policy step's last physics step."""
         self._bind_estimator()
 
     def _bind_estimator(self) -> None:
@@ -171,3 +174,4 @@ class CompiledStep:
             if truth_fed:
                 estimator.observe_truth(self.truth, self.loads)
             estimate()
+        self._centre_wind()

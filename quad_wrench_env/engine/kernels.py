@@ -74,6 +74,30 @@ _SCALES, _AUTOPILOT, _INVERSE, _MOTORS, _SENSING, _NOMINAL, _DT, _NOISE_COLUMN, 
 
 
 @njit(inline=True)
+def rows(buffer, start, n, width):
+    """Field ``start`` (a :data:`STEP_FIELDS` offset) of ``n`` vehicles, (n, width) rows."""
+    return rows_view(buffer, start * n, n, width)
+
+
+@njit(inline=True)
+def matrices(buffer, start, n, size):
+    """Field ``start`` of ``n`` vehicles as (n, size, size) row-major matrices."""
+    return as_strided(
+        buffer[start * n : (start + size * size) * n],
+        shape=(n, size, size),
+        strides=(8 * size * size, 8 * size, 8),
+    )
+
+
+@njit(inline=True)
+def point_rows(buffer, start, n, count):
+    """(n, count, 3) points per vehicle from float ``start`` (per vehicle) of the buffer on."""
+    return as_strided(
+        buffer[start * n : (start + 3 * count) * n], shape=(n, count, 3), strides=(24 * count, 24, 8)
+    )
+
+
+@njit(inline=True)
 def step_views(buffer, n):
     """The :data:`STEP_FIELDS` of ``n`` vehicles as views of the flat ``buffer``: time (n,), position
     (n, 3), quaternion (n, 4), velocity, angular velocity (n, 3), rotation (n, 3, 3), body rates (n, 3);
@@ -176,10 +200,18 @@ def controls(actions, buffer, saturated, constants):
     steps the autopilot's and the rotors' state in ``buffer`` (:func:`step_views`) and fills its
     ``rotor_wrench`` (the true rotors' ``[c_t, τ]``, body frame); ``saturated`` (N,) are the mixer's
     flags."""
-    (
-        _, _, _, velocity, angular_velocity, rotation, _, _, _, _, _, _, _, _, _, _,
-        yaw_setpoint, velocity_integral, rate_integral, speeds, allocations, rotor_wrench, _,
-    ) = step_views(buffer, actions.shape[0])  # fmt: skip
+    c = actions.shape[0]
+    velocity, angular_velocity = rows(buffer, _VELOCITY, c, 3), rows(buffer, _ANGULAR_VELOCITY, c, 3)
+    rotation, yaw_setpoint = (
+        matrices(buffer, _ROTATION, c, 3),
+        buffer[_YAW_SETPOINT * c : (_YAW_SETPOINT + 1) * c],
+    )
+    velocity_integral, rate_integral = (
+        rows(buffer, _VELOCITY_INTEGRAL, c, 3),
+        rows(buffer, _RATE_INTEGRAL, c, 3),
+    )
+    speeds, allocations = rows(buffer, _SPEEDS, c, 4), matrices(buffer, _ALLOCATIONS, c, 4)
+    rotor_wrench = rows(buffer, _ROTOR_WRENCH, c, 4)
     action_type, scales, autopilot = (
         int(constants[0]),
         constants[_SCALES : _SCALES + 10],
@@ -298,20 +330,17 @@ def controls(actions, buffer, saturated, constants):
 
 
 @njit
-def point_offsets(buffer, constants, n):
-    """World offsets (n, P, 3) of the drag points from the centres of mass, and the points (n, P, 3)."""
-    views = step_views(buffer, n)
-    position, rotation = views[1], views[5]
+def point_offsets(buffer, constants, n, offsets, points):
+    """World offsets (n, P, 3) of the drag points from the centres of mass, and the points (n, P, 3),
+    into ``offsets`` and ``points``."""
+    position, rotation = rows(buffer, _POSITION, n, 3), matrices(buffer, _ROTATION, n, 3)
     body = drag_points(constants)
-    offsets = np.empty((n, body.shape[0], 3))
-    points = np.empty((n, body.shape[0], 3))
     for m in range(n):
         r = rotation[m]
         for p in range(body.shape[0]):
             for i in range(3):
                 offsets[m, p, i] = r[i, 0] * body[p, 0] + r[i, 1] * body[p, 1] + r[i, 2] * body[p, 2]
                 points[m, p, i] = position[m, i] + offsets[m, p, i]
-    return offsets, points
 
 
 @njit
@@ -320,8 +349,12 @@ def drag_loads(buffer, constants, offsets, air):
     the hubs (the first four points; ``QuadraticDrag``, ``Rotors.drag_forces``) in the air velocities
     ``air`` (N, P, 3) at the world ``offsets`` (N, P, 3)."""
     n = offsets.shape[0]
-    views = step_views(buffer, n)
-    velocity, angular_velocity, rotation, loads, speeds = views[3], views[4], views[5], views[9], views[19]
+    velocity, angular_velocity = rows(buffer, _VELOCITY, n, 3), rows(buffer, _ANGULAR_VELOCITY, n, 3)
+    rotation, loads, speeds = (
+        matrices(buffer, _ROTATION, n, 3),
+        rows(buffer, _LOADS, n, 6),
+        rows(buffer, _SPEEDS, n, 4),
+    )
     body_drag, rotor_drag = constants[_MOTORS + 5], constants[_MOTORS + 4]
     for m in range(n):
         r = rotation[m]
@@ -352,15 +385,12 @@ def drag_loads(buffer, constants, offsets, air):
 
 
 @njit
-def rotor_thrusts(buffer, n):
-    """(n, 4) true thrust ``k_i·Ω_i²`` of each rotor."""
-    views = step_views(buffer, n)
-    speeds, allocations = views[19], views[20]
-    out = np.empty((n, 4))
+def rotor_thrusts(buffer, n, out):
+    """(n, 4) true thrust ``k_i·Ω_i²`` of each rotor into ``out``."""
+    speeds, allocations = rows(buffer, _SPEEDS, n, 4), matrices(buffer, _ALLOCATIONS, n, 4)
     for m in range(n):
         for i in range(4):
             out[m, i] = allocations[m, 0, i] * (speeds[m, i] * speeds[m, i])
-    return out
 
 
 @njit
@@ -368,8 +398,7 @@ def added_thrust_loads(buffer, offsets, added):
     """Thrust ``added`` (N, 4) by the rotor modifiers, along body z at the hubs (the first four of the
     world ``offsets``), into the ``loads`` of ``buffer``."""
     n = added.shape[0]
-    views = step_views(buffer, n)
-    rotation, loads = views[5], views[9]
+    rotation, loads = matrices(buffer, _ROTATION, n, 3), rows(buffer, _LOADS, n, 6)
     for m in range(n):
         r = rotation[m]
         for i in range(4):
@@ -387,8 +416,12 @@ def added_thrust_loads(buffer, offsets, added):
 def apply_loads(buffer, n):
     """The world-frame ``forces`` and ``torques`` PyBullet applies: the rotors' thrust along body z and
     torque, plus the external ``loads``."""
-    views = step_views(buffer, n)
-    rotation, forces, torques, loads, rotor_wrench = views[5], views[7], views[8], views[9], views[21]
+    rotation, loads, rotor_wrench = (
+        matrices(buffer, _ROTATION, n, 3),
+        rows(buffer, _LOADS, n, 6),
+        rows(buffer, _ROTOR_WRENCH, n, 4),
+    )
+    forces, torques = rows(buffer, _FORCES, n, 3), rows(buffer, _TORQUES, n, 3)
     for m in range(n):
         r = rotation[m]
         for i in range(3):
@@ -403,8 +436,13 @@ def read_state(flat, buffer, constants):
     """After PyBullet's step, into ``buffer``: the true states from its (N, 13) rows one after another in
     ``flat`` (``World.read_flat``), time on by one step (``RigidBodyState.from_pybullet``)."""
     n = flat.shape[0] // 13
-    views = step_views(buffer, n)
-    time, position, quaternion, velocity, angular_velocity, rotation, body_rates = views[:7]
+    time, position, quaternion = (
+        buffer[_TIME * n : (_TIME + 1) * n],
+        rows(buffer, _POSITION, n, 3),
+        rows(buffer, _QUATERNION, n, 4),
+    )
+    velocity, angular_velocity = rows(buffer, _VELOCITY, n, 3), rows(buffer, _ANGULAR_VELOCITY, n, 3)
+    rotation, body_rates = matrices(buffer, _ROTATION, n, 3), rows(buffer, _BODY_RATES, n, 3)
     raw = rows_view(flat, 0, n, 13)
     dt = constants[_DT]
     for m in range(n):
@@ -422,14 +460,12 @@ def read_state(flat, buffer, constants):
 
 
 @njit
-def take_normals(noise_buffer, noise_cursor):
-    """(N, width) standard normal draws of this physics step, each vehicle's next row of its block
-    (``NoiseBlocks``); the cursors move on by one."""
-    out = np.empty((noise_buffer.shape[0], noise_buffer.shape[2]))
+def take_normals(noise_buffer, noise_cursor, out):
+    """(N, width) standard normal draws of this physics step into ``out``, each vehicle's next row of
+    its block (``NoiseBlocks``); the cursors move on by one."""
     for m in range(noise_buffer.shape[0]):
         out[m] = noise_buffer[m, noise_cursor[m]]
         noise_cursor[m] += 1
-    return out
 
 
 @njit
@@ -440,10 +476,22 @@ def sense(buffer, normals, constants):
     velocity and body rates into ``motion``; the true position, velocity, quaternion and body rates
     into ``truth``. The sensors' draws are the columns of ``normals`` from ``noise_column`` on."""
     n = normals.shape[0]
-    (
-        _, position, quaternion, velocity, _, _, body_rates, _, _, _, thrusts, body_torques,
-        measured_position, measured_quaternion, motion, truth, _, _, _, speeds, _, _, _,
-    ) = step_views(buffer, n)  # fmt: skip
+    position, quaternion, velocity = (
+        rows(buffer, _POSITION, n, 3),
+        rows(buffer, _QUATERNION, n, 4),
+        rows(buffer, _VELOCITY, n, 3),
+    )
+    body_rates, speeds, truth = (
+        rows(buffer, _BODY_RATES, n, 3),
+        rows(buffer, _SPEEDS, n, 4),
+        rows(buffer, _TRUTH, n, 13),
+    )
+    thrusts, body_torques = buffer[_THRUSTS * n : (_THRUSTS + 1) * n], rows(buffer, _BODY_TORQUES, n, 3)
+    measured_position, measured_quaternion = (
+        rows(buffer, _MEASURED_POSITION, n, 3),
+        rows(buffer, _MEASURED_QUATERNION, n, 4),
+    )
+    motion = rows(buffer, _MOTION, n, 6)
     sensing, nominal_allocation = constants[_SENSING : _SENSING + 7], rows_view(constants, _NOMINAL, 4, 4)
     levels, step, position_noise, attitude_noise = sensing[0], sensing[1], sensing[2], sensing[3]
     column = int(constants[_NOISE_COLUMN])
@@ -475,17 +523,6 @@ def sense(buffer, normals, constants):
             truth[m, 10 + i] = body_rates[m, i]
         for i in range(4):
             truth[m, 6 + i] = quaternion[m, i]
-
-
-@njit
-def centres(buffer, n):
-    """(n, 1, 3) the centres of mass, as the points where ``wind_velocity`` is wanted."""
-    position = step_views(buffer, n)[1]
-    out = np.empty((n, 1, 3))
-    for m in range(n):
-        for i in range(3):
-            out[m, 0, i] = position[m, i]
-    return out
 
 
 @njit
