@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import time
+from typing import Any
 
 import gymnasium as gym
 import numpy as np
@@ -79,6 +80,32 @@ def env_step_seconds(steps: int, resets: int = 20, **env_kwargs) -> tuple[float,
         return elapsed / steps, reset
     finally:
         env.close()
+
+
+def paired_step_seconds(steps: int, blocks: int, settings: list[dict[str, Any]]) -> list[float]:
+    """Seconds per FanTracking policy step (zero actions, episodes restarted as they end) of one env per
+    ``settings``, all built first and then timed in turn, ``blocks`` blocks of ``steps`` steps each
+    (A B A B ...): the least block of each. Alternating blocks in one process keeps a ratio between
+    them meaningful on a machine whose speed drifts."""
+    envs = [gym.make("QuadWrench/FanTracking-v1", **kwargs) for kwargs in settings]
+    try:
+        action = np.zeros(4, dtype=np.float32)
+        for env in envs:
+            env.reset(seed=0)
+            env.step(action)  # compiled kernels load on first use
+        best = [float("inf")] * len(envs)
+        for _ in range(blocks):
+            for k, env in enumerate(envs):
+                start = time.perf_counter()
+                for _ in range(steps):
+                    *_, terminated, truncated, _ = env.step(action)
+                    if terminated or truncated:
+                        env.reset()
+                best[k] = min(best[k], (time.perf_counter() - start) / steps)
+        return best
+    finally:
+        for env in envs:
+            env.close()
 
 
 def vector_step_seconds(steps: int, num_envs: int, **env_kwargs) -> float:

@@ -44,6 +44,7 @@ from quad_wrench_env.bench import (
     bare_pybullet_step_seconds,
     component_seconds,
     env_step_seconds,
+    paired_step_seconds,
     vector_step_seconds,
 )
 from quad_wrench_env.estimators import ESTIMATORS
@@ -297,12 +298,15 @@ table, all on: the open engine's cost on the compiled path (limit: 1.3x the plai
 
 
 def disturbance_rows(args: argparse.Namespace) -> list[list[str]]:
-    """Plain FanTracking against it with every disturbance on, UKF, compiled, measured alternately."""
-    plain, loaded = [], []
-    for _ in range(args.repeats):
-        plain.append(env_step_seconds(args.steps, estimator="ukf", backend="numba")[0])
-        loaded.append(env_step_seconds(args.steps, estimator="ukf", backend="numba", **ALL_DISTURBANCES)[0])
-    base, heavy = min(plain) / SUBSTEPS, min(loaded) / SUBSTEPS
+    """Plain FanTracking against it with every disturbance on, UKF, compiled, timed in alternating
+    blocks in one process (``paired_step_seconds``)."""
+    plain = {"estimator": "ukf", "backend": "numba"}
+    base, heavy = (
+        seconds / SUBSTEPS
+        for seconds in paired_step_seconds(
+            args.steps // 4, 8 * args.repeats, [plain, {**plain, **ALL_DISTURBANCES}]
+        )
+    )
     return [
         ["FanTracking-v1, ukf, numba", f"{base * 1e6:.1f}", "1.00x"],
         ["+ Dryden, second jet, ground effect over a table", f"{heavy * 1e6:.1f}", f"{heavy / base:.2f}x"],

@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 import quad_wrench_env.disturbances
+import quad_wrench_env.kernels as kernels
 from quad_wrench_env.engine import fleet as fleet_module
 from quad_wrench_env.engine.kernels import (
     CONSTANT_FIELDS,
@@ -194,6 +195,20 @@ def test_backend_names_are_checked():
     with pytest.raises(ValueError, match="backend='fortran'"):
         gym.make(FAN_TRACKING, backend="fortran")
     assert resolve_backend("auto") == ("numba" if NUMBA_AVAILABLE else "numpy")
+
+
+def test_auto_says_so_when_numba_does_not_import(monkeypatch):
+    """A plain install without a working numba is told, once, that it runs the slow reference."""
+    monkeypatch.setattr(kernels, "_numba", None)
+    monkeypatch.setattr(kernels, "NUMBA_AVAILABLE", False)
+    monkeypatch.setattr(kernels, "_warned_missing", False)
+    with pytest.warns(UserWarning, match="numba does not import"):
+        assert kernels.resolve_backend("auto") == "numpy"
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert kernels.resolve_backend("auto") == "numpy"  # once
+    with pytest.raises(ValueError, match="backend='numba' needs numba"):
+        kernels.resolve_backend("numba")
 
 
 @needs_numba

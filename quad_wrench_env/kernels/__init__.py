@@ -14,6 +14,7 @@ the compile cost (seconds) is paid once per machine, not per env.
 from __future__ import annotations
 
 import os
+import warnings
 from collections.abc import Callable
 from functools import partial
 from typing import Any
@@ -27,12 +28,23 @@ except ImportError:  # pragma: no cover - exercised where numba is absent
 
 NUMBA_AVAILABLE = _numba is not None and os.environ.get("QUAD_WRENCH_DISABLE_NUMBA", "") != "1"
 
+_warned_missing = False
+"""Whether ``backend="auto"`` has said that numba does not import (once per process)."""
+
 
 def resolve_backend(backend: str) -> str:
     """``"numpy"`` or ``"numba"`` for a configured backend; bad names and a missing numba are refused."""
     if backend not in BACKENDS:
         raise ValueError(f"backend={backend!r} is unknown; allowed: {list(BACKENDS)}")
     if backend == "auto":
+        global _warned_missing
+        if _numba is None and not _warned_missing:  # not silently 30-50x slower; the env var is a choice
+            _warned_missing = True
+            warnings.warn(
+                "numba does not import: backend='auto' runs the numpy reference, 30-50x slower "
+                "(pip install numba, a dependency of quad-wrench-env)",
+                stacklevel=2,
+            )
         return "numba" if NUMBA_AVAILABLE else "numpy"
     if backend == "numba" and not NUMBA_AVAILABLE:
         raise ValueError(
