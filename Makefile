@@ -9,7 +9,7 @@ CONSTRAINTS ?= constraints.txt
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 
-.PHONY: run test test-all lint bench clean
+.PHONY: run test test-all lint bench clean clean-cache
 
 $(STAMP): pyproject.toml $(CONSTRAINTS)
 	$(PYTHON) -m venv $(VENV)
@@ -33,3 +33,7 @@ bench: $(STAMP)
 
 clean:
 	rm -rf $(VENV) results
+
+clean-cache:  ## numba's disk caches and the composed steps (after editing a kernel that others call)
+	find quad_wrench_env agents tests -name '*.nbi' -delete -o -name '*.nbc' -delete
+	rm -rf "$${QUAD_WRENCH_CACHE_DIR:-$${XDG_CACHE_HOME:-$$HOME/.cache}/quad_wrench_env}"

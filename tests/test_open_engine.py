@@ -37,8 +37,12 @@ class Crosswind:
         __name__, (("velocity", "crosswind_velocity"), ("advance", "calm"))
     )
 
+    def __init__(self) -> None:
+        self.speed = CROSSWIND
+        """m/s; a task may change it between episodes."""
+
     def kernel_parameters(self) -> np.ndarray:
-        return np.array((CROSSWIND,))
+        return np.array((self.speed,))
 
     def reset(self, index: int, rng: np.random.Generator) -> None:
         """Nothing random."""
@@ -48,7 +52,7 @@ class Crosswind:
 
     def velocity_at(self, points, t, index, mean=False) -> np.ndarray:
         wind = np.zeros(points.shape)
-        wind[..., 1] = CROSSWIND
+        wind[..., 1] = self.speed
         return wind
 
 
@@ -93,7 +97,8 @@ class Hold(TaskDefaults):
         self.reference = np.tile((2.0, 0.0, 1.0), (count, 1))
 
     def components(self) -> Components:
-        return Components(winds=[Crosswind() if self.cfg.wind_field == "compiled" else NumpyOnlyCrosswind()])
+        self.wind = Crosswind() if self.cfg.wind_field == "compiled" else NumpyOnlyCrosswind()
+        return Components(winds=[self.wind])
 
     def reset_vehicle(self, index: int, rng: np.random.Generator, options: Mapping[str, Any]):
         return self.reference[index].copy(), 0.0
@@ -229,3 +234,60 @@ def test_a_metric_of_the_task_reaches_the_harness():
     generic = episode_metrics("QuadWrench/Unknown-v0", Episode(0, trace, 1.0, 2, None))
     assert set(generic) == {"episode_seconds", "return", "terminated_early"}
     assert math.isclose(generic["episode_seconds"], 0.04)
+
+
+@needs_numba
+def test_a_component_changed_between_episodes_is_read_again_by_the_compiled_step():
+    """A task may change a component's numbers per episode (e.g. a jet's speed per reset): the compiled
+    step packs them again at every episode start, so both backends feel the new wind."""
+    envs = [HoldEnv(backend=b, estimator="oracle") for b in ("numpy", "numba")]
+    try:
+        drag = []
+        for speed in (CROSSWIND, 2.0 * CROSSWIND):
+            for env in envs:
+                env.unwrapped.task.wind.speed = speed
+            infos = [env.reset(seed=2)[1] for env in envs]
+            infos = [env.step(np.zeros(4, dtype=np.float32))[4] for env in envs]
+            np.testing.assert_allclose(infos[1]["wrench_true"], infos[0]["wrench_true"], rtol=1e-7, atol=1e-9)
+            np.testing.assert_allclose(infos[1]["wind_velocity"], (0.0, speed, 0.0), atol=1e-12)
+            drag.append(infos[0]["wrench_true"][1])
+        assert drag[1] > 2.5 * drag[0]  # quadratic body drag plus linear rotor drag of twice the wind
+    finally:
+        for env in envs:
+            env.close()
+
+
+def test_a_wind_model_registered_elsewhere_first_does_not_hide_the_packages(monkeypatch):
+    from quad_wrench_env.disturbances import registry
+
+    monkeypatch.setattr(registry, "WIND_MODELS", {})
+    registry.wind_model("updraft", HoldConfig)(type("Updraft", (Crosswind,), {}))
+    assert registry.wind_config({"model": "dryden", "w20": 1.0})[0] == "dryden"
+    assert {"updraft", "dryden", "jet", "one_cosine"} <= set(registry.WIND_MODELS)
+
+
+def test_kernels_in_a_script_are_refused_with_a_reason():
+    from quad_wrench_env.engine.compose import Slot
+
+    with pytest.raises(ValueError, match="importable module, not in __main__"):
+        Slot("wind", CompiledForm("__main__", (("velocity", "v"), ("advance", "a"))), 0)
+
+
+def test_vehicles_of_the_vector_env_never_meet_another_frames_scene():
+    """Frames are spaced by the arena and the scene's boxes: a long table far behind the arena (here
+    reaching x = -7.2) in frame 1 must not stand in vehicle 0's way, which flies as a single env."""
+    table = {"kind": "table", "center": [-7.74, 0.0], "size": [1.0, 8.0], "height": 1.2}
+    settings = {"backend": "numpy", "estimator": "oracle", "scene": [table], "fan": {"enabled": False}}
+    venv = gym.make_vec(FAN_TRACKING, num_envs=2, vectorization_mode="vector_entry_point", **settings)
+    env = gym.make(FAN_TRACKING, **settings)
+    try:
+        observations = venv.reset(seed=4)[0]
+        np.testing.assert_array_equal(observations[0], env.reset(seed=4)[0])
+        for _ in range(25):
+            observations, _, terminated, _, _ = venv.step(np.zeros((2, 4)))
+            single, _, single_terminated, _, _ = env.step(np.zeros(4))
+            assert not terminated.any() and not single_terminated
+            np.testing.assert_array_equal(observations[0], single)
+    finally:
+        venv.close()
+        env.close()

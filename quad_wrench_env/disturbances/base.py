@@ -14,8 +14,9 @@ beyond the nominal rotors (``wrench_true``): torques are never written as formul
 
 Compiled kernels take the component's packed numbers first, always in this order: ``params`` (1-D,
 :meth:`kernel_parameters`), ``table`` ((N, W) per-vehicle numbers, :attr:`CompiledForm.table`, or an
-empty (1, 0) array) and ``state`` ((N, ``state_width``) per-vehicle state, a view of the engine's step
-buffer that the component's numpy form reads and writes too). Then, by role:
+empty (1, 0) array) and ``state`` ((N, width) per-vehicle state named by :attr:`CompiledForm.state`, a
+view of the engine's step buffer that the component's numpy form reads and writes too; an empty (1, 0)
+array without state). Then, by role:
 
 =====================  ===========================================================================
 role                   kernel arguments after ``params, table, state``
@@ -68,7 +69,8 @@ class Component(Protocol):
     """None: numpy only (``backend="numba"`` refuses it, ``"auto"`` warns and runs numpy)."""
 
     def kernel_parameters(self) -> np.ndarray:
-        """The component's numbers as its kernels read them (1-D float array)."""
+        """The component's numbers as its kernels read them (1-D float array), read again at every
+        episode start (their count must not change; per-vehicle data belongs in the table)."""
 
 
 @runtime_checkable

@@ -200,7 +200,8 @@ class FanJet:
     """The moving, turbulent jet of a fan, one copy per vehicle (each with its own fan motion and
     turbulence): a :class:`~quad_wrench_env.disturbances.base.WindField`. Switched off
     (``enabled=False``) it blows no air and draws nothing at reset, but still moves and keeps its
-    columns of each step's draws, so that every other random number stays as it was."""
+    three columns of each step's draws: exactly the random numbers an env without its fan drew before
+    the engine took components (same-seed trajectories with the fan off are unchanged)."""
 
     name = "fan"
     noise_width = 3

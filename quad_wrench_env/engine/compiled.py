@@ -64,7 +64,12 @@ class CompiledStep:
             fleet.drag_points,
         )  # fmt: skip
         components = fleet.components.ordered()
-        self.constants = component_parameters(engine, [c.kernel_parameters() for _, c in components])
+        self._components = [component for _, component in components]
+        numbers = [c.kernel_parameters() for c in self._components]
+        self.constants = component_parameters(engine, numbers)
+        ends = len(self.constants) - sum(len(n) for n in numbers) + np.cumsum([0] + [len(n) for n in numbers])
+        self._bounds = list(zip(ends[:-1].tolist(), ends[1:].tolist(), strict=True))
+        """Where each component's numbers sit in :attr:`constants`."""
         widths = [
             0 if c.compiled.state is None else getattr(c, c.compiled.state).shape[1] for _, c in components
         ]
@@ -111,8 +116,17 @@ class CompiledStep:
     def _adopt(self) -> None:
         """Take over the state the fleet read after a reset (into the kernels' own arrays) and bind
         the kernels' arguments, all of them arrays updated in place from then on (the components'
-        tables are read again: a reset may have replaced them)."""
+        numbers and tables are read again: a reset may have changed them)."""
         fleet, mine = self.fleet, self.state
+        for component, (start, stop) in zip(self._components, self._bounds, strict=True):
+            numbers = self.constants[start:stop]  # a task may change a component per episode
+            fresh = component.kernel_parameters()
+            if fresh.shape != numbers.shape:
+                raise ValueError(
+                    f"component {component.name!r} changed its number of kernel parameters from "
+                    f"{numbers.size} to {fresh.size}; per-episode data of varying size belongs in its table"
+                )
+            numbers[:] = fresh
         for name in ("position", "quaternion", "velocity", "angular_velocity", "rotation", "body_rates"):
             getattr(mine, name)[:] = getattr(fleet.state, name)
         self.loads[:] = fleet.wrench_true

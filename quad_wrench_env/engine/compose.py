@@ -7,9 +7,12 @@ the engine's kernels and each component's kernels (named by its
 compiles it with numba. Generated source, rather than numba's first-class functions or
 ``literal_unroll`` over a tuple of kernels, because only a function in a file is cached on disk by
 numba (a step that takes kernels as arguments is compiled again in every process, about 5 s; measured
-with numba 0.68). The file's name is a hash of its source and of the source files of every kernel it
-calls, so a change to any of them compiles anew, and the same composition reuses the disk cache in
-every later process (the same as the engine's other kernels).
+with numba 0.68). The file's name is a hash of its source, of the components' kernel modules and of
+the shared helpers (``quad_wrench_env/kernels/*.py``), so a changed component gives a new step, and
+the same composition reuses the disk cache in every later process. Like every numba disk cache, a
+function the step calls from another file (the engine's kernels) is cached against its own file
+alone: after editing a kernel that others call or inline (``kernels/quaternions.py``, ``linalg.py``,
+``disturbances/jet_kernels.py``), clear the caches (``make clean-cache``).
 
 One physics step, as written for every composition::
 
@@ -33,6 +36,7 @@ import importlib.util
 import os
 import sys
 import tempfile
+import threading
 from dataclasses import dataclass
 from pathlib import Path
 from types import ModuleType
@@ -57,6 +61,12 @@ class Slot:
     """The columns of each step's normal draws that are the component's own (wind fields)."""
 
     def __post_init__(self) -> None:
+        modules = {self.form.module} | {name.rpartition(":")[0] for _, name in self.form.kernels} - {""}
+        if "__main__" in modules:
+            raise ValueError(
+                "a compiled form's kernels must live in an importable module, not in __main__ (a script "
+                "or notebook): move them to a module file, or give the component compiled=None"
+            )
         roles = dict(self.form.kernels)
         missing = [role for role in ROLES[self.kind] if role not in roles]
         if missing:
@@ -210,9 +220,11 @@ def cache_folder() -> Path:
         probe = folder / f".probe-{os.getpid()}"
         probe.touch()
         probe.unlink()
-    except OSError:
-        folder = Path(tempfile.gettempdir()) / "quad_wrench_env"
-        folder.mkdir(parents=True, exist_ok=True)
+    except OSError:  # a folder of this user's alone: nobody else can plant a step there
+        folder = Path(tempfile.gettempdir()) / f"quad_wrench_env-{os.getuid()}"
+        folder.mkdir(mode=0o700, parents=True, exist_ok=True)
+        if folder.stat().st_uid != os.getuid():
+            raise PermissionError(f"{folder} belongs to another user; set QUAD_WRENCH_CACHE_DIR") from None
     return folder / "compositions"
 
 
@@ -220,15 +232,21 @@ _LOADED: dict[str, ModuleType] = {}
 
 
 def _fingerprint(text: str, slots: list[Slot]) -> str:
-    """Hash of the step's source and of every module whose kernels it calls."""
+    """Hash of the step's source, of every module whose kernels it calls and of the shared kernel
+    helpers they inline (``quad_wrench_env/kernels/*.py``): numba's disk cache checks only a function's
+    own file, so a change to any of these must give the step a new file."""
     digest = hashlib.sha256(text.encode())
     named = {name.rpartition(":")[0] for slot in slots for _, name in slot.form.kernels} - {""}
     modules = sorted({"quad_wrench_env.engine.kernels", *named, *(slot.form.module for slot in slots)})
+    files = []
     for name in modules:
         spec = importlib.util.find_spec(name)
         if spec is None or spec.origin is None:
             raise ValueError(f"compiled form module {name!r} cannot be found")
-        digest.update(Path(spec.origin).read_bytes())
+        files.append(Path(spec.origin))
+    helpers = Path(importlib.util.find_spec("quad_wrench_env.kernels").origin).parent  # type: ignore[union-attr, arg-type]
+    for path in [*files, *sorted(helpers.glob("*.py"))]:
+        digest.update(path.read_bytes())
     return digest.hexdigest()[:20]
 
 
@@ -243,8 +261,8 @@ def compose(slots: list[Slot], state_start: int, points: int, noise_width: int) 
     folder = cache_folder()
     folder.mkdir(parents=True, exist_ok=True)
     path = folder / f"step_{key}.py"
-    if not path.exists():
-        partial = folder / f".step_{key}.{os.getpid()}.tmp"
+    if not path.exists() or path.read_text() != text:
+        partial = folder / f".step_{key}.{os.getpid()}.{threading.get_ident()}.tmp"
         partial.write_text(text)
         partial.replace(path)  # atomic: another process never reads half a file
     name = f"quad_wrench_env_step_{key}"

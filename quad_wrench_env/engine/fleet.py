@@ -28,7 +28,7 @@ from quad_wrench_env.disturbances.drag import QuadraticDrag
 from quad_wrench_env.engine.actions import ActionMap
 from quad_wrench_env.engine.compiled import CompiledStep
 from quad_wrench_env.engine.components import Components
-from quad_wrench_env.engine.config import EnvConfig
+from quad_wrench_env.engine.config import ArenaConfig, EnvConfig
 from quad_wrench_env.engine.kernels import assemble_observations, termination_codes
 from quad_wrench_env.engine.noise import NoiseBlocks
 from quad_wrench_env.engine.observation import ObservationLayout
@@ -37,6 +37,7 @@ from quad_wrench_env.estimators import OracleBank, make_estimator_bank
 from quad_wrench_env.kernels import resolve_backend
 from quad_wrench_env.rotations import cross, quat_from_matrix
 from quad_wrench_env.rotors import Rotors
+from quad_wrench_env.scene import ScenePart
 from quad_wrench_env.sensors import MotionCapture, MotorSpeedSensor
 from quad_wrench_env.vehicle import GRAVITY, VehicleParams
 
@@ -50,6 +51,16 @@ with an onboard state estimator, of its velocity and body rates; they follow the
 
 _WARNED: set[str] = set()
 """Numpy-only settings already warned about (``backend="auto"`` warns once per setting)."""
+
+
+def scene_extent(arena: ArenaConfig, scene: list[ScenePart]) -> tuple[float, float]:
+    """Sizes along x and y of the box holding the arena and every scene part of one vehicle's frame."""
+    low, high = np.array((arena.x_min, -arena.y_half_width)), np.array((arena.x_max, arena.y_half_width))
+    for part in scene:
+        for centre, half in part.boxes():
+            low = np.minimum(low, np.subtract(centre[:2], half[:2]))
+            high = np.maximum(high, np.add(centre[:2], half[:2]))
+    return float(high[0] - low[0]), float(high[1] - low[1])
 
 
 def numpy_only(cfg: EnvConfig, components: Components) -> list[str]:
@@ -116,10 +127,10 @@ class Fleet:
         """The first column of the sensors' draws, after the wind fields'."""
         width = SENSOR_NOISE_WIDTH + (STATE_ESTIMATOR_NOISE_WIDTH if sensors.state_estimator else 0)
         self.noise = NoiseBlocks(count, column + width)
-        arena = cfg.arena
-        # Frames apart by the arena's larger side and two box diagonals (< 4 hull radii) and a metre
-        # more: boxes of vehicles inside their arenas never overlap (see World's docstring).
-        spacing = max(arena.x_max - arena.x_min, 2.0 * arena.y_half_width) + 4.0 * vehicle.hull_radius + 1.0
+        # Frames apart by the larger side of what a frame holds (the arena and the scene's boxes) and two
+        # box diagonals (< 4 hull radii) and a metre more: boxes of vehicles inside their arenas never
+        # overlap, nor meet another frame's scene (see World's docstring).
+        spacing = max(scene_extent(cfg.arena, components.scene)) + 4.0 * vehicle.hull_radius + 1.0
         self.world = World(vehicle, dt, count, gui=gui, spacing=spacing, scene=components.scene)
         self._flip_cos = math.cos(math.radians(cfg.flip_tilt_deg))
         self.time = np.zeros(count)
@@ -129,6 +140,7 @@ class Fleet:
         """(N, 3) air velocity at each centre of mass (world frame), after the last step or reset."""
         self.compiled = CompiledStep(self) if self.backend == "numba" else None
         """The physics step on the compiled kernels, or None (the numpy reference)."""
+        arena = cfg.arena
         self._limits = np.array(
             (
                 cfg.crash_height, self._flip_cos, arena.x_min, arena.x_max, arena.y_half_width, arena.z_max,

@@ -3,7 +3,7 @@
 ``gym.make_vec("QuadWrench/FanTracking-v1", num_envs=N, vectorization_mode="vector_entry_point")``
 builds it (every id the package registers has a vector entry point). Vehicle ``i`` behaves exactly
 as a single env of the same id and settings would, reset with seed ``seed + i``: same code (a
-:class:`~quad_wrench_env.envs.fleet.Fleet` of N instead of one), same random draws, same numbers.
+:class:`~quad_wrench_env.engine.fleet.Fleet` of N instead of one), same random draws, same numbers.
 
 Episodes restart in the step that ends them (``AutoresetMode.SAME_STEP``, as stable-baselines3
 expects): the returned observation is the new episode's first, and the last one of the ended

@@ -48,9 +48,9 @@ effort     ``-effort_weight·mean(a²)``                  smooth commands
 crash      ``-crash_penalty`` on an early end, else 0
 =========  ===========================================  ==========================================
 
-Episode end: terminated on ``crash`` (below ``crash_height`` or touching the ground), ``flip`` (tilt
-above ``flip_tilt_deg``) or ``out_of_arena``, named in ``info["termination_reason"]``; truncated
-after ``episode_seconds`` (30 s at 50 Hz: 1500 steps; physics at 200 Hz).
+Episode end: terminated on ``crash`` (below ``crash_height``, or touching the ground or a table),
+``flip`` (tilt above ``flip_tilt_deg``) or ``out_of_arena``, named in ``info["termination_reason"]``;
+truncated after ``episode_seconds`` (30 s at 50 Hz: 1500 steps; physics at 200 Hz).
 
 Reset options: ``offset_y`` (initial offset from the jet axis, m), ``fan_motion`` (``"random"``, a
 motion name, or a mapping ``{"name": ..., **parameters}``; every motion takes ``y0``).
