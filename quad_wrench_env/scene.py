@@ -10,6 +10,7 @@ surface the ground effect sees under a rotor. Config: ``scene=[{"kind": "table",
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -34,11 +35,22 @@ class ScenePart(Protocol):
         """``(x_min, x_max, y_min, y_max, z)`` of the part's horizontal top, or None."""
 
 
-def _check(kind: str, **values: Any) -> None:
-    for key, value in values.items():
-        numbers = value if isinstance(value, (tuple, list)) else (value,)
-        if not all(isinstance(v, (int, float)) and math.isfinite(v) for v in numbers):
-            raise ValueError(f"scene {kind}: {key}={value!r} must be finite numbers")
+def _check(part: Any, pairs: tuple[str, ...], positive: tuple[str, ...]) -> None:
+    """Refuse a scene part whose numbers are not finite, whose ``pairs`` (centre, size) are not two
+    numbers, or whose ``positive`` fields are not > 0, naming the field."""
+    for key in dataclasses.fields(part):
+        value = getattr(part, key.name)
+        numbers = tuple(value) if isinstance(value, (tuple, list)) else (value,)
+        if key.name in pairs:
+            setattr(part, key.name, numbers)
+        if not all(isinstance(v, (int, float)) and math.isfinite(v) for v in numbers) or (
+            key.name in pairs and len(numbers) != 2
+        ):
+            raise ValueError(
+                f"scene {part.name}: {key.name}={value!r} must be finite numbers, 2 for {list(pairs)}"
+            )
+        if key.name in positive and min(numbers) <= 0:
+            raise ValueError(f"scene {part.name}: {key.name}={value!r} must be > 0 (m)")
 
 
 @dataclass
@@ -52,13 +64,7 @@ class Table:
     ends_episode_on_contact = True
 
     def __post_init__(self) -> None:
-        self.center, self.size = tuple(self.center), tuple(self.size)
-        _check("table", center=self.center, size=self.size, height=self.height)
-        if len(self.center) != 2 or len(self.size) != 2 or min(self.size) <= 0 or self.height <= 0:
-            raise ValueError(
-                f"scene table: center={list(self.center)} and size={list(self.size)} must be 2 numbers "
-                f"each, size and height={self.height} > 0"
-            )
+        _check(self, ("center", "size"), ("size", "height"))
 
     def boxes(self):
         (x, y), (sx, sy), h = self.center, self.size, self.height
@@ -81,9 +87,7 @@ class Wall:
     ends_episode_on_contact = False
 
     def __post_init__(self) -> None:
-        _check("wall", x=self.x, width=self.width, height=self.height, thickness=self.thickness)
-        if min(self.width, self.height, self.thickness) <= 0:
-            raise ValueError(f"scene wall: width, height and thickness must be > 0; got {self}")
+        _check(self, (), ("width", "height", "thickness"))
 
     def boxes(self):
         half = (0.5 * self.thickness, 0.5 * self.width, 0.5 * self.height)
@@ -105,10 +109,7 @@ class Ceiling:
     ends_episode_on_contact = False
 
     def __post_init__(self) -> None:
-        self.center, self.size = tuple(self.center), tuple(self.size)
-        _check("ceiling", height=self.height, center=self.center, size=self.size, thickness=self.thickness)
-        if len(self.center) != 2 or len(self.size) != 2 or min(*self.size, self.height, self.thickness) <= 0:
-            raise ValueError(f"scene ceiling: 2-number center and size, positive sizes required; got {self}")
+        _check(self, ("center", "size"), ("size", "height", "thickness"))
 
     def boxes(self):
         (x, y), (sx, sy) = self.center, self.size

@@ -551,3 +551,41 @@ def test_compiled_env_matches_numpy_with_every_new_component(make_env):
             trace.append(np.concatenate((info["wind_velocity"], info["wrench_true"], info["position"])))
         runs.append(np.array(trace))
     np.testing.assert_allclose(runs[1], runs[0], rtol=1e-7, atol=1e-9)
+
+
+@pytest.mark.parametrize(
+    ("entry", "message"),
+    [
+        ({"kind": "table", "height": -1.0}, r"scene table: height=-1.0 must be > 0"),
+        (
+            {"kind": "table", "center": [1.0, 2.0, 3.0]},
+            r"scene table: center=\[1.0, 2.0, 3.0\] must be finite",
+        ),
+        ({"kind": "wall", "width": 0.0}, r"scene wall: width=0.0 must be > 0"),
+        ({"kind": "ceiling", "size": [1.0, math.nan]}, r"scene ceiling: size=\[1.0, nan\] must be finite"),
+        ({"kind": "sofa"}, r"scene\[0\]: unknown kind 'sofa'; allowed: \['ceiling', 'table', 'wall'\]"),
+        ({"kind": "table", "legs": 4}, r"legs"),
+    ],
+)
+def test_bad_scene_entries_are_refused_by_name(entry, message):
+    from quad_wrench_env.scene import make_scene_part
+
+    with pytest.raises(ValueError, match=message):
+        make_scene_part(entry)
+
+
+@pytest.mark.parametrize(
+    ("entry", "message"),
+    [
+        ({"model": "hurricane"}, r"wind\[0\]: unknown model 'hurricane'"),
+        ({"model": "dryden", "w20": "2"}, r"wind\[0\]\.w20='2' must be a number"),
+        ({"model": "jet", "direction": [0.0, 0.0, 0.0]}, r"direction=\[0, 0, 0\] has no direction"),
+        ({"model": "one_cosine", "duration": 0.0}, r"duration"),
+        ({"speed": 3.0}, r"must be a mapping with a 'model'"),
+    ],
+)
+def test_bad_wind_entries_are_refused_by_name(entry, message):
+    from quad_wrench_env.disturbances.registry import wind_config
+
+    with pytest.raises(ValueError, match=message):
+        wind_config(entry)
