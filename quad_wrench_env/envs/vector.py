@@ -7,8 +7,9 @@ as a single env of the same id and settings would, reset with seed ``seed + i``:
 
 Episodes restart in the step that ends them (``AutoresetMode.SAME_STEP``, as stable-baselines3
 expects), without reset options (Gymnasium's convention: an autoreset episode draws what its options
-would have fixed; ``reset_vehicles`` restarts chosen vehicles with options): the returned observation is the new episode's first, and the last one of the ended
-episode is in ``info["final_obs"]`` with its info in ``info["final_info"]``. ``info`` holds every
+would have fixed; ``reset_vehicles`` restarts chosen vehicles with options): the returned
+observation is the new episode's first, and the last one of the ended episode is in
+``info["final_obs"]`` with its info in ``info["final_info"]``. ``info`` holds every
 single-env key as an array over vehicles, each with its ``_key`` mask (Gymnasium's convention);
 ``reward_terms`` and ``termination_reason`` belong to the step, so for restarted vehicles they are
 in ``final_info``. The vector env does not render: make a single env to watch a vehicle.
