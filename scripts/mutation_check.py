@@ -1,0 +1,593 @@
+"""Mutation check: small deliberate bugs, each run against the tests that should catch it.
+
+    python scripts/mutation_check.py [--check] [--only NAME ...] [--jobs-timeout SECONDS]
+
+Each mutation is one or more exact text edits (the numpy reference and the compiled kernel alike,
+where both exist) applied to a copy of the checkout's tracked files in a temporary folder; the
+listed test files then run there (``pytest -x``, the copy's package first on the path, numba and
+composed-step caches of its own). A mutation whose tests fail is killed (the first failing test is
+printed); one whose tests pass survived. ``--check`` only verifies that every edit's text occurs
+exactly once (fast). Not part of CI: it compiles mutated kernels and takes minutes per mutation.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import re
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@dataclass(frozen=True)
+class Mutation:
+    name: str
+    kind: str
+    edits: tuple[tuple[str, str, str], ...]
+    """``(file, text, replacement)``; each text must occur exactly once in its file."""
+    tests: tuple[str, ...]
+
+
+ENGINE = "quad_wrench_env/engine/kernels.py"
+ACTIONS = "quad_wrench_env/engine/actions.py"
+FAN = "quad_wrench_env/disturbances/fan.py"
+JET = "quad_wrench_env/disturbances/jet_kernels.py"
+REFERENCE = ("tests/test_reference_dynamics.py", "tests/test_reference_task.py")
+
+MUTATIONS = (
+    Mutation(
+        "motor spin signs flipped",
+        "vehicle",
+        (
+            (
+                "quad_wrench_env/vehicle.py",
+                "MOTOR_SPIN = np.array((1.0, -1.0, 1.0, -1.0))",
+                "MOTOR_SPIN = np.array((-1.0, 1.0, -1.0, 1.0))",
+            ),
+        ),
+        ("tests/test_vehicle.py", *REFERENCE),
+    ),
+    Mutation(
+        "hover speed from half the weight",
+        "vehicle",
+        (
+            (
+                "quad_wrench_env/vehicle.py",
+                "return math.sqrt(self.mass * GRAVITY / (4.0 * self.kf))",
+                "return math.sqrt(0.5 * self.mass * GRAVITY / (4.0 * self.kf))",
+            ),
+        ),
+        ("tests/test_vehicle.py", "tests/test_autopilot.py"),
+    ),
+    Mutation(
+        "motor lag up uses the down constant",
+        "rotors",
+        (
+            (
+                "quad_wrench_env/rotors.py",
+                "self._alpha_up = 1.0 - math.exp(-dt / vehicle.motor_time_constant_up)",
+                "self._alpha_up = 1.0 - math.exp(-dt / (2.0 * vehicle.motor_time_constant_up))",
+            ),
+        ),
+        ("tests/test_physics.py", "tests/test_vehicle.py", *REFERENCE),
+    ),
+    Mutation(
+        "rotor drag sign flipped",
+        "rotors",
+        (
+            (
+                "quad_wrench_env/rotors.py",
+                "return -(self._drag_coefficient * self.speeds[index])[:, :, None] * in_plane",
+                "return (self._drag_coefficient * self.speeds[index])[:, :, None] * in_plane",
+            ),
+            (
+                ENGINE,
+                "                k_d = rotor_drag * speeds[m, p]",
+                "                k_d = -rotor_drag * speeds[m, p]",
+            ),
+        ),
+        ("tests/test_physics.py", "tests/test_open_engine.py"),
+    ),
+    Mutation(
+        "autopilot gyroscopic term dropped",
+        "autopilot",
+        (
+            (
+                "quad_wrench_env/autopilot.py",
+                "torque = self._inertia * angular_accel + cross(omega, self._inertia * omega)",
+                "torque = self._inertia * angular_accel",
+            ),
+            (
+                ENGINE,
+                "thrust, torque[0] + c0, torque[1] + c1, torque[2] + c2, inverse,",
+                "thrust, torque[0], torque[1], torque[2], inverse,",
+            ),
+        ),
+        ("tests/test_autopilot.py", *REFERENCE),
+    ),
+    Mutation(
+        "attitude action's roll sign flipped",
+        "actions",
+        (
+            (
+                ACTIONS,
+                "                a[:, 0] * self._tilt_scale,",
+                "                -a[:, 0] * self._tilt_scale,",
+            ),
+            (
+                ENGINE,
+                "roll, pitch, yaw_d = a[0] * scales[4], a[1] * scales[4]",
+                "roll, pitch, yaw_d = -a[0] * scales[4], a[1] * scales[4]",
+            ),
+        ),
+        REFERENCE,
+    ),
+    Mutation(
+        "wrench action's yaw scaled by the roll coefficient",
+        "actions",
+        (
+            (
+                ACTIONS,
+                "(1.0 + a[:, 0]) * self._hover_thrust, a[:, 1:] * self._torque_scale",
+                "(1.0 + a[:, 0]) * self._hover_thrust, a[:, 1:] * self._torque_scale[0]",
+            ),
+            (
+                ENGINE,
+                "a[1] * scales[6], a[2] * scales[7], a[3] * scales[8],",
+                "a[1] * scales[6], a[2] * scales[7], a[3] * scales[6],",
+            ),
+        ),
+        REFERENCE,
+    ),
+    Mutation(
+        "velocity action's yaw rate ignored",
+        "actions",
+        (
+            (
+                ACTIONS,
+                "state, a[:, :3] * self._velocity_scale, a[:, 3] * self._yaw_rate_scale",
+                "state, a[:, :3] * self._velocity_scale, 0.0 * a[:, 3]",
+            ),
+            (ENGINE, "                yaw_rate = a[3] * scales[3]", "                yaw_rate = 0.0 * a[3]"),
+        ),
+        REFERENCE,
+    ),
+    Mutation(
+        "motor action maps to half speed",
+        "actions",
+        (
+            (
+                ACTIONS,
+                "return 0.5 * (a + 1.0) * self._max_speed",
+                "return 0.25 * (a + 1.0) * self._max_speed",
+            ),
+            (
+                ENGINE,
+                "command[i] = 0.5 * (a[i] + 1.0) * scales[9]",
+                "command[i] = 0.25 * (a[i] + 1.0) * scales[9]",
+            ),
+        ),
+        REFERENCE,
+    ),
+    Mutation(
+        "fan transit delay ignores the core",
+        "fan",
+        (
+            (JET, "        return x / u0", "        return 0.5 * x / u0"),
+            (
+                FAN,
+                "return np.where(x <= core, x / u0, core / u0 + beyond)",
+                "return np.where(x <= core, 0.5 * x / u0, core / u0 + beyond)",
+            ),
+        ),
+        ("tests/test_fan.py", "tests/test_reference_dynamics.py"),
+    ),
+    Mutation(
+        "fan transit delay beyond the core without asinh",
+        "fan",
+        (
+            (
+                JET,
+                "integral = 0.5 * x * b + scale * (math.asinh(c * x / radius) - _CORE_INTEGRAL)",
+                "integral = 0.5 * x * b",
+            ),
+            (
+                FAN,
+                "xi) + self._radius2 / (2.0 * c) * np.arcsinh(c * xi / radius)",
+                "xi)",
+            ),
+        ),
+        ("tests/test_fan.py", "tests/test_reference_dynamics.py"),
+    ),
+    Mutation(
+        "jet profile Gaussian in r, not r²",
+        "fan",
+        (
+            (
+                JET,
+                "speed = u_c * math.exp(-(dy * dy + dz * dz) / (b * b)) if x > 0.0 else 0.0",
+                "speed = u_c * math.exp(-math.sqrt(dy * dy + dz * dz) / b) if x > 0.0 else 0.0",
+            ),
+            (
+                FAN,
+                "speed = np.where(x > 0.0, u_c * np.exp(-(dy * dy + dz * dz) / (b * b)), 0.0)",
+                "speed = np.where(x > 0.0, u_c * np.exp(-np.sqrt(dy * dy + dz * dz) / b), 0.0)",
+            ),
+        ),
+        ("tests/test_fan.py",),
+    ),
+    Mutation(
+        "turbulence without sqrt(1 - a²)",
+        "fan",
+        (
+            (
+                JET,
+                "noise[n, i] = decay * noise[n, i] + math.sqrt(1.0 - decay * decay) * normals[n, i]",
+                "noise[n, i] = decay * noise[n, i] + normals[n, i]",
+            ),
+            (
+                FAN,
+                "self.noise + np.sqrt(1.0 - decay * decay)[:, None] * normals",
+                "self.noise + normals",
+            ),
+        ),
+        ("tests/test_fan.py",),
+    ),
+    Mutation(
+        "body drag linear in airspeed",
+        "drag",
+        (
+            (
+                "quad_wrench_env/disturbances/drag.py",
+                "return (self.coefficient * speed)[..., None] * relative_air_velocity",
+                "return self.coefficient * relative_air_velocity",
+            ),
+            (
+                ENGINE,
+                "            magnitude = math.sqrt(rel0 * rel0 + rel1 * rel1 + rel2 * rel2)",
+                "            magnitude = 1.0",
+            ),
+        ),
+        ("tests/test_physics.py", "tests/test_open_engine.py"),
+    ),
+    Mutation(
+        "drag ignores the body's rotation",
+        "drag",
+        (
+            (
+                "quad_wrench_env/engine/fleet.py",
+                "+ cross(state.angular_velocity[:, None, :], offsets)",
+                "+ 0.0 * offsets",
+            ),
+            (
+                ENGINE,
+                "            rel1 = air[m, p, 1] - (velocity[m, 1] + w1)",
+                "            rel1 = air[m, p, 1] - velocity[m, 1]",
+            ),
+        ),
+        ("tests/test_physics.py",),
+    ),
+    Mutation(
+        "motor speeds fed unquantized",
+        "sensors",
+        (
+            (
+                "quad_wrench_env/sensors.py",
+                "return np.clip(np.round(speeds / self.step), 0.0, self.levels) * self.step",
+                "return np.clip(speeds / self.step, 0.0, self.levels) * self.step",
+            ),
+            (
+                ENGINE,
+                "quantized = min(max(np.rint(speeds[m, i] / step), 0.0), levels) * step",
+                "quantized = min(max(speeds[m, i] / step, 0.0), levels) * step",
+            ),
+        ),
+        ("tests/test_sensors_payload.py", "tests/test_reference_estimators.py"),
+    ),
+    Mutation(
+        "motion capture noise twice its setting",
+        "sensors",
+        (
+            (
+                ENGINE,
+                "measured_position[m, i] = position[m, i] + position_noise * draws[i]",
+                "measured_position[m, i] = position[m, i] + 2.0 * position_noise * draws[i]",
+            ),
+        ),
+        ("tests/test_sensors_payload.py", "tests/test_backends.py"),
+    ),
+    Mutation(
+        "UKF gyroscopic sign flipped",
+        "ukf",
+        (
+            (
+                "quad_wrench_env/estimators/ukf.py",
+                "+ motor_torque - cross(omega, omega * self.inertia)",
+                "+ motor_torque + cross(omega, omega * self.inertia)",
+            ),
+            (
+                "quad_wrench_env/kernels/ukf.py",
+                "            torque[0] -= om1 * j2 - om2 * j1",
+                "            torque[0] += om1 * j2 - om2 * j1",
+            ),
+            (
+                "quad_wrench_env/kernels/ukf_lanes.py",
+                "torque = torque + body_torque[i] - gyroscopic[i]",
+                "torque = torque + body_torque[i] + gyroscopic[i]",
+            ),
+        ),
+        ("tests/test_ukf.py", "tests/test_reference_estimators.py"),
+    ),
+    Mutation(
+        "UKF force random walk 100x smaller",
+        "ukf",
+        (
+            (
+                "quad_wrench_env/estimators/noise.py",
+                "    force_walk: float = 4e-3",
+                "    force_walk: float = 4e-5",
+            ),
+        ),
+        ("tests/test_ukf.py", "tests/test_reference_estimators.py"),
+    ),
+    Mutation(
+        "observer Coriolis term dropped",
+        "observer",
+        (
+            (
+                "quad_wrench_env/estimators/observer.py",
+                "T_eta, self.inertia * _apply(T_dot, eta_rate) + cross(omega, self.inertia * omega)",
+                "T_eta, self.inertia * _apply(T_dot, eta_rate)",
+            ),
+            ("quad_wrench_env/kernels/observer.py", "        inner[0] += om[1] * j2 - om[2] * j1", ""),
+            ("quad_wrench_env/kernels/observer.py", "        inner[1] += om[2] * j0 - om[0] * j2", ""),
+            ("quad_wrench_env/kernels/observer.py", "        inner[2] += om[0] * j1 - om[1] * j0", ""),
+        ),
+        ("tests/test_ekf_observer.py", "tests/test_reference_estimators.py"),
+    ),
+    Mutation(
+        "EKF ignores the onboard body rates",
+        "ekf",
+        (("quad_wrench_env/estimators/ekf.py", "        if body_rates is not None:", "        if False:"),),
+        ("tests/test_ekf_observer.py", "tests/test_reference_estimators.py"),
+    ),
+    Mutation(
+        "tracking reward ignores the height error",
+        "rewards",
+        (
+            (
+                "quad_wrench_env/tasks/fan_tracking.py",
+                "        out[n, 0] = math.exp(-math.sqrt(dy * dy + dz * dz) / axis_scale)",
+                "        out[n, 0] = math.exp(-abs(dy) / axis_scale)",
+            ),
+            (
+                "quad_wrench_env/tasks/fan_tracking.py",
+                "numbers[:, 0] = np.exp(-np.sqrt(dy * dy + dz * dz) / axis_scale)",
+                "numbers[:, 0] = np.exp(-np.abs(dy) / axis_scale)",
+            ),
+        ),
+        ("tests/test_fan_tracking_task.py", "tests/test_reference_task.py"),
+    ),
+    Mutation(
+        "stand-off reward rewards distance",
+        "rewards",
+        (
+            (
+                "quad_wrench_env/tasks/fan_tracking.py",
+                "        out[n, 1] = -standoff_weight * abs(standoff)",
+                "        out[n, 1] = standoff_weight * abs(standoff)",
+            ),
+            (
+                "quad_wrench_env/tasks/fan_tracking.py",
+                "numbers[:, 1] = -standoff_weight * np.abs(standoff)",
+                "numbers[:, 1] = standoff_weight * np.abs(standoff)",
+            ),
+        ),
+        ("tests/test_fan_tracking_task.py", "tests/test_reference_task.py"),
+    ),
+    Mutation(
+        "flip detection off",
+        "terminations",
+        (
+            (ENGINE, "        elif rotation[n, 2, 2] < limits[1]:", "        elif rotation[n, 2, 2] < -2.0:"),
+            (
+                "quad_wrench_env/engine/fleet.py",
+                "codes[s.rotation[:, 2, 2] < self._flip_cos] = 2",
+                "codes[s.rotation[:, 2, 2] < -2.0] = 2",
+            ),
+        ),
+        ("tests/test_reference_task.py", "tests/test_env_api.py"),
+    ),
+    Mutation(
+        "crash height ignored",
+        "terminations",
+        (
+            (ENGINE, "        if z < limits[0]:", "        if z < -100.0:"),
+            (
+                "quad_wrench_env/engine/fleet.py",
+                "codes[(z < cfg.crash_height) | self.world.crash_contacts()] = 1",
+                "codes[self.world.crash_contacts()] = 1",
+            ),
+        ),
+        ("tests/test_reference_task.py", "tests/test_env_api.py"),
+    ),
+    Mutation(
+        "vector env masks every vehicle's final info",
+        "vector env",
+        (
+            (
+                "quad_wrench_env/envs/vector.py",
+                "final_info=final_info, _final_info=done)",
+                "final_info=final_info, _final_info=done | True)",
+            ),
+        ),
+        ("tests/test_vector_env.py", "tests/test_reference_task.py"),
+    ),
+    Mutation(
+        "vector env keeps the ended episode's observation",
+        "vector env",
+        (
+            (
+                "quad_wrench_env/envs/vector.py",
+                "return observations(fleet, self.task, self._last_actions), rewards,",
+                "return step_observations, rewards,",
+            ),
+        ),
+        ("tests/test_vector_env.py", "tests/test_reference_task.py"),
+    ),
+    Mutation(
+        "ground effect measured to z = 0 only",
+        "ground effect",
+        (
+            (
+                "quad_wrench_env/disturbances/ground_effect.py",
+                "        height = np.where(under, np.maximum(height, top), height)",
+                "        height = height",
+            ),
+            (
+                "quad_wrench_env/disturbances/ground_effect.py",
+                "                    surface = max(surface, t[4])",
+                "                    surface = surface",
+            ),
+        ),
+        ("tests/test_disturbances.py",),
+    ),
+    Mutation(
+        "Dryden filter without sqrt(1 - a²)",
+        "dryden",
+        (
+            (
+                "quad_wrench_env/disturbances/dryden.py",
+                "self.gust[:] = decay * self.gust + self.sigma * np.sqrt(1.0 - decay * decay) * normals",
+                "self.gust[:] = decay * self.gust + self.sigma * normals",
+            ),
+            (
+                "quad_wrench_env/disturbances/dryden.py",
+                "params[3 + i] * math.sqrt(1.0 - decay * decay) * normals[n, i]",
+                "params[3 + i] * normals[n, i]",
+            ),
+        ),
+        ("tests/test_disturbances.py",),
+    ),
+    Mutation(
+        "payload weight at the centre of mass",
+        "point loads",
+        (
+            (
+                "quad_wrench_env/disturbances/payload.py",
+                "        offsets = rotation @ self._point",
+                "        offsets = 0.0 * (rotation @ self._point)",
+            ),
+            (
+                "quad_wrench_env/disturbances/payload.py",
+                "            out[n, 3] += o1 * payload[4]",
+                "            out[n, 3] += 0.0",
+            ),
+        ),
+        ("tests/test_sensors_payload.py", "tests/test_backends.py"),
+    ),
+    Mutation(
+        "sensors read the wind's noise columns",
+        "sensors",
+        (
+            (ENGINE, "        draws = normals[m, column:]", "        draws = normals[m, 0:]"),
+            (
+                "quad_wrench_env/engine/fleet.py",
+                "sensors = normals[:, self.sensor_noise_column :]",
+                "sensors = normals[:, 0:]",
+            ),
+        ),
+        ("tests/test_backends.py", "tests/test_fan.py", "tests/test_env_api.py"),
+    ),
+)
+
+
+def _copy(destination: Path) -> None:
+    files = subprocess.run(["git", "ls-files"], cwd=ROOT, capture_output=True, text=True, check=True).stdout
+    for name in files.splitlines():
+        source = ROOT / name
+        if source.is_file():
+            target = destination / name
+            target.parent.mkdir(parents=True, exist_ok=True)
+            shutil.copy2(source, target)
+
+
+def _apply(root: Path, mutation: Mutation) -> list[str]:
+    """Apply the edits; return the problems (a text missing or not unique)."""
+    problems = []
+    for name, text, replacement in mutation.edits:
+        path = root / name
+        source = path.read_text()
+        count = source.count(text)
+        if count != 1:
+            problems.append(f"{name}: text found {count} times: {text[:60]!r}")
+            continue
+        path.write_text(source.replace(text, replacement))
+    return problems
+
+
+def _restore(root: Path, mutation: Mutation) -> None:
+    for name, _, _ in mutation.edits:
+        shutil.copy2(ROOT / name, root / name)
+
+
+def _run(root: Path, mutation: Mutation, timeout: float) -> tuple[str, str, float]:
+    tests = [t for t in mutation.tests if (root / t).exists()]
+    env = {**os.environ, "PYTHONPATH": str(root), "QUAD_WRENCH_CACHE_DIR": str(root / ".compositions")}
+    start = time.perf_counter()
+    try:
+        done = subprocess.run(
+            [sys.executable, "-m", "pytest", "-x", "-q", "-p", "no:cacheprovider", *tests],
+            cwd=root, env=env, capture_output=True, text=True, timeout=timeout,
+        )  # fmt: skip
+    except subprocess.TimeoutExpired:
+        return "timeout", "", time.perf_counter() - start
+    seconds = time.perf_counter() - start
+    failed = re.findall(r"^FAILED (\S+)", done.stdout, re.MULTILINE)
+    if done.returncode == 0:
+        return "survived", "", seconds
+    return "killed", failed[0] if failed else f"pytest exit {done.returncode}", seconds
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--check", action="store_true", help="only check that every edit applies")
+    parser.add_argument("--only", nargs="+", metavar="NAME", help="mutations whose name contains NAME")
+    parser.add_argument("--timeout", type=float, default=900.0, help="seconds per mutation's tests")
+    args = parser.parse_args()
+    chosen = [m for m in MUTATIONS if not args.only or any(part in m.name for part in args.only)]
+    if not chosen:
+        parser.error(f"--only {args.only} matches no mutation; names: {[m.name for m in MUTATIONS]}")
+    with tempfile.TemporaryDirectory(prefix="mutation-check-") as folder:
+        root = Path(folder)
+        _copy(root)
+        rows, killed = [], 0
+        for mutation in chosen:
+            problems = _apply(root, mutation)
+            if problems:
+                verdict, by, seconds = "broken", "; ".join(problems), 0.0
+            elif args.check:
+                verdict, by, seconds = "applies", "", 0.0
+            else:
+                verdict, by, seconds = _run(root, mutation, args.timeout)
+            _restore(root, mutation)
+            killed += verdict == "killed"
+            rows.append(f"| {mutation.kind} | {mutation.name} | {verdict} | {by} | {seconds:.0f} |")
+            print(rows[-1], flush=True)
+    print("\n| kind | mutation | verdict | first failing test | s |\n|---|---|---|---|---|")
+    print("\n".join(rows))
+    if not args.check:
+        print(f"\nkilled {killed} of {len(chosen)} ({killed / len(chosen):.0%})")
+    if any("| broken |" in row for row in rows):
+        sys.exit(1)
+
+
+if __name__ == "__main__":
+    main()
