@@ -1,27 +1,64 @@
-"""The benchmark's measuring functions run on the current code (their numbers are for scripts/)."""
+"""The benchmark's measuring functions do what scripts/ rely on (no wall-clock times asserted)."""
 
 from __future__ import annotations
 
 import math
 
+import gymnasium as gym
 import pytest
 
-from quad_wrench_env.bench import FLOORS, bare_pybullet_step_seconds, component_seconds
-from quad_wrench_env.kernels import NUMBA_AVAILABLE
+import quad_wrench_env.bench as bench
+from quad_wrench_env.bench import FLOORS, bare_pybullet_step_seconds, component_seconds, paired_step_seconds
 
 
 def test_the_floor_refuses_an_unknown_load_by_name():
-    assert bare_pybullet_step_seconds(5, bodies=2) > 0.0
+    """Catches a floor silently timing some default load for a misspelt one."""
     with pytest.raises(ValueError, match="floor='three rotors'"):
-        bare_pybullet_step_seconds(5, floor="three rotors")
-    assert len(FLOORS) == 2
+        bare_pybullet_step_seconds(2, floor="three rotors")
+    assert FLOORS == ("four rotor forces", "resultant force and torque")
+    for floor in FLOORS:
+        assert math.isfinite(bare_pybullet_step_seconds(2, bodies=2, floor=floor))
 
 
-@pytest.mark.parametrize(
-    "num_envs", [1, pytest.param(3, marks=pytest.mark.skipif(not NUMBA_AVAILABLE, reason="numba"))]
-)
-def test_the_parts_of_a_step_are_timed_per_vehicle(num_envs):
-    parts = component_seconds(3, num_envs=num_envs)
-    assert "policy step: observation, reward, termination, info" in parts
-    assert any(name.startswith("physics step: estimator (ukf") for name in parts)
+def test_paired_timing_gives_one_figure_per_setting_and_steps_every_env(monkeypatch):
+    """Catches a paired benchmark that times the wrong env, skips one or returns figures out of
+    order: one figure per setting, each env stepped blocks x steps times (plus one warm-up step)."""
+    made = []
+    real_make = gym.make
+
+    def make(env_id, **kwargs):
+        env = real_make(env_id, **kwargs)
+        counter = {"steps": 0, "kwargs": kwargs}
+        step = env.step
+
+        def counted(action):
+            counter["steps"] += 1
+            return step(action)
+
+        env.step = counted
+        made.append(counter)
+        return env
+
+    monkeypatch.setattr(bench.gym, "make", make)
+    settings = [{"estimator": "oracle", "backend": "numpy"}, {"estimator": "observer", "backend": "numpy"}]
+    figures = paired_step_seconds(steps=3, blocks=2, settings=settings)
+    assert len(figures) == 2 and all(math.isfinite(f) and f > 0 for f in figures)
+    assert [m["kwargs"] for m in made] == settings
+    assert [m["steps"] for m in made] == [1 + 2 * 3] * 2
+
+
+def test_the_parts_of_a_step_are_the_documented_keys():
+    """Catches a part dropped from or renamed in the per-component breakdown (numpy backend)."""
+    parts = component_seconds(2, backend="numpy", estimator="ekf")
+    assert set(parts) == {
+        "physics step: autopilot + motors",
+        "physics step: disturbances (wind, drag, point loads)",
+        "physics step: PyBullet apply + step",
+        "physics step: PyBullet read + state",
+        "physics step: sensors (noise, motion capture, motor speeds)",
+        "physics step: estimator (ekf)",
+        "policy step: observation, reward, termination, info",
+    }
     assert all(math.isfinite(seconds) for seconds in parts.values())
+    with pytest.raises(ValueError, match="num_envs=2"):
+        component_seconds(1, num_envs=2, backend="numpy")
