@@ -272,7 +272,7 @@ MUTATIONS = (
                 "            rel1 = air[m, p, 1] - velocity[m, 1]",
             ),
         ),
-        ("tests/test_physics.py",),
+        ("tests/test_physics.py", "tests/test_reference_dynamics.py"),
     ),
     Mutation(
         "motor speeds fed unquantized",
