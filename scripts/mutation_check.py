@@ -300,6 +300,11 @@ MUTATIONS = (
                 "measured_position[m, i] = position[m, i] + position_noise * draws[i]",
                 "measured_position[m, i] = position[m, i] + 2.0 * position_noise * draws[i]",
             ),
+            (
+                "quad_wrench_env/sensors.py",
+                "measured_position = positions + cfg.position_noise * normals[:, :3]",
+                "measured_position = positions + 2.0 * cfg.position_noise * normals[:, :3]",
+            ),
         ),
         ("tests/test_sensors_payload.py", "tests/test_backends.py"),
     ),

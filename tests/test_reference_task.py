@@ -73,6 +73,8 @@ def _run(env, action, steps: int):
     [
         # velocity down at 0.5 m/s from 1 m: below crash_height (0.1 m) in ~2 s
         ("crash", {}, {}, (0.0, 0.0, -1.0, 0.0), 200),
+        # a crash height of 0.6 m ends the same descent 0.5 m above the ground, before any contact
+        ("crash", {"crash_height": 0.6}, {}, (0.0, 0.0, -1.0, 0.0), 200),
         # full roll torque: ~120 rad/s² tips past 30° in ~0.15 s, long before the height changes
         ("flip", {"action_type": "wrench", "flip_tilt_deg": 30.0}, {}, (0.0, 1.0, 0.0, 0.0), 50),
         # and past the default 90° (upside down), still before it falls the 0.9 m to the ground
@@ -84,7 +86,7 @@ def _run(env, action, steps: int):
         # up at 0.5 m/s from 1 m out of z_max = 1.3 m
         ("out_of_arena", {"arena": {"z_max": 1.3}}, {}, (0.0, 0.0, 1.0, 0.0), 150),
     ],
-    ids=["crash", "flip30", "flip90", "out_x", "out_y", "out_z"],
+    ids=["crash", "crash_high", "flip30", "flip90", "out_x", "out_y", "out_z"],
 )
 def test_each_termination_is_reached_and_named(make_env, name, settings, options, action, steps):
     """Each engine termination is reached by flying into it, with ``terminated`` and its name in
@@ -102,8 +104,9 @@ def test_each_termination_is_reached_and_named(make_env, name, settings, options
         assert position[2] > 0.5  # nowhere near the ground: a flip, not a crash
         tilt = math.degrees(math.acos(env.unwrapped.fleet.state.rotation[0, 2, 2]))
         assert tilt > settings.get("flip_tilt_deg", 90.0)
-    if name == "crash":
-        assert position[2] < 0.1 + 0.5 / 50  # below crash_height, at most one step's descent late
+    if name == "crash":  # below crash_height, at most one policy step's descent (0.5 m/s) late
+        height = settings.get("crash_height", 0.1)
+        assert height - 0.5 / 50 <= position[2] < height
 
 
 def test_vector_env_masks_only_the_vehicle_that_ended(make_env):
