@@ -509,7 +509,7 @@ MUTATIONS = (
                 "sensors = normals[:, 0:]",
             ),
         ),
-        ("tests/test_backends.py", "tests/test_fan.py", "tests/test_env_api.py"),
+        ("tests/test_reference_estimators.py", "tests/test_backends.py", "tests/test_fan.py"),
     ),
 )
 

@@ -365,3 +365,37 @@ def test_the_ekf_uses_velocity_and_rates(offset):
             )
         out.append(np.concatenate((w.force, w.torque)))
     assert np.abs(out[1] - out[0]).max() > 1e-3
+
+
+def test_the_motion_capture_noise_is_independent_of_the_fans_turbulence():
+    """Each component draws its own normals: the mocap's position error (what the estimator is
+    handed minus the truth, over σ_p) and the fan turbulence's innovations η_k = (n_k - a·n_(k-1)) /
+    sqrt(1 - a²) (a = exp(-dt·u_c/b) at the vehicle) are independent standard normals. Over 2000
+    physics steps per axis the sample correlation of independent ones has sd 1/sqrt(2000) = 0.022:
+    |r| < 0.11 (5 sd); sensors reading the fan's columns give r = 1."""
+    env = gym.make("QuadWrench/FanTracking-v1", backend="numpy", estimator="oracle")
+    try:
+        env.reset(seed=5, options={"fan_motion": "static", "offset_y": 0.3})
+        base = env.unwrapped
+        fleet, fan = base.fleet, base.task.fan
+        errors, turbulence, positions = [], [fan.noise[0].copy()], []
+        original = fleet.estimator.step
+
+        def spy(thrusts, torques, position, quaternion, velocity=None, body_rates=None):
+            errors.append((position[0] - fleet.state.position[0]) / fleet.cfg.sensors.position_noise)
+            turbulence.append(fan.noise[0].copy())
+            positions.append(fleet.state.position[0].copy())
+            return original(thrusts, torques, position, quaternion, velocity, body_rates)
+
+        fleet.estimator.step = spy
+        for _ in range(500):
+            env.step(np.zeros(4, dtype=np.float32))
+    finally:
+        env.close()
+    noise, x = np.array(turbulence), np.maximum(np.array(positions)[:, 0], 1e-3)
+    decay = np.exp(-fleet.dt * fan.centreline_speed(x) / fan.half_width(x))[:, None]
+    innovations = (noise[1:] - decay * noise[:-1]) / np.sqrt(1.0 - decay * decay)
+    errors = np.array(errors)
+    for axis in range(3):
+        assert abs(np.std(innovations[:, axis]) - 1.0) < 0.1  # the recovery is right: unit variance
+        assert abs(np.corrcoef(errors[:, axis], innovations[:, axis])[0, 1]) < 0.11
