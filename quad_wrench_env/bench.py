@@ -108,6 +108,31 @@ def paired_step_seconds(steps: int, blocks: int, settings: list[dict[str, Any]])
             env.close()
 
 
+def paired_floor_shares(steps: int, blocks: int, **env_kwargs: Any) -> dict[str, float]:
+    """Seconds per physics step of the FanTracking env (zero actions) and each floor's share of it,
+    the env and the bare steps timed in alternating blocks in one process (the least block of each):
+    a share that a machine drifting between separate runs cannot move."""
+    env = gym.make("QuadWrench/FanTracking-v1", **env_kwargs)
+    substeps = env.unwrapped.fleet.substeps
+    try:
+        env.reset(seed=0)
+        action = np.zeros(4, dtype=np.float32)
+        env.step(action)
+        best = {"env": float("inf"), **{floor: float("inf") for floor in FLOORS}}
+        for _ in range(blocks):
+            start = time.perf_counter()
+            for _ in range(steps):
+                *_, terminated, truncated, _ = env.step(action)
+                if terminated or truncated:
+                    env.reset()
+            best["env"] = min(best["env"], (time.perf_counter() - start) / steps / substeps)
+            for floor in FLOORS:
+                best[floor] = min(best[floor], bare_pybullet_step_seconds(substeps * steps, floor=floor))
+    finally:
+        env.close()
+    return {"physics step": best["env"], **{floor: best[floor] / best["env"] for floor in FLOORS}}
+
+
 def vector_step_seconds(steps: int, num_envs: int, **env_kwargs) -> float:
     """Seconds per policy step of the FanTracking vector env of ``num_envs`` vehicles with zero
     actions (episode ends and their resets included, as they happen)."""

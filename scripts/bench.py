@@ -11,8 +11,9 @@ Tables printed (all measured in this run, best of ``--repeats`` for timings):
    policy step and per physics step (4 per policy step), each floor as a share of ours, policy
    steps/s, simulated seconds per wall second with resets counted at the default episode length,
    and the mean reset time;
-   then the same env with the fan, Dryden turbulence, a second jet and ground effect over a table
-   all on (compiled), against the plain one measured alternately in the same run;
+   then the UKF env timed with the floors in alternating blocks in one process (a share a drifting
+   machine cannot move), and the same env with the fan, Dryden turbulence, a second jet and ground
+   effect over a table all on (compiled), against the plain one measured alternately in the same run;
 3. the vector env of 64 vehicles on one core: µs per vehicle and physics step, its ratio to the
    64-body floors per body, vehicle-seconds per wall second;
 4. the cost of each part of a step (UKF env, each backend; the 64-vehicle vector env on numba, per
@@ -44,6 +45,7 @@ from quad_wrench_env.bench import (
     bare_pybullet_step_seconds,
     component_seconds,
     env_step_seconds,
+    paired_floor_shares,
     paired_step_seconds,
     vector_step_seconds,
 )
@@ -387,6 +389,16 @@ def main() -> None:
         + "\n"
     )
     if NUMBA_AVAILABLE:
+        shares = paired_floor_shares(args.steps // 4, 4 * args.repeats, estimator="ukf", backend="numba")
+        print(
+            table(
+                ["single env, timed with the floors in alternating blocks", "µs/physics step",
+                 *(f"floor ({floor}) / ours" for floor in FLOORS)],
+                [["FanTracking-v1, ukf, numba", f"{shares['physics step'] * 1e6:.1f}",
+                  *(f"{shares[floor]:.1%}" for floor in FLOORS)]],
+            )
+            + "\n"
+        )  # fmt: skip
         print(
             table(
                 ["disturbances on the compiled path", "µs/physics step", "vs plain"], disturbance_rows(args)

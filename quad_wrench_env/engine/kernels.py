@@ -97,32 +97,27 @@ def point_rows(buffer, start, n, count):
     )
 
 
-@njit(inline=True)
-def step_views(buffer, n):
-    """The :data:`STEP_FIELDS` of ``n`` vehicles as views of the flat ``buffer``: time (n,), position
-    (n, 3), quaternion (n, 4), velocity, angular velocity (n, 3), rotation (n, 3, 3), body rates (n, 3);
-    the world-frame forces and torques PyBullet applies and the external loads (n, 6); the measured
-    thrusts (n,) and body torques (n, 3), the motion-capture position (n, 3) and quaternion (n, 4),
-    velocity and body rates (n, 6) and the truth (n, 13); the autopilot's yaw setpoints (n,) and
-    velocity and rate integrals (n, 3), the true rotor speeds (n, 4) and allocation matrices (n, 4, 4),
-    the rotors' ``[c_t, τ]`` (n, 4) and the air velocity at the centre of mass (n, 3)."""
+_MATRICES = {"rotation": (3, 3), "allocations": (4, 4)}
+"""The fields that are square matrices per vehicle (the others are rows, or scalars when 1 wide)."""
+
+
+def step_views(buffer: np.ndarray, n: int) -> tuple[np.ndarray, ...]:
+    """The :data:`STEP_FIELDS` of ``n`` vehicles as views of the flat ``buffer``, in their order, cut
+    by the declaration alone: time (n,), position (n, 3), quaternion (n, 4), velocity, angular
+    velocity (n, 3), rotation (n, 3, 3), body rates (n, 3); the world-frame forces and torques PyBullet
+    applies and the external loads (n, 6); the measured thrusts (n,) and body torques (n, 3), the
+    motion-capture position (n, 3) and quaternion (n, 4), velocity and body rates (n, 6) and the truth
+    (n, 13); the autopilot's yaw setpoints (n,) and velocity and rate integrals (n, 3), the true rotor
+    speeds (n, 4) and allocation matrices (n, 4, 4), the rotors' ``[c_t, τ]`` (n, 4) and the air
+    velocity at the centre of mass (n, 3). The kernels cut the fields they use with :func:`rows` and
+    :func:`matrices` at the same offsets."""
     if buffer.shape[0] < n * STEP_WIDTH:
         raise ValueError("the step buffer must hold at least n * STEP_WIDTH floats")
-    return (
-        buffer[_TIME * n : (_TIME + 1) * n], rows_view(buffer, _POSITION * n, n, 3),
-        rows_view(buffer, _QUATERNION * n, n, 4), rows_view(buffer, _VELOCITY * n, n, 3),
-        rows_view(buffer, _ANGULAR_VELOCITY * n, n, 3),
-        as_strided(buffer[_ROTATION * n : (_ROTATION + 9) * n], shape=(n, 3, 3), strides=(72, 24, 8)),
-        rows_view(buffer, _BODY_RATES * n, n, 3), rows_view(buffer, _FORCES * n, n, 3),
-        rows_view(buffer, _TORQUES * n, n, 3), rows_view(buffer, _LOADS * n, n, 6),
-        buffer[_THRUSTS * n : (_THRUSTS + 1) * n], rows_view(buffer, _BODY_TORQUES * n, n, 3),
-        rows_view(buffer, _MEASURED_POSITION * n, n, 3), rows_view(buffer, _MEASURED_QUATERNION * n, n, 4),
-        rows_view(buffer, _MOTION * n, n, 6), rows_view(buffer, _TRUTH * n, n, 13),
-        buffer[_YAW_SETPOINT * n : (_YAW_SETPOINT + 1) * n], rows_view(buffer, _VELOCITY_INTEGRAL * n, n, 3),
-        rows_view(buffer, _RATE_INTEGRAL * n, n, 3), rows_view(buffer, _SPEEDS * n, n, 4),
-        as_strided(buffer[_ALLOCATIONS * n : (_ALLOCATIONS + 16) * n], shape=(n, 4, 4), strides=(128, 32, 8)),
-        rows_view(buffer, _ROTOR_WRENCH * n, n, 4), rows_view(buffer, _WIND_VELOCITY * n, n, 3),
-    )  # fmt: skip
+    views = []
+    for name, width in STEP_FIELDS:
+        part = buffer[_S[name] * n : (_S[name] + width) * n]
+        views.append(part if width == 1 else part.reshape(n, *_MATRICES.get(name, (width,))))
+    return tuple(views)
 
 
 def physics_constants(parts: dict[str, np.ndarray | float], drag_points: np.ndarray) -> np.ndarray:
