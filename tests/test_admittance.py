@@ -102,8 +102,8 @@ def test_refuses_other_action_types(make_env):
 def test_bad_gain_names_are_refused():
     with pytest.raises(ValueError, match="'admittance.kp'"):
         make_agent("admittance", kp=1.0)
-    with pytest.raises(ValueError, match="'pid'"):
-        make_agent("pid")
+    with pytest.raises(ValueError, match="unknown agent 'lqr'"):
+        make_agent("lqr")
 
 
 def test_command_is_the_papers_law(make_env):

@@ -130,7 +130,9 @@ def test_one_cosine_gust_follows_its_formula(hold):
     (and half way down in a bump), the peak at the top. Catches the wrong phase (t_g vs 2 t_g), a
     bump that holds or a hold that falls, the vehicles' times mixed up, and the kernel (to 1e-12,
     added to what ``out`` held) departing from the reference."""
-    gust = OneCosineGust(OneCosineConfig(peak=tuple(PEAK), start=START, duration=DURATION, hold=hold))
+    gust = OneCosineGust(
+        OneCosineConfig(peak=tuple(PEAK), start=START, duration=DURATION, hold=hold), len(TIMES)
+    )
     points = np.random.default_rng(3).uniform(-5.0, 5.0, (len(TIMES), 5, 3))
     field = gust.velocity_at(points, TIMES, slice(None))
     expected = np.array([_one_cosine(t, hold) for t in TIMES])
@@ -143,7 +145,7 @@ def test_one_cosine_gust_follows_its_formula(hold):
     if NUMBA_AVAILABLE:
         out = np.random.default_rng(4).standard_normal(points.shape)
         before = out.copy()
-        one_cosine_velocity(gust.kernel_parameters(), NO_TABLE, NO_TABLE, points, TIMES, out)
+        one_cosine_velocity(gust.kernel_parameters(), gust.shape, NO_TABLE, points, TIMES, out)
         np.testing.assert_allclose(out - before, field, atol=1e-12)
 
 
@@ -423,19 +425,20 @@ def test_dryden_kernels_match_the_reference(mean):
     rng = np.random.default_rng(11)
     gust = DrydenGust(DrydenConfig(w20=3.0, altitude=1.5, mean=mean), 8)
     gust.gust[:] = rng.standard_normal((8, 3))
+    gust.weather[4:] = np.column_stack((rng.normal(0.0, 1.5, (4, 3)), rng.uniform(0.0, 2.0, 4)))
     params = gust.kernel_parameters()
     points = rng.uniform(-3.0, 3.0, (8, 5, 3))
     out = rng.standard_normal(points.shape)
     before = out.copy()
-    dryden_velocity(params, NO_TABLE, gust.gust, points, rng.uniform(0, 9, 8), out)
+    dryden_velocity(params, gust.weather, gust.gust, points, rng.uniform(0, 9, 8), out)
     np.testing.assert_allclose(out - before, gust.velocity_at(points, np.zeros(8), slice(None)), atol=1e-9)
     spread = np.array((0.1, 0.5, 1.0, 3.0, 0.0, 0.2, 5.0, 2.0))[:, None]
-    velocity = gust.mean + spread * rng.standard_normal((8, 3))
+    velocity = gust.weather[:, :3] + spread * rng.standard_normal((8, 3))
     position = rng.uniform(-3.0, 3.0, (8, 3))
     for dt in (1.0 / 200, 1.0 / 400, 0.3):
         normals = rng.standard_normal((8, 3))
         compiled = gust.gust.copy()
-        dryden_advance(params, NO_TABLE, compiled, position, velocity, dt, normals)
+        dryden_advance(params, gust.weather, compiled, position, velocity, dt, normals)
         gust.advance(dt, position, velocity, normals)
         np.testing.assert_allclose(compiled, gust.gust, atol=1e-9)
 
@@ -445,10 +448,13 @@ def test_dryden_kernels_match_the_reference(mean):
 def test_one_cosine_kernel_matches_the_reference(hold):
     """``one_cosine_velocity`` at random times (before, during, after) to 1e-9."""
     rng = np.random.default_rng(12)
-    gust = OneCosineGust(OneCosineConfig(peak=(0.3, 2.0, -1.0), start=0.7, duration=1.3, hold=hold))
+    gust = OneCosineGust(OneCosineConfig(peak=(0.3, 2.0, -1.0), start=0.7, duration=1.3, hold=hold), 50)
+    gust.shape[::2] = np.column_stack(
+        (rng.normal(0.0, 2.0, (25, 3)), rng.uniform(0, 2, 25), rng.uniform(0.2, 2, 25))
+    )
     points, times = rng.uniform(-2.0, 2.0, (50, 3, 3)), rng.uniform(-1.0, 5.0, 50)
     out = np.zeros(points.shape)
-    one_cosine_velocity(gust.kernel_parameters(), NO_TABLE, NO_TABLE, points, times, out)
+    one_cosine_velocity(gust.kernel_parameters(), gust.shape, NO_TABLE, points, times, out)
     np.testing.assert_allclose(out, gust.velocity_at(points, times, slice(None)), atol=1e-9)
 
 
@@ -458,11 +464,12 @@ def test_fixed_jet_kernel_matches_the_reference():
     the core, to 1e-9: catches the kernel's packed origin, direction or core length out of step with
     ``Jet.kernel_parameters``."""
     rng = np.random.default_rng(13)
-    jet = Jet(JET)
+    jet = Jet(JET, 40)
+    jet.speed_scale[::2, 0] = rng.uniform(0.0, 3.0, 20)  # each vehicle's own strength
     points = np.array(JET.position) + rng.uniform(-6.0, 6.0, (40, 6, 3))
     out = rng.standard_normal(points.shape)
     before = out.copy()
-    fixed_jet_velocity(jet.kernel_parameters(), NO_TABLE, NO_TABLE, points, np.zeros(40), out)
+    fixed_jet_velocity(jet.kernel_parameters(), jet.speed_scale, NO_TABLE, points, np.zeros(40), out)
     reference = jet.velocity_at(points, np.zeros(40), slice(None))
     assert np.count_nonzero(reference[..., 0]) > 50  # the sample reaches into the jet
     np.testing.assert_allclose(out - before, reference, atol=1e-9)

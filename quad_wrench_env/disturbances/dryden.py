@@ -8,7 +8,9 @@ discrete filter ``u_{k+1} = a·u_k + σ·sqrt(1 - a²)·η_k``, ``a = exp(-V·T/
 e^-1 at any physics step T (uniform noise without the ``sqrt(1 - a²)`` scaling, as one peer has, gets
 neither). The horizontal components are along world x and y (σ_u = σ_v, L_u = L_v: either pair of
 horizontal axes gives the same statistics), the vertical along z. The gust is uniform over the
-vehicle: it moves the body, the fan's jet makes the torques.
+vehicle: it moves the body, the fan's jet makes the torques. Each vehicle has its own mean wind and
+turbulence scale (:attr:`DrydenGust.weather`; the config's for every vehicle unless a task sets them
+per episode).
 """
 
 from __future__ import annotations
@@ -64,51 +66,57 @@ class DrydenGust:
         "quad_wrench_env.disturbances.dryden",
         (("velocity", "dryden_velocity"), ("advance", "dryden_advance")),
         state="gust",
+        table="weather",
     )
 
     def __init__(self, config: DrydenConfig, count: int = 1) -> None:
         self.config = config
         self.sigma, self.length = config.scales()
-        self.mean = np.array(config.mean, dtype=float)
         self.gust = np.zeros((count, 3))
-        """(N, 3) turbulent part of each vehicle's wind (m/s)."""
+        """(N, 3) turbulent part of each vehicle's wind at the config's σ (m/s)."""
+        self.weather = np.tile((*config.mean, 1.0), (count, 1))
+        """(N, 4) each vehicle's mean wind (3, m/s, world frame) and the factor on its turbulence."""
 
     def kernel_parameters(self) -> np.ndarray:
-        """Mean (3), σ (3), L (3)."""
-        return np.concatenate((self.mean, self.sigma, self.length))
+        """σ (3), L (3)."""
+        return np.concatenate((self.sigma, self.length))
 
     def reset(self, index: int, rng: np.random.Generator) -> None:
         self.gust[index] = self.sigma * rng.standard_normal(3)  # the stationary distribution
 
     def advance(self, dt: float, position: np.ndarray, velocity: np.ndarray, normals: np.ndarray) -> None:
-        airspeed = np.linalg.norm(velocity - self.mean, axis=1)
-        speed = np.maximum(np.maximum(airspeed, np.linalg.norm(self.mean)), 1.0)
+        mean = self.weather[:, :3]
+        airspeed = np.linalg.norm(velocity - mean, axis=1)
+        speed = np.maximum(np.maximum(airspeed, np.linalg.norm(mean, axis=1)), 1.0)
         decay = np.exp(-speed[:, None] * dt / self.length)
         self.gust[:] = decay * self.gust + self.sigma * np.sqrt(1.0 - decay * decay) * normals
 
     def velocity_at(
         self, points: np.ndarray, t: np.ndarray, index: np.ndarray | slice, mean: bool = False
     ) -> np.ndarray:
-        wind = self.mean if mean else self.mean + self.gust[index]
+        weather = self.weather[index]
+        wind = weather[..., :3] if mean else weather[..., :3] + weather[..., 3:] * self.gust[index]
         return np.broadcast_to(np.reshape(wind, (-1, 1, 3)), points.shape).copy()
 
 
 @njit
-def dryden_velocity(params, table, gust, points, time, out):
-    """``DrydenGust.velocity_at`` added to ``out``: mean plus each vehicle's gust at every point."""
+def dryden_velocity(params, weather, gust, points, time, out):
+    """``DrydenGust.velocity_at`` added to ``out``: each vehicle's mean plus its scaled gust at every
+    point."""
     for n in range(points.shape[0]):
         for p in range(points.shape[1]):
             for i in range(3):
-                out[n, p, i] += params[i] + gust[n, i]
+                out[n, p, i] += weather[n, i] + weather[n, 3] * gust[n, i]
 
 
 @njit
-def dryden_advance(params, table, gust, position, velocity, dt, normals):
+def dryden_advance(params, weather, gust, position, velocity, dt, normals):
     """``DrydenGust.advance``: the exact discrete first-order filter, one step."""
-    mean_speed = math.sqrt(params[0] * params[0] + params[1] * params[1] + params[2] * params[2])
     for n in range(gust.shape[0]):
-        a0, a1, a2 = velocity[n, 0] - params[0], velocity[n, 1] - params[1], velocity[n, 2] - params[2]
+        m0, m1, m2 = weather[n, 0], weather[n, 1], weather[n, 2]
+        mean_speed = math.sqrt(m0 * m0 + m1 * m1 + m2 * m2)
+        a0, a1, a2 = velocity[n, 0] - m0, velocity[n, 1] - m1, velocity[n, 2] - m2
         speed = max(max(math.sqrt(a0 * a0 + a1 * a1 + a2 * a2), mean_speed), 1.0)
         for i in range(3):
-            decay = math.exp(-speed * dt / params[6 + i])
-            gust[n, i] = decay * gust[n, i] + params[3 + i] * math.sqrt(1.0 - decay * decay) * normals[n, i]
+            decay = math.exp(-speed * dt / params[3 + i])
+            gust[n, i] = decay * gust[n, i] + params[i] * math.sqrt(1.0 - decay * decay) * normals[n, i]

@@ -46,11 +46,15 @@ class Jet(Steady):
 
     name = "jet"
     compiled = CompiledForm(
-        "quad_wrench_env.disturbances.jet_kernels", (("velocity", "fixed_jet_velocity"), STILL)
+        "quad_wrench_env.disturbances.jet_kernels",
+        (("velocity", "fixed_jet_velocity"), STILL),
+        table="speed_scale",
     )
 
     def __init__(self, config: JetConfig, count: int = 1) -> None:
         self.config = config
+        self.speed_scale = np.ones((count, 1))
+        """(N, 1) each vehicle's multiple of the outlet speed ``U0`` (0 switches its jet off)."""
         self.origin = np.array(config.position, dtype=float)
         self.direction = np.array(config.direction, dtype=float) / math.hypot(*config.direction)
         self._radius2 = (0.5 * config.diameter) ** 2
@@ -71,4 +75,5 @@ class Jet(Steady):
         b = half_width(x, self._radius2, c.spread)
         u_c = centreline_speed(x, c.speed, self._radius2, c.spread)
         speed = np.where(x > 0.0, u_c * np.exp(-(radial * radial).sum(axis=-1) / (b * b)), 0.0)
+        speed = speed * np.reshape(self.speed_scale[index, 0], (-1, 1))
         return speed[..., None] * self.direction

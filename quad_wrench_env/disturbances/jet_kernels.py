@@ -94,9 +94,9 @@ def fan_advance(fan, motion_tables, noise, position, velocity, dt, normals):
 
 
 @njit
-def fixed_jet_velocity(jet, table, state, points, time, out):
+def fixed_jet_velocity(jet, speed_scale, state, points, time, out):
     """``Jet.velocity_at`` added to ``out``: a fixed jet (numbers ``[on, U0, x_c, R, c, origin (3),
-    direction (3)]``) at the world ``points`` (N, P, 3)."""
+    direction (3)]``) at the world ``points`` (N, P, 3), each vehicle's times its ``speed_scale``."""
     if jet[0] <= 0.0:
         return
     o0, o1, o2, d0, d1, d2 = jet[5], jet[6], jet[7], jet[8], jet[9], jet[10]
@@ -108,7 +108,7 @@ def fixed_jet_velocity(jet, table, state, points, time, out):
                 continue
             e0, e1, e2 = r0 - x * d0, r1 - x * d1, r2 - x * d2
             u_c, b = jet_speed(jet, x)
-            speed = u_c * math.exp(-(e0 * e0 + e1 * e1 + e2 * e2) / (b * b))
+            speed = speed_scale[n, 0] * u_c * math.exp(-(e0 * e0 + e1 * e1 + e2 * e2) / (b * b))
             out[n, p, 0] += speed * d0
             out[n, p, 1] += speed * d1
             out[n, p, 2] += speed * d2

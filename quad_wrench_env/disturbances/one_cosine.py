@@ -1,6 +1,7 @@
 """A 1-cosine gust (PHYSICS.md): ``V(t) = (V_m/2)·(1 - cos(π·(t - t0)/t_g))`` for
 ``0 <= t - t0 <= t_g``, then ``V_m`` (``hold``) or back down the same way over another ``t_g`` (a
-bump); uniform in space, ``V_m`` a vector (m/s, world frame)."""
+bump); uniform in space, ``V_m`` a vector (m/s, world frame). Each vehicle has its own peak, start
+and duration (:attr:`OneCosineGust.shape`; the config's unless a task draws them per episode)."""
 
 from __future__ import annotations
 
@@ -34,7 +35,9 @@ class OneCosineConfig:
             raise ValueError(f"wind.one_cosine: peak={list(self.peak)!r} must be 3 finite numbers (m/s)")
 
 
-def gust_shape(t: np.ndarray, start: float, duration: float, hold: bool) -> np.ndarray:
+def gust_shape(
+    t: np.ndarray, start: float | np.ndarray, duration: float | np.ndarray, hold: bool
+) -> np.ndarray:
     """The gust's fraction of its peak at times ``t``."""
     phase = np.clip((np.asarray(t, dtype=float) - start) / duration, 0.0, 1.0 if hold else 2.0)
     return 0.5 * (1.0 - np.cos(math.pi * phase))
@@ -47,33 +50,36 @@ class OneCosineGust(Steady):
 
     name = "one_cosine"
     compiled = CompiledForm(
-        "quad_wrench_env.disturbances.one_cosine", (("velocity", "one_cosine_velocity"), STILL)
+        "quad_wrench_env.disturbances.one_cosine",
+        (("velocity", "one_cosine_velocity"), STILL),
+        table="shape",
     )
 
     def __init__(self, config: OneCosineConfig, count: int = 1) -> None:
         self.config = config
+        self.shape = np.tile((*config.peak, config.start, config.duration), (count, 1))
+        """(N, 5) each vehicle's gust: peak ``V_m`` (3, m/s), start ``t0`` (s), duration ``t_g`` (s)."""
 
     def kernel_parameters(self) -> np.ndarray:
-        """Peak (3), start, duration, hold (1 or 0)."""
-        c = self.config
-        return np.array((*c.peak, c.start, c.duration, float(c.hold)))
+        """Hold (1 or 0)."""
+        return np.array((float(self.config.hold),))
 
     def velocity_at(
         self, points: np.ndarray, t: np.ndarray, index: np.ndarray | slice, mean: bool = False
     ) -> np.ndarray:
-        c = self.config
-        fraction = gust_shape(t, c.start, c.duration, c.hold)
-        wind = fraction[:, None] * np.array(c.peak)
+        shape = np.reshape(self.shape[index], (-1, 5))
+        fraction = gust_shape(t, shape[:, 3], shape[:, 4], self.config.hold)
+        wind = fraction[:, None] * shape[:, :3]
         return np.broadcast_to(wind[:, None, :], points.shape).copy()
 
 
 @njit
-def one_cosine_velocity(params, table, state, points, time, out):
+def one_cosine_velocity(params, shape, state, points, time, out):
     """``OneCosineGust.velocity_at`` added to ``out``."""
-    top = 1.0 if params[5] > 0.0 else 2.0
+    top = 1.0 if params[0] > 0.0 else 2.0
     for n in range(points.shape[0]):
-        phase = min(max((time[n] - params[3]) / params[4], 0.0), top)
+        phase = min(max((time[n] - shape[n, 3]) / shape[n, 4], 0.0), top)
         fraction = 0.5 * (1.0 - math.cos(math.pi * phase))
         for p in range(points.shape[1]):
             for i in range(3):
-                out[n, p, i] += fraction * params[i]
+                out[n, p, i] += fraction * shape[n, i]

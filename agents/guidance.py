@@ -1,0 +1,82 @@
+"""Guidance helpers shared by the position controllers of paper 003 (Sec. IV-B to IV-D).
+
+* :class:`ReferenceExtrapolator` turns the reference position and velocity that the observation
+  carries into a reference over a prediction horizon, with the reference acceleration estimated by
+  differencing the observed reference velocity between policy steps (the MPC's state and input
+  references, and the PID controller's feed-forward acceleration).
+* :func:`attitude_from_acceleration` maps a desired acceleration to the collective thrust and the roll
+  and pitch that produce it (paper 003 Sec. IV-A: "the desired acceleration vector is transformed
+  into a collective thrust and a reference attitude"), for the project's Euler convention
+  ``R = Rz(ψ)·Ry(θ)·Rx(φ)`` (:func:`quad_wrench_env.rotations.quat_from_euler_zyx`).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from quad_wrench_env.vehicle import GRAVITY
+
+
+class ReferenceExtrapolator:
+    """Reference position, velocity and acceleration over a horizon, from the current reference alone.
+
+    ``p_r(t_k) = p_r + v_r·t_k + a_r·t_k²/2`` and ``v_r(t_k) = v_r + a_r·t_k`` with the acceleration
+    ``a_r = (v_r - v_r,prev)/dt`` held over the horizon (0 on the first step after :meth:`reset`).
+    """
+
+    def __init__(self) -> None:
+        self.position = np.zeros(3)
+        self.velocity = np.zeros(3)
+        self.acceleration = np.zeros(3)
+        self._previous_velocity: np.ndarray | None = None
+
+    def reset(self) -> None:
+        """Forget the previous reference (call at the start of an episode)."""
+        self.position = np.zeros(3)
+        self.velocity = np.zeros(3)
+        self.acceleration = np.zeros(3)
+        self._previous_velocity = None
+
+    def update(self, position: np.ndarray, velocity: np.ndarray, dt: float) -> np.ndarray:
+        """Take the reference ``position`` (m) and ``velocity`` (m/s) of this policy step, ``dt`` (s)
+        after the previous one; returns the estimated reference acceleration (m/s², world frame)."""
+        velocity = np.asarray(velocity, dtype=float).copy()
+        self.position = np.asarray(position, dtype=float).copy()
+        if self._previous_velocity is None:
+            self.acceleration = np.zeros(3)
+        else:
+            self.acceleration = (velocity - self._previous_velocity) / dt
+        self.velocity = velocity
+        self._previous_velocity = velocity
+        return self.acceleration.copy()
+
+    def horizon(self, times: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(positions, velocities, accelerations)``, each (len(times), 3), at ``times`` (s) from now."""
+        t = np.asarray(times, dtype=float)[:, None]
+        a = self.acceleration
+        positions = self.position + self.velocity * t + 0.5 * a * t * t
+        velocities = self.velocity + a * t
+        return positions, velocities, np.broadcast_to(a, velocities.shape).copy()
+
+
+def attitude_from_acceleration(
+    acceleration: np.ndarray, yaw: float, mass: float
+) -> tuple[float, float, float]:
+    """``(thrust, roll, pitch)`` (N, rad, rad) that give the world-frame ``acceleration`` (m/s²).
+
+    The thrust vector is ``F = m·(a + g·e_z)`` (``a`` already holds any ``-f̂/m`` term of a force to
+    compensate). Rotated into the heading frame, ``f' = Rz(-ψ)·F``, the pitch is
+    ``θ = atan2(f'_x, f'_z)`` and the roll ``φ = atan2(-f'_y, sqrt(f'_x² + f'_z²))``, so that
+    ``R(φ, θ, ψ)·e_z`` is along ``F``. The thrust is ``|F|``, which equals ``F·z_body`` for this
+    attitude.
+    """
+    force = mass * (np.asarray(acceleration, dtype=float) + np.array((0.0, 0.0, GRAVITY)))
+    c, s = math.cos(yaw), math.sin(yaw)
+    fx = c * force[0] + s * force[1]
+    fy = -s * force[0] + c * force[1]
+    fz = float(force[2])
+    pitch = math.atan2(fx, fz)
+    roll = math.atan2(-fy, math.hypot(fx, fz))
+    return float(np.linalg.norm(force)), roll, pitch

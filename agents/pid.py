@@ -1,0 +1,127 @@
+"""Paper 003's PID position controller with disturbance feed-forward (Hentzen et al. 2019, Sec. IV-C).
+
+Eq. (3), per world axis ``i``::
+
+    a_des,i = k_p,i·e_p,i + k_d,i·e_v,i + k_i,i·∫e_p,i - f̂_ext,i/m  (+ a_ref,i)
+
+with ``e_p = p_ref - p̂`` and ``e_v = v_ref - v̂`` from the observation's estimated state and reference
+blocks, and ``f̂_ext`` the observation's estimated external force, used only with ``compensation``.
+``a_ref`` is the reference acceleration, estimated from the observed reference velocity
+(:class:`~agents.guidance.ReferenceExtrapolator`), as the guidance module of paper 003 provides it.
+``a_des`` becomes a collective thrust and a roll and pitch
+(:func:`~agents.guidance.attitude_from_acceleration`), flown by the autopilot through the ``attitude``
+action; the heading is held at ``yaw_reference``.
+
+The integral term is clamped to ``max_integral_acceleration`` (m/s²) per axis, so that it cannot wind
+up without bound while the tilt or thrust saturates; the default, g·tan 30°, lets it hold any force
+the tilt limit can.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import gymnasium as gym
+import numpy as np
+
+from agents.guidance import ReferenceExtrapolator, attitude_from_acceleration
+from quad_wrench_env.config import build, check_numbers
+from quad_wrench_env.rotations import wrap_angle
+from quad_wrench_env.vehicle import GRAVITY
+
+
+@dataclass
+class PIDGains:
+    """Gains of eq. (3) (horizontal ``xy`` and vertical ``z``) and the controller's switches."""
+
+    k_p_xy: float = 4.0
+    """1/s²."""
+    k_d_xy: float = 3.5
+    """1/s."""
+    k_i_xy: float = 1.5
+    """1/s³."""
+    k_p_z: float = 4.0
+    k_d_z: float = 3.5
+    k_i_z: float = 1.5
+    max_integral_acceleration: float = 5.66
+    """Bound on each axis' integral term ``k_i·∫e_p`` (m/s²)."""
+    k_yaw: float = 1.0
+    """Heading feedback (1/s) through the yaw-rate command."""
+    yaw_reference: float = 0.0
+    compensation: bool = False
+    """Subtract ``f̂_ext/m`` (paper 003 eq. (3)'s feed-forward)."""
+    feedforward: bool = True
+    """Add the reference acceleration estimated from the observed reference velocity."""
+
+    def __post_init__(self) -> None:
+        check_numbers(
+            "pid", self, ("k_p_xy", "k_d_xy", "k_p_z", "k_d_z", "max_integral_acceleration", "k_yaw"),
+        )  # fmt: skip
+        check_numbers("pid", self, ("k_i_xy", "k_i_z"), positive=False)
+
+
+class PIDPolicy:
+    """Eq. (3) with the disturbance feed-forward, through the ``attitude`` action (module docstring)."""
+
+    def __init__(self, gains: PIDGains | None = None, **kwargs: float) -> None:
+        if gains is not None and kwargs:
+            raise ValueError("pass either gains or keyword gains, not both")
+        self.gains = gains or build(PIDGains, kwargs, prefix="pid.")
+        g = self.gains
+        self._k_p = np.array((g.k_p_xy, g.k_p_xy, g.k_p_z))
+        self._k_d = np.array((g.k_d_xy, g.k_d_xy, g.k_d_z))
+        self._k_i = np.array((g.k_i_xy, g.k_i_xy, g.k_i_z))
+        self.reference = ReferenceExtrapolator()
+        self._integral = np.zeros(3)
+        """The integral term ``k_i·∫e_p`` (m/s²)."""
+        self._layout: dict[str, slice] = {}
+        self._mass = 1.0
+        self._dt = 0.02
+        self._tilt = 1.0
+        self._yaw_rate = 1.0
+
+    def reset(self, env: gym.Env) -> None:
+        base = env.unwrapped
+        if base.cfg.action_type != "attitude":
+            raise ValueError(f"PIDPolicy needs action_type='attitude', the env has {base.cfg.action_type!r}")
+        missing = {"reference_position", "reference_velocity"} - set(base.obs_layout)
+        if missing:
+            raise ValueError(
+                f"PIDPolicy needs the observation blocks {sorted(missing)}, which this env lacks"
+            )
+        self._layout = base.obs_layout
+        self._mass = base.vehicle.mass
+        self._dt = 1.0 / base.cfg.policy_hz
+        self._tilt = math.radians(base.cfg.action_limits.max_tilt_deg)
+        self._yaw_rate = base.cfg.action_limits.max_yaw_rate
+        self._integral = np.zeros(3)
+        self.reference.reset()
+
+    def desired_acceleration(self, observation: np.ndarray) -> np.ndarray:
+        """Eq. (3): ``a_des`` (m/s², world frame) for this observation; advances the integrator."""
+        obs, layout, g = observation.astype(float), self._layout, self.gains
+        reference = obs[layout["reference_position"]]
+        reference_velocity = obs[layout["reference_velocity"]]
+        acceleration = self.reference.update(reference, reference_velocity, self._dt)
+        error = reference - obs[layout["position"]]
+        limit = g.max_integral_acceleration
+        self._integral = np.clip(self._k_i * error * self._dt + self._integral, -limit, limit)
+        desired = self._k_p * error + self._k_d * (reference_velocity - obs[layout["velocity"]])
+        desired += self._integral
+        if g.feedforward:
+            desired += acceleration
+        if g.compensation:
+            desired -= obs[layout["force"]] / self._mass
+        return desired
+
+    def act(self, observation: np.ndarray) -> np.ndarray:
+        body_x = observation[self._layout["attitude"]][:3]
+        yaw = math.atan2(float(body_x[1]), float(body_x[0]))
+        thrust, roll, pitch = attitude_from_acceleration(
+            self.desired_acceleration(observation), yaw, self._mass
+        )
+        yaw_rate = self.gains.k_yaw * wrap_angle(self.gains.yaw_reference - yaw)
+        action = (roll / self._tilt, pitch / self._tilt, yaw_rate / self._yaw_rate,
+                  thrust / (self._mass * GRAVITY) - 1.0)  # fmt: skip
+        return np.clip(action, -1.0, 1.0).astype(np.float32)

@@ -1,0 +1,447 @@
+"""``QuadWrench/DisturbanceRejection-v0``: follow a reference path while a disturbance acts.
+
+The experiments of paper 003 (Hentzen et al. 2019, Sec. V-E and V-F) and the wind-tunnel figure-8 of
+Neural-Fly (O'Connell et al., Science Robotics 2022), in one room (world frame, z up, m):
+
+- a gust fan at ``(2.0, -1.0, 1.4)`` blowing along +y across the vertical line ``x = 2, y = 0``;
+- a table (1 m x 1 m, top at 0.7 m) centred at ``(3.5, 2.0)``;
+- ground effect (Cheeseman-Bennett, per rotor) over the ground and the table top.
+
+Each episode flies one scenario (config ``scenario``, or ``reset(options={"scenario": ...})``; by
+default ``"random"`` draws one of ``scenarios`` per episode):
+
+============  ================================================================================
+scenario      what happens (parameters in :class:`JetCrossing`, :class:`TablePass`, :class:`Gusts`,
+              :class:`Figure8`)
+============  ================================================================================
+jet_crossing  hover at ``(2, 0, 2.2)`` for 1 s, descend at 0.5 m/s to 0.6 m through the fan's
+              horizontal stream (centre speed ``jet_speed`` where it crosses the path: paper 003
+              flew 3, 10 and 12 m/s; drawn from ``jet_speeds`` unless given), then hover. The
+              descent speed, the heights and the jet's size (0.6 m outlet 1 m from the path) are
+              not in the paper: chosen here
+table_pass    hover at ``x = 2.5`` over ``y = 2``, fly along +x at 0.3 m/s with the hull's bottom 8 cm
+              above the table top across both edges, hover at ``x = 4.5`` (paper 003 Fig. 10-11)
+gusts         hover at ``(2.5, 0, 1.5)`` in Dryden turbulence (``w20`` 4 m/s) and one horizontal
+              1-cosine bump of random direction, peak in [2, 6] m/s, start in [3, 10] s, rise in
+              [0.5, 2] s
+figure8       ``x = 2.5 + 1.25 sin φ``, ``z = 1.5 + 0.75 sin 2φ`` at ``y = 0`` (``φ`` eases from rest
+              to 1 rad/s over 2 s) in a steady wind ``wind_speed`` along +y (0, 8.5 or 12.1 m/s,
+              drawn unless given) with light turbulence (``w20`` 1 m/s)
+============  ================================================================================
+
+Default vehicle ``hummingbird`` (paper 003's 700 g class); every preset flies it. Default action
+``attitude`` (collective thrust, roll, pitch, yaw rate: what paper 003's controllers output).
+
+Observation (float32, 31; ``env.unwrapped.obs_layout`` names the slices): the 25 of FanTracking
+(estimated position, velocity, attitude, body rates, estimated force and torque, last action), then
+
+=====  ==================  ======================================================
+index  name                meaning
+=====  ==================  ======================================================
+25-27  reference_position  where the vehicle should be now (m, world frame)
+28-30  reference_velocity  the reference's velocity now (m/s, world frame)
+=====  ==================  ======================================================
+
+Reward per step (terms in ``info["reward_terms"]``): ``tracking = -|p - p_ref|`` (m), ``effort =
+-effort_weight·mean(a²)``, ``crash = -crash_penalty`` on an early end. Episode end as FanTracking
+(crash, flip, out of the arena); truncated after ``episode_seconds`` (15 s).
+
+Reset options: ``scenario``, ``jet_speed`` (m/s; implies ``jet_crossing``), ``wind_speed`` (m/s;
+implies ``figure8``). ``info`` adds ``reference_position`` (3,), ``reference_velocity`` (3,) and
+``tracking_error`` (m). The harness reports ``max_horizontal_deviation`` (paper 003 Table I),
+``mean_tracking_error`` and ``max_vertical_error`` (m).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any, ClassVar
+
+import numpy as np
+
+from quad_wrench_env.config import check_numbers
+from quad_wrench_env.disturbances.dryden import DrydenConfig, DrydenGust
+from quad_wrench_env.disturbances.fan import centreline_speed
+from quad_wrench_env.disturbances.jet import Jet, JetConfig
+from quad_wrench_env.disturbances.one_cosine import OneCosineConfig, OneCosineGust
+from quad_wrench_env.engine.components import Components
+from quad_wrench_env.engine.config import EnvConfig
+from quad_wrench_env.scene import Table
+from quad_wrench_env.tasks.base import TaskDefaults
+from quad_wrench_env.vehicle import VehicleParams
+
+if TYPE_CHECKING:
+    from quad_wrench_env.engine.fleet import Fleet
+
+SCENARIOS = ("jet_crossing", "table_pass", "gusts", "figure8")
+RANDOM = "random"
+EASE = 1.0
+"""Seconds over which the reference's speed eases up and down at each end of a straight move."""
+
+
+def _check_speeds(owner: str, speeds: tuple[float, ...]) -> tuple[float, ...]:
+    speeds = tuple(speeds)
+    if not speeds or not all(
+        isinstance(s, (int, float)) and not isinstance(s, bool) and math.isfinite(s) and s >= 0
+        for s in speeds
+    ):
+        raise ValueError(f"{owner}={list(speeds)!r} must be one or more finite speeds >= 0 (m/s)")
+    return speeds
+
+
+@dataclass
+class JetCrossing:
+    """Paper 003 Sec. V-F: a vertical descent through a strong horizontal jet."""
+
+    jet_speeds: tuple[float, ...] = (3.0, 10.0, 12.0)
+    """Centre speeds (m/s) where the jet crosses the path; one is drawn when ``jet_speed`` is not given."""
+    path: tuple[float, float] = (2.0, 0.0)
+    """x, y (m) of the vertical path."""
+    start_height: float = 2.2
+    end_height: float = 0.6
+    descent_speed: float = 0.5
+    hover_seconds: float = 1.0
+    """Hover at the start before the descent (s)."""
+    jet_height: float = 1.4
+    jet_distance: float = 1.0
+    """From the outlet (on the path's -y side, blowing along +y) to the path (m)."""
+    jet_diameter: float = 0.6
+    jet_spread: float = 0.42
+
+    def __post_init__(self) -> None:
+        self.jet_speeds = _check_speeds("jet_crossing.jet_speeds", self.jet_speeds)
+        self.path = tuple(self.path)
+        check_numbers("jet_crossing", self, ("start_height", "end_height", "descent_speed", "jet_height"))
+        check_numbers("jet_crossing", self, ("jet_distance", "jet_diameter", "jet_spread"))
+        check_numbers("jet_crossing", self, ("hover_seconds",), positive=False)
+        if self.end_height >= self.start_height:
+            raise ValueError(
+                f"jet_crossing: end_height={self.end_height} must be below start_height={self.start_height}"
+            )
+
+    def outlet_speed(self, centre_speed: float) -> float:
+        """Outlet speed ``U0`` whose jet has ``centre_speed`` on its axis at the path (PHYSICS.md:
+        ``u_c(x) = U0·min(1, D/(√2·b(x)))``)."""
+        radius2 = (0.5 * self.jet_diameter) ** 2
+        return centre_speed / float(centreline_speed(self.jet_distance, 1.0, radius2, self.jet_spread))
+
+
+@dataclass
+class TablePass:
+    """Paper 003 Sec. V-E: horizontal flight over a table's two edges at 0.3 m/s."""
+
+    table_center: tuple[float, float] = (3.5, 2.0)
+    table_size: tuple[float, float] = (1.0, 1.0)
+    table_height: float = 0.7
+    clearance: float = 0.08
+    """Gap (m) between the hull's bottom and the table top (paper 003: 8 cm)."""
+    speed: float = 0.3
+    start_x: float = 2.5
+    end_x: float = 4.5
+    hover_seconds: float = 1.0
+
+    def __post_init__(self) -> None:
+        self.table_center, self.table_size = tuple(self.table_center), tuple(self.table_size)
+        check_numbers("table_pass", self, ("table_height", "clearance", "speed"))
+        check_numbers("table_pass", self, ("hover_seconds",), positive=False)
+        low, high = (
+            self.table_center[0] - 0.5 * self.table_size[0],
+            self.table_center[0] + 0.5 * self.table_size[0],
+        )
+        if not (self.start_x < low and high < self.end_x):
+            raise ValueError(
+                f"table_pass: start_x={self.start_x} and end_x={self.end_x} must lie beyond the table's "
+                f"edges ({low:.3g}, {high:.3g}) so that the pass crosses both"
+            )
+
+
+@dataclass
+class Gusts:
+    """Hover in Dryden turbulence with one 1-cosine bump (PHYSICS.md, paper 003's gusts)."""
+
+    position: tuple[float, float, float] = (2.5, 0.0, 1.5)
+    w20: float = 4.0
+    """Dryden's wind speed at 20 ft (m/s; σ_u ≈ 0.8 m/s at 1.5 m)."""
+    peak: tuple[float, float] = (2.0, 6.0)
+    """Range of the bump's horizontal peak speed (m/s); its direction is uniform."""
+    start: tuple[float, float] = (3.0, 10.0)
+    duration: tuple[float, float] = (0.5, 2.0)
+    """Range of its rise time ``t_g`` (s); it falls back over as long."""
+
+    def __post_init__(self) -> None:
+        self.position = tuple(self.position)
+        check_numbers("gusts", self, ("w20",), positive=False)
+        for key in ("peak", "start", "duration"):
+            low, high = getattr(self, key)
+            if not (0.0 <= low <= high and math.isfinite(high)):
+                raise ValueError(
+                    f"gusts.{key}={[low, high]!r} must be a range [low, high] with 0 <= low <= high"
+                )
+        if self.duration[0] <= 0.0:
+            raise ValueError(f"gusts.duration={list(self.duration)!r} must be above 0 s")
+
+
+@dataclass
+class Figure8:
+    """Neural-Fly's wind-tunnel benchmark: a figure-8 in the x-z plane in a steady wind."""
+
+    wind_speeds: tuple[float, ...] = (0.0, 8.5, 12.1)
+    """Steady wind speeds (m/s) along ``wind_direction``; one is drawn when ``wind_speed`` is not given."""
+    wind_direction: tuple[float, float, float] = (0.0, 1.0, 0.0)
+    center: tuple[float, float, float] = (2.5, 0.0, 1.5)
+    amplitude: tuple[float, float] = (1.25, 0.75)
+    """x = A_x sin φ, z = A_z sin 2φ (m)."""
+    rate: float = 1.0
+    """dφ/dt after the ease-in (rad/s)."""
+    ramp_seconds: float = 2.0
+    turbulence_w20: float = 1.0
+
+    def __post_init__(self) -> None:
+        self.wind_speeds = _check_speeds("figure8.wind_speeds", self.wind_speeds)
+        self.wind_direction, self.center = tuple(self.wind_direction), tuple(self.center)
+        self.amplitude = tuple(self.amplitude)
+        if math.hypot(*self.wind_direction) == 0.0:
+            raise ValueError("figure8.wind_direction=[0, 0, 0] has no direction; give a non-zero vector")
+        check_numbers("figure8", self, ("rate", "ramp_seconds"))
+        check_numbers("figure8", self, ("turbulence_w20",), positive=False)
+
+    def phase(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``φ(t)`` and ``φ̇(t)``: ``φ̇ = rate·(1 - cos(π t/T))/2`` for ``t < T``, then ``rate``."""
+        T, w = self.ramp_seconds, self.rate
+        early = t < T
+        rate = np.where(early, 0.5 * w * (1.0 - np.cos(math.pi * np.minimum(t, T) / T)), w)
+        phase = np.where(
+            early,
+            0.5 * w * (t - T / math.pi * np.sin(math.pi * np.minimum(t, T) / T)),
+            0.5 * w * T + w * (t - T),
+        )
+        return phase, rate
+
+
+@dataclass
+class DisturbanceRejectionReward:
+    effort_weight: float = 0.01
+    crash_penalty: float = 10.0
+
+    def __post_init__(self) -> None:
+        check_numbers("reward", self, ("effort_weight", "crash_penalty"), positive=False)
+
+
+@dataclass
+class DisturbanceRejectionConfig(EnvConfig):
+    vehicle: str = "hummingbird"
+    action_type: str = "attitude"
+    episode_seconds: float = 15.0
+    ground_effect: bool = True
+    scenario: str = RANDOM
+    """One of :data:`SCENARIOS`, or ``"random"`` (one of ``scenarios`` per episode)."""
+    scenarios: tuple[str, ...] = SCENARIOS
+    jet_crossing: JetCrossing = field(default_factory=JetCrossing)
+    table_pass: TablePass = field(default_factory=TablePass)
+    gusts: Gusts = field(default_factory=Gusts)
+    figure8: Figure8 = field(default_factory=Figure8)
+    reward: DisturbanceRejectionReward = field(default_factory=DisturbanceRejectionReward)
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        self.scenarios = tuple(self.scenarios)
+        if not self.scenarios or any(s not in SCENARIOS for s in self.scenarios):
+            raise ValueError(f"scenarios={list(self.scenarios)!r} must name one or more of {list(SCENARIOS)}")
+        if self.scenario not in (RANDOM, *SCENARIOS):
+            raise ValueError(f"scenario={self.scenario!r}; allowed: {[RANDOM, *SCENARIOS]}")
+
+
+def _speed_option(options: Mapping[str, Any], key: str) -> float | None:
+    if key not in options:
+        return None
+    value = options[key]
+    ok = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool)
+    if not (ok and math.isfinite(value) and value >= 0):
+        raise ValueError(f"{key}={value!r} must be a finite speed >= 0 (m/s)")
+    return float(value)
+
+
+class DisturbanceRejection(TaskDefaults):
+    """Follow each scenario's reference path under its disturbance (module docstring), N vehicles."""
+
+    env_id: ClassVar[str] = "QuadWrench/DisturbanceRejection-v0"
+    config_class: ClassVar[type[EnvConfig]] = DisturbanceRejectionConfig
+    reset_options: ClassVar[tuple[str, ...]] = ("scenario", "jet_speed", "wind_speed")
+    observation_blocks: ClassVar[tuple[tuple[str, int, float], ...]] = (
+        ("reference_position", 3, 20.0),
+        ("reference_velocity", 3, 20.0),
+    )
+    trace_keys: ClassVar[tuple[str, ...]] = ("reference_position", "tracking_error")
+
+    def __init__(self, cfg: DisturbanceRejectionConfig, vehicle: VehicleParams, count: int) -> None:
+        self.cfg = cfg
+        self.vehicle = vehicle
+        jc, tp, fig = cfg.jet_crossing, cfg.table_pass, cfg.figure8
+        x, y = jc.path
+        self.jet = Jet(
+            JetConfig(
+                position=(x, y - jc.jet_distance, jc.jet_height), direction=(0.0, 1.0, 0.0), speed=1.0,
+                diameter=jc.jet_diameter, spread=jc.jet_spread,
+            ),
+            count,
+        )  # fmt: skip
+        self.turbulence = DrydenGust(DrydenConfig(w20=1.0, altitude=cfg.gusts.position[2]), count)
+        self.bump = OneCosineGust(OneCosineConfig(hold=False), count)
+        self.table = Table(center=tp.table_center, size=tp.table_size, height=tp.table_height)
+        self._wind_direction = np.array(fig.wind_direction) / math.hypot(*fig.wind_direction)
+        self.scenario = np.zeros(count, dtype=int)
+        """Each vehicle's scenario (index into :data:`SCENARIOS`)."""
+        self.disturbance_speed = np.zeros(count)
+        """Each vehicle's ``jet_speed`` (jet_crossing) or ``wind_speed`` (figure8), m/s; else 0."""
+        self._cache: tuple[int, dict[str, np.ndarray]] = (-1, {})
+
+    def components(self) -> Components:
+        """The gust fan's jet, the turbulence, the 1-cosine bump and the table; each vehicle's copy of
+        a wind is switched on by its scenario (the others' tables are zero)."""
+        return Components(winds=[self.jet, self.turbulence, self.bump], scene=[self.table])
+
+    # -- episodes ----------------------------------------------------------------------------------
+    def _choose(
+        self, rng: np.random.Generator, options: Mapping[str, Any]
+    ) -> tuple[str, float | None, float | None]:
+        jet_speed, wind_speed = _speed_option(options, "jet_speed"), _speed_option(options, "wind_speed")
+        implied = "jet_crossing" if jet_speed is not None else "figure8" if wind_speed is not None else None
+        if jet_speed is not None and wind_speed is not None:
+            raise ValueError("jet_speed (jet_crossing) and wind_speed (figure8) cannot both be given")
+        scenario = options.get("scenario", implied or self.cfg.scenario)
+        if scenario == RANDOM:
+            scenario = self.cfg.scenarios[int(rng.integers(len(self.cfg.scenarios)))]
+        if scenario not in SCENARIOS:
+            raise ValueError(f"scenario={scenario!r}; allowed: {[RANDOM, *SCENARIOS]}")
+        if implied is not None and scenario != implied:
+            key = "jet_speed" if implied == "jet_crossing" else "wind_speed"
+            raise ValueError(f"{key} applies to the {implied!r} scenario, not {scenario!r}")
+        return scenario, jet_speed, wind_speed
+
+    def reset_vehicle(
+        self, index: int, rng: np.random.Generator, options: Mapping[str, Any]
+    ) -> tuple[np.ndarray, float]:
+        cfg = self.cfg
+        scenario, jet_speed, wind_speed = self._choose(rng, options)
+        self.scenario[index] = SCENARIOS.index(scenario)
+        self.jet.speed_scale[index] = 0.0
+        self.turbulence.weather[index] = 0.0
+        self.bump.shape[index] = (0.0, 0.0, 0.0, 0.0, 1.0)
+        speed = 0.0
+        if scenario == "jet_crossing":
+            jc = cfg.jet_crossing
+            speed = jet_speed if jet_speed is not None else float(rng.choice(jc.jet_speeds))
+            self.jet.speed_scale[index] = jc.outlet_speed(speed)
+        elif scenario == "gusts":
+            g = cfg.gusts
+            heading = rng.uniform(0.0, 2.0 * math.pi)
+            peak = rng.uniform(*g.peak)
+            self.turbulence.weather[index, 3] = g.w20
+            self.bump.shape[index] = (
+                peak * math.cos(heading), peak * math.sin(heading), 0.0, rng.uniform(*g.start),
+                rng.uniform(*g.duration),
+            )  # fmt: skip
+        elif scenario == "figure8":
+            fig = cfg.figure8
+            speed = wind_speed if wind_speed is not None else float(rng.choice(fig.wind_speeds))
+            self.turbulence.weather[index] = (*(speed * self._wind_direction), fig.turbulence_w20)
+        self.disturbance_speed[index] = speed
+        position, _ = self.reference(np.zeros(1), self.scenario[index : index + 1])
+        return position[0], 0.0
+
+    # -- the reference path --------------------------------------------------------------------------
+    def reference(self, t: np.ndarray, scenario: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(n, 3) reference positions and velocities at times ``t`` (n,) of vehicles flying
+        ``scenario`` (n,) (indices into :data:`SCENARIOS`)."""
+        cfg = self.cfg
+        t = np.asarray(t, dtype=float)
+        position, velocity = np.zeros((t.size, 3)), np.zeros((t.size, 3))
+        jc, tp, g, fig = cfg.jet_crossing, cfg.table_pass, cfg.gusts, cfg.figure8
+        rows = scenario == 0  # jet_crossing: z falls at descent_speed between the two hovers
+        s, speed = _glide(t[rows] - jc.hover_seconds, jc.start_height - jc.end_height, jc.descent_speed, EASE)
+        position[rows] = np.column_stack(
+            (np.full(s.size, jc.path[0]), np.full(s.size, jc.path[1]), jc.start_height - s)
+        )
+        velocity[rows, 2] = -speed
+        rows = scenario == 1  # table_pass: x rises at speed over the table
+        s, speed = _glide(t[rows] - tp.hover_seconds, tp.end_x - tp.start_x, tp.speed, EASE)
+        height = tp.table_height + tp.clearance + 0.5 * self.vehicle.hull_height
+        position[rows] = np.column_stack(
+            (tp.start_x + s, np.full(s.size, tp.table_center[1]), np.full(s.size, height))
+        )
+        velocity[rows, 0] = speed
+        rows = scenario == 2  # gusts: hover
+        position[rows] = g.position
+        rows = scenario == 3  # figure8
+        phase, rate = fig.phase(t[rows])
+        (ax, az), (cx, cy, cz) = fig.amplitude, fig.center
+        position[rows] = np.column_stack(
+            (cx + ax * np.sin(phase), np.full(phase.size, cy), cz + az * np.sin(2.0 * phase))
+        )
+        velocity[rows, 0] = ax * np.cos(phase) * rate
+        velocity[rows, 2] = 2.0 * az * np.cos(2.0 * phase) * rate
+        return position, velocity
+
+    def _numbers(self, fleet: Fleet) -> dict[str, np.ndarray]:
+        """The reference and the tracking error of the fleet's state now (once per state)."""
+        revision, numbers = self._cache
+        if revision != fleet.revision:
+            position, velocity = self.reference(fleet.time, self.scenario)
+            error = np.linalg.norm(fleet.state.position - position, axis=1)
+            numbers = {
+                "reference_position": position,
+                "reference_velocity": velocity,
+                "tracking_error": error,
+            }
+            self._cache = (fleet.revision, numbers)
+        return numbers
+
+    def reward_terms(self, fleet: Fleet, actions: np.ndarray, ended: np.ndarray) -> dict[str, np.ndarray]:
+        r = self.cfg.reward
+        return {
+            "tracking": -self._numbers(fleet)["tracking_error"],
+            "effort": -r.effort_weight * np.mean(actions * actions, axis=1),
+            "crash": -r.crash_penalty * ended.astype(float),
+        }
+
+    def observe(self, fleet: Fleet, out: np.ndarray) -> None:
+        numbers = self._numbers(fleet)
+        out[:, :3] = numbers["reference_position"]
+        out[:, 3:] = numbers["reference_velocity"]
+
+    def info(self, fleet: Fleet) -> dict[str, np.ndarray]:
+        return dict(self._numbers(fleet))
+
+    @staticmethod
+    def metrics(trace: Mapping[str, np.ndarray]) -> dict[str, float]:
+        """Paper 003's Table I score, the largest horizontal distance from the reference (m), with the
+        mean distance (m) and the largest vertical error (m), over the whole episode."""
+        error = np.asarray(trace["position"]) - np.asarray(trace["reference_position"])
+        return {
+            "max_horizontal_deviation": float(np.max(np.hypot(error[:, 0], error[:, 1]))),
+            "mean_tracking_error": float(np.mean(np.linalg.norm(error, axis=1))),
+            "max_vertical_error": float(np.max(np.abs(error[:, 2]))),
+        }
+
+
+def _glide(t: np.ndarray, length: float, speed: float, ease: float) -> tuple[np.ndarray, np.ndarray]:
+    """Distance (m) and speed (m/s) along a straight move of ``length`` that starts at ``t = 0``: the
+    speed eases up to ``speed`` as ``(1 - cos(π t/ease))/2`` over ``ease`` s, cruises, and eases down
+    the same way (a reference with continuous velocity: no step for a controller to differentiate)."""
+    ease = min(ease, length / speed)
+    total = length / speed + ease
+    t = np.clip(t, 0.0, total)
+    rise = np.minimum(t, ease)
+    fall = np.clip(t - (total - ease), 0.0, ease)
+    distance = speed * (
+        0.5 * rise - ease / (2.0 * math.pi) * np.sin(math.pi * rise / ease)
+        + np.clip(t - ease, 0.0, total - 2.0 * ease)
+        + 0.5 * fall + ease / (2.0 * math.pi) * np.sin(math.pi * fall / ease)
+    )  # fmt: skip
+    rate = np.where(
+        t < ease, 0.5 * (1.0 - np.cos(math.pi * rise / ease)),
+        np.where(t > total - ease, 0.5 * (1.0 + np.cos(math.pi * fall / ease)), 1.0),
+    )  # fmt: skip
+    return distance, speed * np.where(t >= total, 0.0, rate)

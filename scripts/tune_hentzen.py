@@ -1,0 +1,139 @@
+"""Tune paper 003's position controllers once, the same way for both (its Sec. V-F: "an overdamped
+position step response with minimum rise time").
+
+python scripts/tune_hentzen.py --config configs/tune_hentzen.yaml
+
+Each controller family maps one number, its bandwidth ``λ`` (1/s), to its gains (:data:`FAMILIES`).
+For every candidate ``λ`` the controller, without compensation, answers a reference step of ``step``
+m along x and, separately, along z from a hover in still air (DisturbanceRejection's ``gusts``
+scenario with its turbulence and bump switched off), on the config's tuning seeds and estimator. The
+chosen ``λ`` is the one with the shortest 10-90 % rise time whose overshoot (the peak above the value
+held over the last ``settle`` s, as a fraction of the step) stays at or below ``max_overshoot`` on
+every seed and both axes. Writes ``tuning.md`` and ``gains.yaml`` (the chosen
+gains, to copy into ``configs/reproduce_hentzen.yaml``) under the config's ``output``.
+"""
+
+from __future__ import annotations
+
+import argparse
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+import yaml
+from reproduce_mckinnon import rise_time
+
+from agents import make_agent
+from agents.evaluate import run_episode
+from quad_wrench_env.config import load_yaml
+
+ENV_ID = "QuadWrench/DisturbanceRejection-v0"
+
+
+def pid_gains(bandwidth: float) -> dict[str, float]:
+    """A critically damped PD (``k_p = λ²``, ``k_d = 2λ``) with a slow integrator (``k_i = λ³/50``,
+    its pole about 50x slower than the PD's: a faster one overshoots every step by 5-15 %)."""
+    lam = bandwidth
+    return {f"k_{name}_{axis}": value for axis in ("xy", "z")
+            for name, value in (("p", lam**2), ("d", 2.0 * lam), ("i", 0.02 * lam**3))}  # fmt: skip
+
+
+def mpc_gains(bandwidth: float) -> dict[str, float]:
+    """Position weight ``λ²`` against velocity weight 1 and the MPC's input weights (a quadratic cost
+    whose unconstrained optimum is a PD law with bandwidth about ``λ``)."""
+    return {"position_weight": bandwidth**2}
+
+
+FAMILIES: dict[str, Callable[[float], dict[str, float]]] = {"pid": pid_gains, "mpc": mpc_gains}
+"""Agent name -> its gains at bandwidth ``λ``."""
+
+
+class ReferenceStep(gym.ObservationWrapper):
+    """Moves the observed reference by ``offset`` (m): a step of the reference at ``t = 0``."""
+
+    def __init__(self, env: gym.Env, offset: np.ndarray) -> None:
+        super().__init__(env)
+        self._slice = env.unwrapped.obs_layout["reference_position"]
+        self._offset = offset.astype(np.float32)
+
+    def observation(self, observation: np.ndarray) -> np.ndarray:
+        observation = observation.copy()
+        observation[self._slice] += self._offset
+        return observation
+
+
+def step_response(
+    agent: str, gains: dict[str, float], axis: int, seed: int, config: dict
+) -> tuple[float, float]:
+    """``(rise time s, overshoot fraction)`` of ``agent`` for a reference step along ``axis``."""
+    offset = np.zeros(3)
+    offset[axis] = config["step"]
+    env = ReferenceStep(
+        gym.make(
+            ENV_ID, estimator=config["estimator"], episode_seconds=config["seconds"],
+            gusts={"w20": 0.0, "peak": [0.0, 0.0]},
+        ),
+        offset,
+    )  # fmt: skip
+    try:
+        episode = run_episode(make_agent(agent, **gains), env, seed, {"scenario": "gusts"})
+    finally:
+        env.close()
+    t, moved = episode.trace["time"], episode.trace["position"][:, axis] - episode.trace["position"][0, axis]
+    held = float(np.mean(moved[t >= t[-1] - config["settle"]]))
+    return rise_time(t, moved, 0.0, 0.0, config["step"]), (float(np.max(moved)) - held) / config["step"]
+
+
+def tune(agent: str, bandwidths: list[float], config: dict) -> tuple[float, list[dict[str, Any]]]:
+    rows = []
+    for lam in bandwidths:
+        gains = FAMILIES[agent](lam)
+        results = [
+            step_response(agent, gains, axis, seed, config) for axis in (0, 2) for seed in config["seeds"]
+        ]
+        rows.append({
+            "bandwidth": lam, "rise_x": np.mean([r for r, _ in results[: len(config["seeds"])]]),
+            "rise_z": np.mean([r for r, _ in results[len(config["seeds"]) :]]),
+            "overshoot": max(o for _, o in results), "rise": max(r for r, _ in results),
+        })  # fmt: skip
+        print(f"{agent} λ={lam}: {rows[-1]}", flush=True)
+    admissible = [r for r in rows if r["overshoot"] <= config["max_overshoot"]]
+    if not admissible:
+        raise SystemExit(
+            f"{agent}: no bandwidth in {bandwidths} keeps the overshoot <= {config['max_overshoot']}"
+        )
+    return min(admissible, key=lambda r: r["rise"])["bandwidth"], rows
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--config", default="configs/tune_hentzen.yaml")
+    parser.add_argument("--only", nargs="*", choices=sorted(FAMILIES), help="tune only these agents")
+    args = parser.parse_args()
+    config = load_yaml(args.config)
+    out = Path(config["output"])
+    out.mkdir(parents=True, exist_ok=True)
+    lines = [
+        f"# Tuning of paper 003's controllers ({config['estimator']}, seeds {config['seeds']}, "
+        f"step {config['step']} m, overshoot <= {config['max_overshoot']:.0%})", "",
+        "| agent | λ (1/s) | rise x (s) | rise z (s) | max overshoot |", "|---|---|---|---|---|",
+    ]  # fmt: skip
+    chosen = {}
+    for agent, bandwidths in config["bandwidths"].items():
+        if args.only and agent not in args.only:
+            continue
+        best, rows = tune(agent, bandwidths, config)
+        chosen[agent] = FAMILIES[agent](best)
+        for r in rows:
+            mark = " **chosen**" if r["bandwidth"] == best else ""
+            rises = f"{r['rise_x']:.2f} | {r['rise_z']:.2f}"
+            lines.append(f"| {agent} | {r['bandwidth']}{mark} | {rises} | {r['overshoot']:.1%} |")
+    (out / "tuning.md").write_text("\n".join(lines) + "\n")
+    (out / "gains.yaml").write_text(yaml.safe_dump(chosen, sort_keys=False))
+    print("\n".join(lines))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,238 @@
+"""QuadWrench/DisturbanceRejection-v0 and paper 003's PID controller: the references against their
+formulas, the jet's speed where it crosses the path, each vehicle's own disturbance, the options,
+the metrics, and the PID's force feed-forward with the true wrench."""
+
+from __future__ import annotations
+
+import math
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+from agents import make_agent
+from agents.evaluate import run_episode
+from quad_wrench_env.tasks.disturbance_rejection import SCENARIOS, DisturbanceRejection
+from quad_wrench_env.vehicle import GRAVITY
+
+ENV_ID = "QuadWrench/DisturbanceRejection-v0"
+STILL_AIR = {"w20": 0.0, "peak": [0.0, 0.0]}
+"""The ``gusts`` scenario with neither turbulence nor a bump: a hover in still air."""
+
+
+def _reference(env, t: np.ndarray, scenario: str) -> tuple[np.ndarray, np.ndarray]:
+    task: DisturbanceRejection = env.unwrapped.task
+    return task.reference(t, np.full(t.size, SCENARIOS.index(scenario)))
+
+
+def test_layout_defaults_and_spaces(make_env):
+    env = make_env(ENV_ID, estimator="oracle", backend="numpy")
+    base = env.unwrapped
+    assert (base.cfg.vehicle, base.cfg.action_type) == ("hummingbird", "attitude")
+    layout = base.obs_layout
+    assert (layout["reference_position"], layout["reference_velocity"]) == (slice(25, 28), slice(28, 31))
+    obs, info = env.reset(seed=0, options={"scenario": "table_pass"})
+    assert obs.shape == (31,) and obs.dtype == np.float32 and env.observation_space.contains(obs)
+    np.testing.assert_allclose(obs[layout["reference_position"]], info["reference_position"], atol=1e-6)
+    np.testing.assert_allclose(info["position"], info["reference_position"], atol=1e-9)  # starts on it
+    assert info["tracking_error"] == pytest.approx(0.0, abs=1e-9)
+
+
+@pytest.mark.parametrize("scenario", SCENARIOS)
+def test_reference_velocity_is_the_derivative_of_the_reference_position(make_env, scenario):
+    """Central differences of the position (1 ms) against the velocity the task reports, over the
+    whole episode: continuous, no step for a controller's differencing to blow up."""
+    env = make_env(ENV_ID, backend="numpy")
+    t = np.linspace(0.0, 15.0, 3001)
+    h = 1e-3
+    ahead, _ = _reference(env, t + h, scenario)
+    behind, _ = _reference(env, np.maximum(t - h, 0.0), scenario)
+    _, velocity = _reference(env, t, scenario)
+    central = (ahead - behind) / (t + h - np.maximum(t - h, 0.0))[:, None]
+    np.testing.assert_allclose(central, velocity, atol=2e-3)  # O(h²·jerk) + the kinks of the ease
+    assert np.max(np.abs(np.diff(velocity, axis=0))) < 0.02  # 5 ms apart: no velocity step
+
+
+def test_references_follow_the_papers_paths(make_env):
+    env = make_env(ENV_ID, backend="numpy")
+    cfg = env.unwrapped.cfg
+    jc, tp = cfg.jet_crossing, cfg.table_pass
+    position, velocity = _reference(env, np.array((0.0, 0.99, 15.0)), "jet_crossing")
+    np.testing.assert_allclose(position, [[2.0, 0.0, 2.2], [2.0, 0.0, 2.2], [2.0, 0.0, 0.6]], atol=1e-12)
+    _, cruise = _reference(env, np.array((1.0 + (jc.start_height - jc.end_height) / jc.descent_speed / 2,)),
+                           "jet_crossing")  # fmt: skip
+    np.testing.assert_allclose(cruise, [[0.0, 0.0, -0.5]], atol=1e-12)
+    position, velocity = _reference(env, np.linspace(0.0, 15.0, 1501), "table_pass")
+    hull_bottom = position[:, 2] - 0.5 * env.unwrapped.vehicle.hull_height
+    np.testing.assert_allclose(hull_bottom, tp.table_height + 0.08, atol=1e-12)  # paper 003: 8 cm
+    assert position[0, 0] < 3.0 and position[-1, 0] > 4.0  # both edges of the table, x = 3 and 4
+    assert np.max(velocity[:, 0]) == pytest.approx(0.3, abs=1e-12)
+    t = np.linspace(2.0, 15.0, 200)  # after the ease-in φ = t - 1 (φ̇ eases 0 -> 1 over 2 s)
+    position, velocity = _reference(env, t, "figure8")
+    expected = np.column_stack(
+        (2.5 + 1.25 * np.sin(t - 1.0), np.zeros_like(t), 1.5 + 0.75 * np.sin(2 * (t - 1.0)))
+    )
+    np.testing.assert_allclose(position, expected, atol=1e-12)  # Neural-Fly's x = 1.25 sin t, z = 0.75 sin 2t
+
+
+@pytest.mark.parametrize("speed", [3.0, 10.0, 12.0])
+def test_jet_blows_at_jet_speed_where_it_crosses_the_path(make_env, speed):
+    """The centre speed on the path, 1 m from a 0.6 m outlet with spread 0.42, is the option's: the
+    outlet blows at ``U0 = speed·√2·b/D`` with ``b = sqrt(0.3² + (0.42·1)²)`` (momentum flux kept)."""
+    env = make_env(ENV_ID, estimator="oracle", backend="numpy")
+    env.reset(seed=0, options={"jet_speed": speed})
+    task = env.unwrapped.task
+    b = math.hypot(0.3, 0.42)
+    assert task.jet.speed_scale[0, 0] == pytest.approx(speed * math.sqrt(2.0) * b / 0.6, rel=1e-12)
+    points = np.array([[[2.0, 0.0, 1.4], [2.0, 0.0, 1.4 + b]]])
+    air = task.jet.velocity_at(points, np.zeros(1), slice(0, 1))[0]
+    np.testing.assert_allclose(air[0], [0.0, speed, 0.0], atol=1e-9)
+    np.testing.assert_allclose(air[1], [0.0, speed / math.e, 0.0], atol=1e-9)  # Gaussian: 1/e at r = b
+
+
+def test_each_vehicle_meets_only_its_own_scenarios_disturbance():
+    """Four vehicles, one per scenario: the jet and the steady wind blow for their own vehicle only."""
+    env = gym.make_vec(ENV_ID, num_envs=4, vectorization_mode="vector_entry_point", estimator="oracle",
+                       backend="numpy")  # fmt: skip
+    try:
+        env.reset(seed=5)
+        options = [
+            {"jet_speed": 10.0},
+            {"scenario": "table_pass"},
+            {"scenario": "gusts"},
+            {"wind_speed": 8.5},
+        ]
+        env.unwrapped.reset_vehicles(range(4), [5, 6, 7, 8], options)
+        task = env.unwrapped.task
+        assert list(task.scenario) == [0, 1, 2, 3]
+        np.testing.assert_array_equal(task.jet.speed_scale[1:, 0], 0.0)
+        assert task.jet.speed_scale[0, 0] > 10.0
+        np.testing.assert_allclose(
+            task.turbulence.weather[:, :3], [[0, 0, 0], [0, 0, 0], [0, 0, 0], [0, 8.5, 0]]
+        )
+        np.testing.assert_array_equal(task.turbulence.weather[:2, 3], 0.0)  # no turbulence on 0 and 1
+        assert np.all(task.bump.shape[[0, 1, 3], :3] == 0.0) and np.linalg.norm(task.bump.shape[2, :3]) >= 2.0
+        _, _, _, _, info = env.step(np.zeros((4, 4), dtype=np.float32))
+        wind = info["wind_velocity"]
+        assert np.linalg.norm(wind[1]) == 0.0 and abs(wind[3, 1] - 8.5) < 1.0  # light turbulence only
+    finally:
+        env.close()
+
+
+@pytest.mark.parametrize(
+    ("options", "match"),
+    [
+        ({"scenario": "landing"}, r"scenario='landing'; allowed"),
+        ({"jet_speed": -1.0}, r"jet_speed=-1.0 must be a finite speed >= 0"),
+        ({"wind_speed": float("nan")}, r"wind_speed=nan must be a finite speed"),
+        ({"jet_speed": 3.0, "scenario": "figure8"}, r"jet_speed applies to the 'jet_crossing' scenario"),
+        ({"jet_speed": 3.0, "wind_speed": 1.0}, r"cannot both be given"),
+    ],
+)
+def test_bad_options_are_refused_by_name(make_env, options, match):
+    env = make_env(ENV_ID, backend="numpy")
+    with pytest.raises(ValueError, match=match):
+        env.reset(seed=0, options=options)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [
+        ({"scenario": "wind"}, r"scenario='wind'; allowed"),
+        ({"scenarios": ["gusts", "hail"]}, r"scenarios=\['gusts', 'hail'\] must name"),
+        ({"jet_crossing": {"end_height": 3.0}}, r"end_height=3.0 must be below start_height"),
+        ({"table_pass": {"end_x": 3.8}}, r"must lie beyond the table's edges"),
+        ({"figure8": {"wind_speeds": [8.5, -1]}}, r"figure8.wind_speeds=\[8.5, -1\] must be"),
+    ],
+)
+def test_bad_config_names_the_value(make_env, kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        make_env(ENV_ID, backend="numpy", **kwargs)
+
+
+def test_default_episodes_mix_every_scenario_and_the_papers_speeds(make_env):
+    env = make_env(ENV_ID, backend="numpy")
+    task = env.unwrapped.task
+    seen = set()
+    for seed in range(40):
+        env.reset(seed=seed)
+        seen.add((SCENARIOS[task.scenario[0]], float(task.disturbance_speed[0])))
+    assert {s for s, _ in seen} == set(SCENARIOS)
+    assert {v for s, v in seen if s == "jet_crossing"} == {3.0, 10.0, 12.0}
+    assert {v for s, v in seen if s == "figure8"} == {0.0, 8.5, 12.1}
+
+
+def test_metrics_by_hand():
+    trace = {
+        "position": np.array([[0.0, 0.0, 1.0], [0.3, 0.4, 1.1], [0.0, 0.1, 0.8]]),
+        "reference_position": np.array([[0.0, 0.0, 1.0], [0.0, 0.0, 1.0], [0.0, 0.0, 1.0]]),
+    }
+    scores = DisturbanceRejection.metrics(trace)
+    assert scores["max_horizontal_deviation"] == pytest.approx(0.5)
+    assert scores["max_vertical_error"] == pytest.approx(0.2)
+    assert scores["mean_tracking_error"] == pytest.approx((0.0 + math.sqrt(0.26) + math.sqrt(0.05)) / 3)
+
+
+FORCE = np.array((0.5, -0.3))
+"""A constant horizontal push (N): 0.7 m/s² on the 716 g hummingbird, about 4° of tilt."""
+
+
+def _hover_under_push(agent_params: dict, seconds: float):
+    env = gym.make(
+        ENV_ID, estimator="oracle", backend="numpy", episode_seconds=seconds, gusts=STILL_AIR, kf_spread=0.0,
+        external_wrench=[[0.0, 100.0, *FORCE, 0.0, 0.0, 0.0, 0.0]],
+    )  # fmt: skip
+    try:
+        return run_episode(make_agent("pid", **agent_params), env, 0, {"scenario": "gusts"})
+    finally:
+        env.close()
+
+
+def test_pid_with_the_true_force_cancels_a_constant_push():
+    """Paper 003 eq. (3) with the oracle: the feed-forward ``-f/m`` cancels the push, so the position
+    stays within 1 mm of the reference (the wrench also holds the drag of the vehicle's own motion, so
+    the cancellation is exact up to the attitude loop's lag); without compensation and without an
+    integrator the PD settles at ``e = f/(m·k_p)`` (m·k_p·e = f), and with the integrator only slowly."""
+    gains = {"k_p_xy": 4.0, "k_d_xy": 4.0, "k_i_xy": 0.0}
+    compensated = _hover_under_push({**gains, "compensation": True}, 6.0)
+    error = compensated.trace["position"] - compensated.trace["reference_position"]
+    assert np.max(np.hypot(error[100:, 0], error[100:, 1])) < 1e-3
+    plain = _hover_under_push(gains, 6.0)
+    error = plain.trace["position"] - plain.trace["reference_position"]
+    mass = 0.716
+    np.testing.assert_allclose(error[-1, :2], FORCE / (mass * 4.0), rtol=0.05)  # 17 cm and 10 cm
+    integrating = _hover_under_push({**gains, "k_i_xy": 0.5}, 6.0)
+    error = integrating.trace["position"] - integrating.trace["reference_position"]
+    assert 0.01 < np.hypot(*error[-1, :2]) < np.hypot(*(FORCE / (mass * 4.0)))  # on its way, not there
+
+
+def test_pid_refuses_an_env_it_cannot_fly(make_env):
+    with pytest.raises(ValueError, match="needs action_type='attitude'"):
+        make_agent("pid").reset(make_env(ENV_ID, backend="numpy", action_type="velocity"))
+    with pytest.raises(ValueError, match="reference_position"):
+        make_agent("pid").reset(make_env(action_type="attitude", backend="numpy"))
+    with pytest.raises(ValueError, match=r"pid\.k_p_xy"):
+        make_agent("pid", k_p_xy="fast")
+
+
+def test_pid_tilts_against_the_estimated_force():
+    """At rest on the reference with an estimated push +x of m·g·tan 10°, the compensated command is a
+    pitch of -10° (R_y(θ)·e_z = (sin θ, 0, cos θ): the thrust leans towards -x, against the push) and
+    a thrust of m·g/cos 10°."""
+    env = gym.make(ENV_ID, estimator="oracle", backend="numpy")
+    try:
+        obs, _ = env.reset(seed=0, options={"scenario": "gusts"})
+        layout, cfg = env.unwrapped.obs_layout, env.unwrapped.cfg
+        policy = make_agent("pid", compensation=True)
+        policy.reset(env)
+        mass = env.unwrapped.vehicle.mass
+        obs = obs.copy()
+        obs[layout["force"]] = (mass * GRAVITY * math.tan(math.radians(10.0)), 0.0, 0.0)
+        obs[layout["reference_position"]] = obs[layout["position"]]
+        obs[layout["velocity"]] = obs[layout["reference_velocity"]] = 0.0
+        action = policy.act(obs)
+    finally:
+        env.close()
+    assert action[1] * cfg.action_limits.max_tilt_deg == pytest.approx(-10.0, abs=0.05)  # pitch
+    assert action[0] == pytest.approx(0.0, abs=1e-4)
+    assert (1.0 + action[3]) == pytest.approx(1.0 / math.cos(math.radians(10.0)), abs=1e-3)

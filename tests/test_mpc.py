@@ -1,0 +1,271 @@
+"""Paper 003's MPC position controller (Sec. IV-D, eqs. 1, 2, 4) solved with OSQP, and its guidance.
+
+Tolerances: OSQP stops when every constraint row is met to ``eps_abs + eps_rel·scale`` (1e-6 each,
+``scale`` the size of the row's terms: a thrust bound ~10 N, a dynamics row ~1), so a bound holds to
+~1.4e-5 and a dynamics row to ~2e-6; a prediction chains 20 dynamics rows, each residual carried on
+by ``A_d`` (norm ~1.3 over a step), so the rollout of the model may drift from the predicted states
+by up to ~1e-4 (observed: 1e-9 without slack, 1e-7 with; bounds are met to 4e-6).
+"""
+
+from __future__ import annotations
+
+import math
+from types import SimpleNamespace
+from typing import ClassVar
+
+import numpy as np
+import pytest
+from scipy.integrate import solve_ivp
+
+from agents.base import Policy
+from agents.guidance import ReferenceExtrapolator, attitude_from_acceleration
+from agents.mpc import NU, NX, MPCGains, MPCPolicy, PositionMPC, linearize
+from quad_wrench_env.autopilot import AutopilotGains
+from quad_wrench_env.engine.actions import ActionLimits
+from quad_wrench_env.rotations import quat_from_euler_zyx, rotation_matrix
+from quad_wrench_env.vehicle import GRAVITY, make_vehicle
+
+MASS = 0.716  # hummingbird
+TAU = 1.0 / 14.933
+BOUND_TOL = 2e-5  # one bound row: eps_abs + eps_rel·|T| <= 1e-6 + 1e-6·12.6 N (2 hover thrusts)
+ROLLOUT_TOL = 1e-4  # 20 chained dynamics rows of ~2e-6 each, carried on by A_d (module docstring)
+
+
+def nonlinear_rhs(x: np.ndarray, u: np.ndarray, yaw: float, force: np.ndarray) -> np.ndarray:
+    """Eqs. (1)-(2) and the first-order attitude, written independently of agents.mpc: the thrust
+    direction comes from the project's rotations (``R = Rz(ψ)·Ry(θ)·Rx(φ)``)."""
+    body_z = rotation_matrix(quat_from_euler_zyx(x[6], x[7], yaw))[:, 2]
+    accel = u[0] / MASS * body_z + force / MASS + np.array((0.0, 0.0, -GRAVITY))
+    return np.concatenate((x[3:6], accel, (u[1:3] - x[6:8]) / TAU))
+
+
+def hover_reference(mpc: PositionMPC, position=(0.0, 0.0, 1.0)):
+    guidance = ReferenceExtrapolator()
+    guidance.update(np.array(position), np.zeros(3), 0.02)
+    return guidance.horizon(mpc.times)
+
+
+def make_mpc(**settings) -> PositionMPC:
+    return PositionMPC(MPCGains(attitude_time_constant=TAU, **settings), MASS)
+
+
+def rollout(mpc: PositionMPC) -> np.ndarray:
+    states = [mpc.predicted_states[0]]
+    for u in mpc.predicted_inputs:
+        states.append(mpc.A_d @ states[-1] + mpc.B_d @ u + mpc.c_d)
+    return np.array(states)
+
+
+# -- guidance ------------------------------------------------------------------------------------
+@pytest.mark.parametrize("seed", range(5))
+def test_attitude_from_acceleration_reproduces_the_thrust_vector(seed):
+    rng = np.random.default_rng(seed)
+    acceleration, yaw = rng.uniform(-4.0, 4.0, 3), rng.uniform(-math.pi, math.pi)
+    thrust, roll, pitch = attitude_from_acceleration(acceleration, yaw, MASS)
+    wanted = MASS * (acceleration + np.array((0.0, 0.0, GRAVITY)))
+    body_z = rotation_matrix(quat_from_euler_zyx(roll, pitch, yaw))[:, 2]
+    np.testing.assert_allclose(thrust * body_z, wanted, atol=1e-12)
+    assert thrust == pytest.approx(np.linalg.norm(wanted))
+
+
+def test_reference_extrapolator_differences_the_reference_velocity():
+    guidance = ReferenceExtrapolator()
+    assert np.all(guidance.update(np.zeros(3), np.array((1.0, 0.0, 0.0)), 0.02) == 0.0)  # first step
+    a = guidance.update(np.array((0.02, 0.0, 0.0)), np.array((1.1, 0.0, -0.2)), 0.02)
+    np.testing.assert_allclose(a, (5.0, 0.0, -10.0))
+    positions, velocities, accelerations = guidance.horizon(np.array((0.0, 0.5)))
+    np.testing.assert_allclose(positions[1], (0.02 + 1.1 * 0.5 + 2.5 * 0.25, 0.0, -0.1 - 1.25))
+    np.testing.assert_allclose(velocities[1], (1.1 + 2.5, 0.0, -0.2 - 5.0))
+    np.testing.assert_allclose(accelerations, [a, a])
+    guidance.reset()
+    assert np.all(guidance.update(np.zeros(3), np.ones(3), 0.02) == 0.0)
+
+
+# -- model -----------------------------------------------------------------------------------------
+def test_discretised_linear_model_matches_the_nonlinear_model_for_small_deviations():
+    """Over one 0.1 s step from the linearisation point plus deviations δ, the error of the affine
+    model is second order in δ (solve_ivp to 1e-11): ~1e-7 for δ = 1e-3, and it falls 4x when δ halves."""
+    yaw, force, thrust = 0.7, np.array((0.4, -0.3, 0.2)), 7.3
+    point = np.array((0.1, -0.2, 1.0, 0.3, -0.1, 0.05, 0.12, -0.08))
+    a_d, b_d, c_d = linearize(point, thrust, yaw, force, MASS, TAU, 0.1)
+    direction = np.random.default_rng(0).normal(size=NX + NU)
+
+    def error(scale: float) -> float:
+        x0 = point + scale * direction[:NX]
+        u = np.array((thrust, point[6], point[7])) + scale * direction[NX:]
+        exact = solve_ivp(lambda t, x: nonlinear_rhs(x, u, yaw, force), (0.0, 0.1), x0,
+                          rtol=1e-12, atol=1e-12).y[:, -1]  # fmt: skip
+        return float(np.abs(a_d @ x0 + b_d @ u + c_d - exact).max())
+
+    assert error(0.0) < 1e-10  # exact at the linearisation point
+    assert error(1e-3) < 1e-6
+    assert 3.0 < error(1e-2) / error(5e-3) < 5.0
+
+
+@pytest.mark.parametrize("slack", [False, True])
+def test_prediction_is_a_rollout_of_the_models_own_dynamics(slack):
+    mpc = make_mpc(slack=slack, compensation=True)
+    reference = hover_reference(mpc)
+    rng = np.random.default_rng(1)
+    for _ in range(5):
+        state = np.concatenate(
+            (rng.uniform(-0.3, 0.3, 3), rng.uniform(-0.5, 0.5, 3), rng.uniform(-0.2, 0.2, 2))
+        )
+        state[2] += 1.0
+        mpc.solve(state, 0.3, *reference, force=np.array((0.3, 0.1, -0.2)))
+        assert mpc.status == "solved"
+        np.testing.assert_allclose(rollout(mpc), mpc.predicted_states, atol=ROLLOUT_TOL, rtol=0)
+
+
+@pytest.mark.parametrize("slack", [False, True])
+def test_bounds_hold_in_every_solution(slack):
+    mpc = make_mpc(slack=slack)
+    reference = hover_reference(mpc)
+    rng = np.random.default_rng(2)
+    for _ in range(20):
+        state = np.concatenate((rng.uniform(-0.5, 0.5, 3), rng.uniform(-1, 1, 3), rng.uniform(-0.3, 0.3, 2)))
+        state[2] += 1.0
+        mpc.solve(state, rng.uniform(-math.pi, math.pi), *reference)
+        assert mpc.status == "solved"
+        inputs = mpc.predicted_inputs
+        assert np.all(inputs >= mpc.input_lower[:NU] - BOUND_TOL)
+        assert np.all(inputs <= mpc.input_upper[:NU] + BOUND_TOL)
+        assert np.all(mpc.slack_values >= -BOUND_TOL)
+
+
+def test_slack_is_zero_when_the_cross_track_constraint_is_inactive():
+    mpc = make_mpc(slack=True)
+    mpc.solve(np.array((0.0, 0.0, 1.0, 0, 0, 0, 0, 0)), 0.0, *hover_reference(mpc))
+    assert mpc.status == "solved"
+    assert np.abs(mpc.slack_values).max() < 1e-6
+    np.testing.assert_allclose(mpc.predicted_inputs, [[MASS * GRAVITY, 0.0, 0.0]] * mpc.horizon, atol=1e-5)
+
+
+def test_an_infeasible_start_still_solves_with_positive_slack():
+    """0.5 m off in y: within one 0.1 s step no tilt can bring it inside e_max = 0.05 m."""
+    start = np.array((0.0, 0.5, 1.0, 0, 0, 0, 0, 0))
+    soft = make_mpc(slack=True)
+    soft.solve(start, 0.0, *hover_reference(soft))
+    assert soft.status == "solved"
+    assert soft.slack_values[0] > 0.3
+    assert soft.predicted_states[1, 1] - 0.05 == pytest.approx(soft.slack_values[0], abs=1e-4)
+    hard_free = make_mpc(slack=False)
+    hard_free.solve(start, 0.0, *hover_reference(hard_free))
+    assert hard_free.status == "solved"
+    assert hard_free.slack_values.max() == 0.0
+
+
+@pytest.mark.parametrize("yaw", [0.0, 2.0])
+def test_compensation_tilts_the_steady_input_against_the_estimated_force(yaw):
+    """With f̂ in the model the input reference is the thrust vector ``m·g·e_z - f̂`` and the predicted
+    inputs settle on it; without, both stay at hover. The model is linearised about the current (level)
+    attitude, so the settled prediction misses the thrust's second-order loss with tilt,
+    ``T·(1 - cos α) ≈ 0.02 N`` for the α ≈ 0.085 rad here: hence 0.03 N and 0.01 rad."""
+    force = np.array((0.5, -0.3, 0.2))
+    start = np.array((0.0, 0.0, 1.0, 0, 0, 0, 0, 0))
+    hover = np.array((0.0, 0.0, MASS * GRAVITY))
+    for compensation in (True, False):
+        mpc = make_mpc(compensation=compensation)
+        mpc.solve(start, yaw, *hover_reference(mpc), force=force)
+        thrust, roll, pitch = mpc.input_reference[0]
+        thrust_vector = thrust * rotation_matrix(quat_from_euler_zyx(roll, pitch, yaw))[:, 2]
+        wanted = hover - force if compensation else hover  # without compensation f̂ = 0 in the model
+        np.testing.assert_allclose(thrust_vector, wanted, atol=1e-9)
+        settled = mpc.predicted_inputs[-1]  # the end of the horizon
+        np.testing.assert_allclose(settled, mpc.input_reference[-1], atol=0.03 if compensation else 1e-5)
+        np.testing.assert_allclose(settled[1:], mpc.input_reference[-1, 1:], atol=0.01)
+        assert (abs(settled[1]) + abs(settled[2]) > 0.05) == compensation
+
+
+def test_closed_loop_on_the_model_settles_on_the_reference_only_with_compensation():
+    """The nonlinear model under a constant force, the MPC re-solved every 0.02 s: no offset with the
+    force compensated; without, no integrator, so it settles off the reference against the force."""
+    force = np.array((0.3, 0.0, 0.0))
+    errors = {}
+    for compensation in (True, False):
+        mpc = make_mpc(compensation=compensation)
+        reference = hover_reference(mpc)
+        x = np.array((0.2, -0.1, 1.1, 0, 0, 0, 0, 0))
+        for _ in range(250):
+            u = mpc.solve(x, 0.0, *reference, force=force)
+            x = solve_ivp(lambda t, s, u=u: nonlinear_rhs(s, u, 0.0, force), (0, 0.02), x, rtol=1e-8).y[:, -1]
+        errors[compensation] = x[:3] - (0.0, 0.0, 1.0)
+    assert np.abs(errors[True]).max() < 1e-3
+    assert errors[False][0] > 0.05  # pushed along +x by the unknown force
+
+
+# -- policy ----------------------------------------------------------------------------------------
+class FakeEnv:
+    """What :class:`MPCPolicy` reads from an env (``env.unwrapped``) and nothing else."""
+
+    LAYOUT: ClassVar[dict[str, slice]] = {
+        "position": slice(0, 3), "velocity": slice(3, 6), "attitude": slice(6, 12),
+        "body_rates": slice(12, 15), "force": slice(15, 18), "torque": slice(18, 21),
+        "last_action": slice(21, 25), "reference_position": slice(25, 28),
+        "reference_velocity": slice(28, 31),
+    }  # fmt: skip
+
+    def __init__(self, action_type: str = "attitude", vehicle: str = "hummingbird") -> None:
+        self.unwrapped = self
+        self.cfg = SimpleNamespace(action_type=action_type, action_limits=ActionLimits(), policy_hz=50)
+        self.vehicle = make_vehicle(vehicle)
+        self.dt = 1.0 / 200.0
+        self.obs_layout = dict(self.LAYOUT)
+
+    def observation(self, position, roll=0.0, pitch=0.0, yaw=0.0, force=(0, 0, 0), reference=(0, 0, 1)):
+        rotation = rotation_matrix(quat_from_euler_zyx(roll, pitch, yaw))
+        obs = np.zeros(31, dtype=np.float32)
+        obs[0:3] = position
+        obs[6:12] = rotation[:, :2].T.ravel()
+        obs[15:18] = force
+        obs[25:28] = reference
+        return obs
+
+
+def test_policy_conforms_and_returns_clipped_float32_actions():
+    policy = MPCPolicy(compensation=True, slack=True)
+    assert isinstance(policy, Policy)
+    env = FakeEnv()
+    policy.reset(env)
+    rng = np.random.default_rng(3)
+    for _ in range(10):
+        obs = env.observation(rng.uniform(-2, 2, 3), *rng.uniform(-0.5, 0.5, 2), rng.uniform(-3, 3),
+                              force=rng.uniform(-2, 2, 3))  # fmt: skip
+        action = policy.act(obs)
+        assert action.dtype == np.float32 and action.shape == (4,)
+        assert np.all(np.abs(action) <= 1.0)
+
+
+def test_policy_holds_the_equilibrium_of_the_estimated_force_at_any_heading():
+    """At rest on the reference, tilted as the force needs, the action is that tilt and thrust."""
+    force, yaw, vehicle = np.array((0.5, -0.3, 0.2)), 2.5, make_vehicle("hummingbird")
+    thrust, roll, pitch = attitude_from_acceleration(-force / vehicle.mass, yaw, vehicle.mass)
+    policy = MPCPolicy(compensation=True, yaw=yaw)
+    env = FakeEnv()
+    policy.reset(env)
+    action = policy.act(env.observation((0, 0, 1), roll, pitch, yaw, force=force))
+    tilt = math.radians(env.cfg.action_limits.max_tilt_deg)
+    expected = (roll / tilt, pitch / tilt, 0.0, thrust / (vehicle.mass * GRAVITY) - 1.0)
+    np.testing.assert_allclose(action, expected, atol=1e-4)
+
+
+def test_policy_derives_its_model_and_bounds_from_the_vehicle_and_the_action():
+    env = FakeEnv(vehicle="yuksel1kg")
+    policy = MPCPolicy(max_thrust=3.0, max_tilt_deg=45.0)
+    policy.reset(env)
+    mpc = policy.mpc
+    assert mpc.tau == pytest.approx(1.0 / AutopilotGains.for_vehicle(env.vehicle).attitude_p)
+    assert mpc.input_upper[0] == pytest.approx(2.0 * env.vehicle.mass * GRAVITY)  # what the action can say
+    assert mpc.input_upper[1] == pytest.approx(math.radians(env.cfg.action_limits.max_tilt_deg))
+    assert MPCPolicy(attitude_time_constant=0.2).gains.attitude_time_constant == 0.2
+
+
+def test_policy_refuses_another_action_type_and_unknown_gains():
+    with pytest.raises(ValueError, match="attitude"):
+        MPCPolicy().reset(FakeEnv(action_type="velocity"))
+    with pytest.raises(ValueError, match="mpc.bogus"):
+        MPCPolicy(bogus=1.0)
+    env = FakeEnv()
+    del env.obs_layout["reference_velocity"]
+    with pytest.raises(ValueError, match="reference_velocity"):
+        MPCPolicy().reset(env)
