@@ -13,9 +13,12 @@ from typing import Any
 from agents.admittance import AdmittancePolicy
 from agents.base import Policy
 from agents.hover import PositionHoldPolicy
+from agents.mpc import MPCPolicy
 from agents.pid import PIDPolicy
 
-AGENTS: dict[str, type] = {"admittance": AdmittancePolicy, "hold": PositionHoldPolicy, "pid": PIDPolicy}
+AGENTS: dict[str, type] = {
+    "admittance": AdmittancePolicy, "hold": PositionHoldPolicy, "pid": PIDPolicy, "mpc": MPCPolicy,
+}  # fmt: skip
 
 SHIPPED = Path(__file__).resolve().parent / "policies"
 """Shipped learned policies: one folder each, laid out as a run folder's ``config.yaml`` and ``best/``."""

@@ -102,13 +102,14 @@ class MPCGains:
     """Add the soft cross-track constraint with its slack input (paper 003 Sec. IV-D c))."""
     cross_track_limit: float = 0.05
     """``e_max`` (m) of the soft constraint on the x and y position errors."""
-    slack_weight_linear: float = 100.0
-    """Linear cost on the slack (1/m, per step): above the multipliers of the hard constraint (the
-    position cost's slope at ``e_max``, ``2·80·0.05 = 8`` per step, 80 at the terminal step), so no
-    slack is used while the constraint can be met. Larger weights make OSQP need thousands of
-    iterations while the constraint is active and the response to a large error violent."""
-    slack_weight_quadratic: float = 1000.0
-    """Quadratic cost on the slack (1/m², per step)."""
+    slack_weight_linear: float | None = None
+    """Linear cost on the slack (1/m, per step). None derives it from the exact-penalty condition: it
+    must exceed the multiplier the hard constraint would have, at most the slope of the terminal
+    position cost at ``e_max``, ``2·q_p·e_max·terminal_weight`` (1300 with the tuned weights of
+    ``configs/reproduce_hentzen.yaml``), so that no slack is used while the constraint can be met."""
+    slack_weight_quadratic: float | None = None
+    """Quadratic cost on the slack (1/m², per step); None: the linear weight over ``e_max`` (both terms
+    equal at a slack of ``e_max``)."""
     linearization: str = "state"
     """Attitude about which the model is linearised, at the equilibrium thrust: ``"state"``, the current
     attitude, or ``"reference"``, the equilibrium tilt of the input reference (the hover point)."""
@@ -140,6 +141,9 @@ class MPCGains:
             )
         if not self.max_tilt_deg < 90.0:
             raise ValueError(f"mpc.max_tilt_deg={self.max_tilt_deg} must be below 90")
+        for name in ("slack_weight_linear", "slack_weight_quadratic"):
+            if getattr(self, name) is not None and not getattr(self, name) > 0.0:
+                raise ValueError(f"mpc.{name}={getattr(self, name)!r} must be > 0 or None (derived)")
         if self.linearization not in ("reference", "state"):
             raise ValueError(f"mpc.linearization={self.linearization!r} must be 'reference' or 'state'")
         if self.horizon_seconds < self.step_seconds:
@@ -284,8 +288,16 @@ class PositionMPC:
             (*g.position_weight, *g.velocity_weight, g.attitude_weight, g.attitude_weight), float
         )
         r_input = np.array((g.input_weight[0] / self.mass**2, g.input_weight[1], g.input_weight[2]))
+        linear = g.slack_weight_linear
+        if linear is None:
+            linear = 2.0 * max(g.position_weight[:2]) * g.cross_track_limit * g.terminal_weight
+        quadratic = (
+            linear / g.cross_track_limit if g.slack_weight_quadratic is None else g.slack_weight_quadratic
+        )
+        self.slack_weights = (linear, quadratic)
+        """The slack's linear and quadratic costs in use."""
         if g.slack:
-            r_input = np.append(r_input, g.slack_weight_quadratic)
+            r_input = np.append(r_input, quadratic)
         state_weights = np.tile(q_state, (n, 1))
         state_weights[-1] *= g.terminal_weight
         self._state_weights = state_weights  # (N, 8), rows x_1..x_N
@@ -346,7 +358,7 @@ class PositionMPC:
         input_reference = inputs if nu == NU else np.column_stack((inputs, np.zeros(n)))
         q_input = -2.0 * self._input_weights * input_reference
         if g.slack:
-            q_input[:, NU] = g.slack_weight_linear
+            q_input[:, NU] = self.slack_weights[0]
         rhs = np.tile(self.c_d, n)
         rhs[:NX] += self.A_d @ state
         self._lower[: n * NX] = self._upper[: n * NX] = rhs

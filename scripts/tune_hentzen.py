@@ -27,7 +27,9 @@ from reproduce_mckinnon import rise_time
 
 from agents import make_agent
 from agents.evaluate import run_episode
+from agents.mpc import MPCGains
 from quad_wrench_env.config import load_yaml
+from quad_wrench_env.vehicle import GRAVITY
 
 ENV_ID = "QuadWrench/DisturbanceRejection-v0"
 
@@ -40,10 +42,21 @@ def pid_gains(bandwidth: float) -> dict[str, float]:
             for name, value in (("p", lam**2), ("d", 2.0 * lam), ("i", 0.02 * lam**3))}  # fmt: skip
 
 
-def mpc_gains(bandwidth: float) -> dict[str, float]:
-    """Position weight ``λ²`` against velocity weight 1 and the MPC's input weights (a quadratic cost
-    whose unconstrained optimum is a PD law with bandwidth about ``λ``)."""
-    return {"position_weight": bandwidth**2}
+def mpc_gains(bandwidth: float) -> dict[str, Any]:
+    """The MPC's state weights as the LQR of a double integrator ``p̈ = a`` with input weight ``r``
+    per (m/s²)² would have them for bandwidth ``λ`` and damping ratio 1: ``q_p = r·λ⁴``,
+    ``q_v = 2·r·λ²`` (gain ``k_p = λ²``, ``k_d = 2λ``, as the PID's). ``r`` is the MPC's own input
+    weight in those units: the tilt weight over g² horizontally (a tilt θ gives ``a ≈ g·θ``), the
+    thrust weight (already per (m/s²)²) vertically."""
+    default = MPCGains()
+    r = (
+        np.array((default.input_weight[1], default.input_weight[2], default.input_weight[0] * GRAVITY**2))
+        / GRAVITY**2
+    )
+    return {
+        "position_weight": [float(v) for v in r * bandwidth**4],
+        "velocity_weight": [float(v) for v in 2.0 * r * bandwidth**2],
+    }
 
 
 FAMILIES: dict[str, Callable[[float], dict[str, float]]] = {"pid": pid_gains, "mpc": mpc_gains}
