@@ -406,14 +406,10 @@ class MPCPolicy:
     the reference acceleration is their difference between policy steps
     (:class:`agents.guidance.ReferenceExtrapolator`).
 
-    The MPC feeds the measured attitude back (0.23 rad per rad with the default weights and
-    ``hummingbird``'s ``τ``, 0.58 with ``ardrone2``'s, 0.84 with ``yuksel1kg``'s). The
-    autopilot's attitude loop (attitude P on a PI rate loop with ``rate_i = 0.6·rate_p²``, motor lag) has
-    a pair of poles damped at only ζ ≈ 0.025, at 6 Hz on ``hummingbird`` and 2.2 Hz on ``ardrone2`` and
-    ``crazyflie2`` (``yuksel1kg``: ζ ≈ 0.33), which the first-order model does not know: the default tilt
-    weight keeps ``hummingbird`` and ``yuksel1kg`` steady, while ``ardrone2`` and ``crazyflie2``
-    oscillate (body rates ~11 rad/s with the defaults, still ~0.8 rad/s with position weight 10 and
-    tilt weight 1000; steady with ``rate_i = 0.1·rate_p²``, ζ ≈ 0.35).
+    The first-order attitude model ignores the autopilot's attitude-loop resonance (attitude P on a PI
+    rate loop with motor lag: damping ratio ≈ 0.35 on ``ardrone2``, ``crazyflie2`` and
+    ``hummingbird``, 0.7 on ``yuksel1kg``); the tilt weight in ``input_weight`` keeps the feedback of
+    the measured attitude low enough (0.23 rad per rad on ``hummingbird``) not to excite it.
     """
 
     gains_class: type = MPCGains

@@ -12,6 +12,13 @@ blocks, and ``f̂_ext`` the observation's estimated external force, used only wi
 (:func:`~agents.guidance.attitude_from_acceleration`), flown by the autopilot through the ``attitude``
 action; the heading is held at ``yaw_reference``.
 
+The gains are either given per axis (``k_p_xy`` ...) or by one ``bandwidth`` λ (1/s): a critically
+damped PD, ``k_p = λ²``, ``k_d = 2λ``, with a slow integrator, ``k_i = λ³/50`` (its pole ~50x slower:
+a faster one overshoots every reference step by 5-15 %). As in every cascade, the position loop must
+be slower than the attitude loop it commands, so at :meth:`PIDPolicy.reset` λ is lowered to a third of
+the vehicle's attitude-loop gain (``AutopilotGains.attitude_p``) where it is above: 5/s on
+``hummingbird``, 1.9/s on ``ardrone2`` and ``crazyflie2``, 1.3/s on ``yuksel1kg``.
+
 The integral term is clamped to ``max_integral_acceleration`` (m/s²) per axis, so that it cannot wind
 up without bound while the tilt or thrust saturates; the default, g·tan 30°, lets it hold any force
 the tilt limit can.
@@ -26,6 +33,7 @@ import gymnasium as gym
 import numpy as np
 
 from agents.guidance import ReferenceExtrapolator, attitude_from_acceleration
+from quad_wrench_env.autopilot import AutopilotGains
 from quad_wrench_env.config import build, check_numbers
 from quad_wrench_env.rotations import wrap_angle
 from quad_wrench_env.vehicle import GRAVITY
@@ -49,6 +57,8 @@ class PIDGains:
     k_yaw: float = 1.0
     """Heading feedback (1/s) through the yaw-rate command."""
     yaw_reference: float = 0.0
+    bandwidth: float | None = None
+    """λ (1/s): when given, the six gains above follow from it (module docstring)."""
     compensation: bool = False
     """Subtract ``f̂_ext/m`` (paper 003 eq. (3)'s feed-forward)."""
     feedforward: bool = True
@@ -59,6 +69,13 @@ class PIDGains:
             "pid", self, ("k_p_xy", "k_d_xy", "k_p_z", "k_d_z", "max_integral_acceleration", "k_yaw"),
         )  # fmt: skip
         check_numbers("pid", self, ("k_i_xy", "k_i_z"), positive=False)
+        if self.bandwidth is not None:
+            check_numbers("pid", self, ("bandwidth",))
+
+
+def bandwidth_gains(bandwidth: float) -> tuple[float, float, float]:
+    """``(k_p, k_d, k_i)`` of bandwidth λ: ``(λ², 2λ, λ³/50)``."""
+    return bandwidth**2, 2.0 * bandwidth, 0.02 * bandwidth**3
 
 
 class PIDPolicy:
@@ -72,6 +89,8 @@ class PIDPolicy:
         self._k_p = np.array((g.k_p_xy, g.k_p_xy, g.k_p_z))
         self._k_d = np.array((g.k_d_xy, g.k_d_xy, g.k_d_z))
         self._k_i = np.array((g.k_i_xy, g.k_i_xy, g.k_i_z))
+        self.bandwidth = g.bandwidth
+        """λ in use (None with per-axis gains): ``gains.bandwidth`` capped at :meth:`reset`."""
         self.reference = ReferenceExtrapolator()
         self._integral = np.zeros(3)
         """The integral term ``k_i·∫e_p`` (m/s²)."""
@@ -97,6 +116,10 @@ class PIDPolicy:
         self._yaw_rate = base.cfg.action_limits.max_yaw_rate
         self._integral = np.zeros(3)
         self.reference.reset()
+        if self.gains.bandwidth is not None:
+            attitude_p = AutopilotGains.for_vehicle(base.vehicle).attitude_p
+            self.bandwidth = min(self.gains.bandwidth, attitude_p / 3.0)
+            self._k_p[:], self._k_d[:], self._k_i[:] = bandwidth_gains(self.bandwidth)
 
     def desired_acceleration(self, observation: np.ndarray) -> np.ndarray:
         """Eq. (3): ``a_des`` (m/s², world frame) for this observation; advances the integrator."""

@@ -13,7 +13,9 @@ What PX4 is to paper 003's vehicle and the AR.Drone firmware to paper 000's: a c
 
 Gains follow from the vehicle: the rate-loop bandwidth is set by the motor time constant ``τ_m``
 (``k_rate = 0.7/τ_m`` gives a damping ratio of 0.6 for the loop ``k/(s(τ_m s + 1))``; the integrator,
-``0.6·k²``, holds a constant torque disturbance such as a mass hung under one rotor), bounded by the
+``0.1·k²``, puts the PI's zero a decade below the crossover and holds a constant torque disturbance
+such as a mass hung under one rotor within ~1/(0.1·k) s; at ``0.6·k²``, as before, the zero sat at the
+crossover and the attitude loop on top rang with a damping ratio of 0.025), bounded by the
 torque authority α (``VehicleParams.max_angular_acceleration``): the largest rate step may ask for
 at most :data:`AUTHORITY_SHARE` of it, ``k_rate·max_rate <= share·α``, by a lower rate limit first
 (down to :data:`MIN_MAX_RATE`), then a lower gain (``yuksel1kg``: 9.4 instead of 35). Each outer loop
@@ -37,6 +39,9 @@ _E_Z = np.array((0.0, 0.0, 1.0))
 AUTHORITY_SHARE = 0.5
 """Share of the roll/pitch torque authority (``VehicleParams.max_angular_acceleration``) that the
 rate loop may ask for on its largest step, ``rate_p·max_rate``."""
+
+RATE_INTEGRAL_SHARE = 0.1
+"""``rate_i = share·rate_p²``: the rate PI's zero at ``share·rate_p``, a decade below the crossover."""
 
 MIN_MAX_RATE = 1.0
 """rad/s: the body-rate limit is lowered towards this before the rate gain is."""
@@ -78,7 +83,7 @@ class AutopilotGains:
         k = velocity_p + vehicle.rotor_drag_decel
         return cls(
             rate_p=rate_p,
-            rate_i=0.6 * rate_p**2,
+            rate_i=RATE_INTEGRAL_SHARE * rate_p**2,
             attitude_p=attitude_p,
             yaw_p=0.5 * attitude_p,
             velocity_p=velocity_p,

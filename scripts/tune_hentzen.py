@@ -35,11 +35,8 @@ ENV_ID = "QuadWrench/DisturbanceRejection-v0"
 
 
 def pid_gains(bandwidth: float) -> dict[str, float]:
-    """A critically damped PD (``k_p = λ²``, ``k_d = 2λ``) with a slow integrator (``k_i = λ³/50``,
-    its pole about 50x slower than the PD's: a faster one overshoots every step by 5-15 %)."""
-    lam = bandwidth
-    return {f"k_{name}_{axis}": value for axis in ("xy", "z")
-            for name, value in (("p", lam**2), ("d", 2.0 * lam), ("i", 0.02 * lam**3))}  # fmt: skip
+    """The PID's own bandwidth parametrisation (:mod:`agents.pid`)."""
+    return {"bandwidth": bandwidth}
 
 
 def mpc_gains(bandwidth: float) -> dict[str, Any]:
