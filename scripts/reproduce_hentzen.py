@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import argparse
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -64,6 +65,24 @@ def fly(
         environment.close()
 
 
+def sweep(
+    config: dict, labels: list[str], speeds: list[float], desc: str, metric: str, setup: Callable
+) -> dict[tuple[str, str, float], list[float]]:
+    """``metric`` of every estimator, controller (``labels``) and speed over the seeds; ``setup(speed)``
+    gives the reset options and the env overrides of one speed."""
+    jobs = [
+        (e, c, v, s) for e in config["estimators"] for c in labels for v in speeds for s in config["seeds"]
+    ]
+    results: dict[tuple[str, str, float], list[float]] = {}
+    for estimator, label, speed, seed in tqdm(jobs, desc=desc, unit="episode"):
+        options, env = setup(speed)
+        episode, _ = fly(config, label, estimator, seed, options, **env)
+        results.setdefault((estimator, label, speed), []).append(
+            episode_metrics(config["env_id"], episode)[metric]
+        )
+    return results
+
+
 def _cells(values: list[float], scale: float = 100.0) -> str:
     return f"{scale * np.mean(values):.1f} ± {scale * np.std(values):.1f}"
 
@@ -79,20 +98,10 @@ def table1(config: dict, out: Path) -> list[str]:
         + " | improvement over PID | paper (" + ", ".join(f"{v:g}" for v in speeds) + " m/s) |",
         "|---|---|" + "---|" * len(speeds) + "---|---|",
     ]  # fmt: skip
-    jobs = [
-        (e, c, v, s)
-        for e in config["estimators"]
-        for c in setup["controllers"]
-        for v in speeds
-        for s in seeds
-    ]
-    results: dict[tuple[str, str, float], list[float]] = {}
-    for estimator, label, speed, seed in tqdm(jobs, desc="Table I", unit="episode"):
-        episode, _ = fly(
-            config, label, estimator, seed, {"jet_speed": speed}, episode_seconds=setup["seconds"]
-        )
-        score = episode_metrics(config["env_id"], episode)["max_horizontal_deviation"]
-        results.setdefault((estimator, label, speed), []).append(score)
+    results = sweep(
+        config, setup["controllers"], speeds, "Table I", "max_horizontal_deviation",
+        lambda speed: ({"jet_speed": speed}, {"episode_seconds": setup["seconds"]}),
+    )  # fmt: skip
     for estimator in config["estimators"]:
         base = {v: np.mean(results[estimator, setup["baseline"], v]) for v in speeds}
         for label in setup["controllers"]:
@@ -187,19 +196,14 @@ def fig9(config: dict, out: Path) -> list[str]:
 def figure8(config: dict, out: Path) -> list[str]:
     setup, seeds = config["figure8"], config["seeds"]
     speeds = setup["wind_speeds"]
-    results: dict[tuple[str, str, float], list[float]] = {}
-    jobs = [
-        (e, c, v, s)
-        for e in config["estimators"]
-        for c in setup["controllers"]
-        for v in speeds
-        for s in seeds
-    ]
-    for estimator, label, speed, seed in tqdm(jobs, desc="figure-8", unit="episode"):
-        episode, _ = fly(config, label, estimator, seed, {"wind_speed": speed})
-        results.setdefault((estimator, label, speed), []).append(
-            episode_metrics(config["env_id"], episode)["mean_tracking_error"]
-        )
+    results = sweep(
+        config,
+        setup["controllers"],
+        speeds,
+        "figure-8",
+        "mean_tracking_error",
+        lambda speed: ({"wind_speed": speed}, {}),
+    )
     lines = [
         f"## Figure-8 (x = 1.25 sin t, z = 0.75 sin 2t): mean tracking error (cm), seeds {seeds}", "",
         "Simulation here; Neural-Fly's rows are real flights in a wind tunnel (O'Connell et al. 2022).", "",
