@@ -2,10 +2,15 @@
 
 A :class:`ScenePart` is the seam for static bodies. The world (:class:`~quad_wrench_env.engine.world.World`)
 builds its boxes once per vehicle frame of the vector env (each vehicle flies in a copy of the scene,
-as in its own episode); a part whose contact ends an episode (a table: the vehicle crashed on it) is
-named by :attr:`ScenePart.ends_episode_on_contact`; a horizontal top (:meth:`ScenePart.top`) is a
-surface the ground effect sees under a rotor. Config: ``scene=[{"kind": "table", "center": [x, y],
-"size": [sx, sy], "height": h}, {"kind": "wall", "x": 3.0}, {"kind": "ceiling", "height": 2.5}]``.
+as in its own episode). The vehicle's body touching any part ends its episode as a crash (only a
+tool's tip may touch, :class:`~quad_wrench_env.engine.config.ToolConfig`); a horizontal top
+(:meth:`ScenePart.top`) is a surface the ground effect sees under a rotor. Each part has a friction
+coefficient (Bullet combines two bodies' coefficients as their product). A wall or a ceiling may be
+rough: ``roughness`` > 0 adds ridges across its face over ``rough_length`` m (along y for a wall,
+along x for a ceiling, so that a tool sliding along x or y crosses them), ``ridge_spacing`` apart,
+each ``roughness·(1 + sin(2.4·k))/2`` high (a fixed, irregular pattern: nothing random). Config:
+``scene=[{"kind": "table", "center": [x, y], "size": [sx, sy], "height": h}, {"kind": "wall", "x": 3.0},
+{"kind": "ceiling", "height": 2.5, "roughness": 0.01}]``.
 """
 
 from __future__ import annotations
@@ -26,7 +31,7 @@ class ScenePart(Protocol):
     """A static body of the scene, in a vehicle's frame (m)."""
 
     name: str
-    ends_episode_on_contact: bool
+    friction: float
 
     def boxes(self) -> list[tuple[tuple[float, float, float], tuple[float, float, float]]]:
         """``(centre, half extents)`` of each of the part's boxes."""
@@ -60,11 +65,11 @@ class Table:
     center: tuple[float, float] = (2.0, 0.0)
     size: tuple[float, float] = (1.0, 1.0)
     height: float = 0.75
+    friction: float = 0.5
     name = "table"
-    ends_episode_on_contact = True
 
     def __post_init__(self) -> None:
-        _check(self, ("center", "size"), ("size", "height"))
+        _check(self, ("center", "size"), ("size", "height", "friction"))
 
     def boxes(self):
         (x, y), (sx, sy), h = self.center, self.size, self.height
@@ -83,15 +88,21 @@ class Wall:
     width: float = 8.0
     height: float = 3.0
     thickness: float = 0.2
+    friction: float = 0.5
+    roughness: float = 0.0
+    ridge_spacing: float = 0.05
+    rough_length: float = 3.0
     name = "wall"
-    ends_episode_on_contact = False
 
     def __post_init__(self) -> None:
-        _check(self, (), ("width", "height", "thickness"))
+        _check(self, (), ("width", "height", "thickness", "friction", "ridge_spacing", "rough_length"))
+        _check_roughness(self)
 
     def boxes(self):
         half = (0.5 * self.thickness, 0.5 * self.width, 0.5 * self.height)
-        return [((self.x + half[0], 0.0, half[2]), half)]
+        ridges = [((self.x - 0.5 * h, y, half[2]), (0.5 * h, 0.25 * self.ridge_spacing, half[2]))
+                  for y, h in _ridges(self)]  # fmt: skip
+        return [((self.x + half[0], 0.0, half[2]), half), *ridges]
 
     def top(self):
         return None
@@ -105,18 +116,48 @@ class Ceiling:
     center: tuple[float, float] = (3.0, 0.0)
     size: tuple[float, float] = (8.0, 8.0)
     thickness: float = 0.2
+    friction: float = 0.5
+    roughness: float = 0.0
+    ridge_spacing: float = 0.05
+    rough_length: float = 3.0
     name = "ceiling"
-    ends_episode_on_contact = False
 
     def __post_init__(self) -> None:
-        _check(self, ("center", "size"), ("size", "height", "thickness"))
+        _check(
+            self, ("center", "size"),
+            ("size", "height", "thickness", "friction", "ridge_spacing", "rough_length"),
+        )  # fmt: skip
+        _check_roughness(self)
 
     def boxes(self):
         (x, y), (sx, sy) = self.center, self.size
-        return [((x, y, self.height + 0.5 * self.thickness), (0.5 * sx, 0.5 * sy, 0.5 * self.thickness))]
+        ridges = [((x + offset, y, self.height - 0.5 * h), (0.25 * self.ridge_spacing, 0.5 * sy, 0.5 * h))
+                  for offset, h in _ridges(self)]  # fmt: skip
+        return [
+            ((x, y, self.height + 0.5 * self.thickness), (0.5 * sx, 0.5 * sy, 0.5 * self.thickness)),
+            *ridges,
+        ]
 
     def top(self):
         return None
+
+
+def _check_roughness(part: Any) -> None:
+    if not (
+        isinstance(part.roughness, (int, float)) and math.isfinite(part.roughness) and part.roughness >= 0
+    ):
+        raise ValueError(f"scene {part.name}: roughness={part.roughness!r} must be a finite height >= 0 (m)")
+
+
+def _ridges(part: Any) -> list[tuple[float, float]]:
+    """``(offset from the part's centre along the face, height)`` of a rough part's ridges (module
+    docstring); none on a smooth one."""
+    if part.roughness <= 0.0:
+        return []
+    count = int(part.rough_length / part.ridge_spacing)
+    offsets = (np.arange(count) - 0.5 * (count - 1)) * part.ridge_spacing
+    heights = part.roughness * 0.5 * (1.0 + np.sin(2.4 * np.arange(count)))
+    return [(float(o), float(h)) for o, h in zip(offsets, heights, strict=True) if h > 1e-4]
 
 
 SCENE_KINDS: dict[str, type] = {"table": Table, "wall": Wall, "ceiling": Ceiling}

@@ -99,9 +99,12 @@ class WindField(Component, Protocol):
 class PointLoad(Component, Protocol):
     """Forces at body points besides the air's (a hung payload, a scheduled wrench)."""
 
-    def point_load(self, t: np.ndarray, rotation: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
-        """``(offsets (n, K, 3) from the centres of mass, forces (n, K, 3))``, world frame, for n
-        vehicles at times ``t`` (n,) with attitudes ``rotation`` (n, 3, 3); None when it never acts."""
+    def point_load(
+        self, t: np.ndarray, rotation: np.ndarray, index: np.ndarray | slice = slice(None)
+    ) -> tuple[np.ndarray, np.ndarray] | None:
+        """``(offsets (n, K, 3) from the centres of mass, forces (n, K, 3))``, world frame, for the n
+        vehicles ``index`` at times ``t`` (n,) with attitudes ``rotation`` (n, 3, 3); None when it
+        never acts."""
 
 
 @runtime_checkable

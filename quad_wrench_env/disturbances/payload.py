@@ -62,7 +62,9 @@ class Payload:
         c = self.config
         return (c.mass > 0) & (c.attach_time <= t) & (t < c.release_time)
 
-    def point_load(self, t: np.ndarray, rotation: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+    def point_load(
+        self, t: np.ndarray, rotation: np.ndarray, index: np.ndarray | slice = slice(None)
+    ) -> tuple[np.ndarray, np.ndarray] | None:
         """``(offsets (n, 1, 3) from the centres of mass, forces (n, 1, 3))``, world frame, for n
         vehicles at times ``t`` (n,) with attitudes ``rotation`` (n, 3, 3) (zero force while the mass
         does not hang), or None without a payload."""

@@ -59,7 +59,9 @@ class WrenchProfile:
         active = (self.segments[:, 0] <= t) & (t < self.segments[:, 1])
         return active.astype(float) @ self.segments[:, 2:]
 
-    def point_load(self, t: np.ndarray, rotation: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+    def point_load(
+        self, t: np.ndarray, rotation: np.ndarray, index: np.ndarray | slice = slice(None)
+    ) -> tuple[np.ndarray, np.ndarray] | None:
         """(offsets, forces), each (n, 3, 3), of the force at the centre of mass and the torque couple
         for n vehicles at times ``t`` (n,), or None without segments."""
         if not self.segments.size:

@@ -177,6 +177,7 @@ class CompiledStep:
         before, read, after_kernel, after = self._before, self.read_world, self._after_kernel, self._after
         estimate = self.estimate
         forces, torques, position, one = self.forces, self.torques, self.state.position, self.single
+        contacts = world.tool is not None
         for _ in range(count):
             if one:
                 world.step_one(*before())
@@ -185,6 +186,8 @@ class CompiledStep:
                 world.step(forces, torques, position)
             noise.ready()
             after_kernel(read(), *after)
+            if contacts:
+                world.add_contact_loads(self.loads, fleet.contact_force)
             if truth_fed:
                 estimator.observe_truth(self.truth, self.loads)
             estimate()

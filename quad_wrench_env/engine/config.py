@@ -6,6 +6,7 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
+from quad_wrench_env.config import check_numbers
 from quad_wrench_env.disturbances.payload import PayloadConfig
 from quad_wrench_env.disturbances.registry import wind_config
 from quad_wrench_env.disturbances.wrench_profile import validate_segments
@@ -30,6 +31,30 @@ class ArenaConfig:
                 f"arena x_min={self.x_min}, x_max={self.x_max}, y_half_width={self.y_half_width}, "
                 f"z_max={self.z_max}: need x_min < x_max and positive width and height"
             )
+
+
+@dataclass
+class ToolConfig:
+    """A rigid, massless tool fixed to the body: a rod from the centre of mass to a spherical tip, the
+    one part of the vehicle allowed to touch the scene (paper 001 Sec. V, Fig. 5)."""
+
+    enabled: bool = False
+    offset: tuple[float, float, float] | None = None
+    """The tip's centre in the body frame (m); None puts it 0.1 m beyond the hull ahead and above,
+    ``(half length + 0.1, 0, half height + 0.1)``, so that it touches a wall ahead or a ceiling above
+    before the hull does. Paper 001's ceiling tool is ``(0.2, 0, 0.2)`` (its NED d read with z up)."""
+    tip_radius: float = 0.015
+    friction: float = 0.5
+    """The tip's friction coefficient (Bullet multiplies it with the surface's)."""
+
+    def __post_init__(self) -> None:
+        check_numbers("tool", self, ("tip_radius", "friction"))
+        if self.offset is not None:
+            self.offset = tuple(self.offset)
+            if len(self.offset) != 3 or not all(
+                isinstance(v, (int, float)) and math.isfinite(v) for v in self.offset
+            ):
+                raise ValueError(f"tool.offset={list(self.offset)!r} must be 3 finite numbers (m)")
 
 
 @dataclass
@@ -60,6 +85,9 @@ class EnvConfig:
     """Cheeseman-Bennett ground effect on each rotor over the ground and the scene's tops."""
     scene: list[dict[str, Any]] = field(default_factory=list)
     """Static parts, each ``{"kind": "table"|"wall"|"ceiling", ...}`` (:mod:`quad_wrench_env.scene`)."""
+    tool: ToolConfig = field(default_factory=ToolConfig)
+    """An optional tool whose tip may press on the scene; its contact forces (PyBullet's solver) are
+    in ``wrench_true``."""
     arena: ArenaConfig = field(default_factory=ArenaConfig)
     observe_wrench: bool = True
     """False zeroes the force and torque blocks of the observation (the ablation that asks whether

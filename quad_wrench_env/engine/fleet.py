@@ -32,7 +32,7 @@ from quad_wrench_env.engine.config import ArenaConfig, EnvConfig
 from quad_wrench_env.engine.kernels import assemble_observations, termination_codes
 from quad_wrench_env.engine.noise import NoiseBlocks
 from quad_wrench_env.engine.observation import ObservationLayout
-from quad_wrench_env.engine.world import RigidBodyState, World
+from quad_wrench_env.engine.world import RigidBodyState, Tool, World
 from quad_wrench_env.estimators import OracleBank, make_estimator_bank
 from quad_wrench_env.kernels import resolve_backend
 from quad_wrench_env.rotations import cross, quat_from_matrix
@@ -61,6 +61,18 @@ def scene_extent(arena: ArenaConfig, scene: list[ScenePart]) -> tuple[float, flo
             low = np.minimum(low, np.subtract(centre[:2], half[:2]))
             high = np.maximum(high, np.add(centre[:2], half[:2]))
     return float(high[0] - low[0]), float(high[1] - low[1])
+
+
+def make_tool(cfg: EnvConfig, vehicle: VehicleParams) -> Tool | None:
+    """The world's tool from ``cfg.tool`` (its default offset from the vehicle's hull), or None."""
+    tool = cfg.tool
+    if not tool.enabled:
+        return None
+    offset = tool.offset
+    if offset is None:
+        half_length, half_height = vehicle.arm + vehicle.rotor_radius, 0.5 * vehicle.hull_height
+        offset = (half_length + 0.1, 0.0, half_height + 0.1)
+    return Tool(np.array(offset, dtype=float), tool.tip_radius, tool.friction)
 
 
 def numpy_only(cfg: EnvConfig, components: Components) -> list[str]:
@@ -131,11 +143,15 @@ class Fleet:
         # box diagonals (< 4 hull radii) and a metre more: boxes of vehicles inside their arenas never
         # overlap, nor meet another frame's scene (see World's docstring).
         spacing = max(scene_extent(cfg.arena, components.scene)) + 4.0 * vehicle.hull_radius + 1.0
-        self.world = World(vehicle, dt, count, gui=gui, spacing=spacing, scene=components.scene)
+        self.world = World(
+            vehicle, dt, count, gui=gui, spacing=spacing, scene=components.scene, tool=make_tool(cfg, vehicle)
+        )
         self._flip_cos = math.cos(math.radians(cfg.flip_tilt_deg))
         self.time = np.zeros(count)
         self.state: RigidBodyState | None = None
         self.wrench_true = np.zeros((count, 6))
+        self.contact_force = np.zeros((count, 3))
+        """(N, 3) force of the scene on each tool's tip in the last physics step (world frame, N)."""
         self.wind_velocity = np.zeros((count, 3))
         """(N, 3) air velocity at each centre of mass (world frame), after the last step or reset."""
         self.compiled = CompiledStep(self) if self.backend == "numba" else None
@@ -180,6 +196,7 @@ class Fleet:
         :meth:`equilibrium`); its random draws come from ``rng`` from now on. Call :meth:`refresh`
         after the last vehicle is reset."""
         self.rotors.reset(index, rng, self.cfg.kf_spread)
+        self.contact_force[index] = 0.0
         for wind in self.components.winds:
             wind.reset(index, rng)
         self.time[index] = 0.0
@@ -250,6 +267,8 @@ class Fleet:
             wind.advance(self.dt, after.position, after.velocity, normals[:, start:stop])
         self.state = after
         self.wrench_true = loads
+        if self.world.tool is not None:
+            self.world.add_contact_loads(self.wrench_true, self.contact_force)
         self.wind_velocity = self.air_at(after.position[:, None, :], slice(None))[:, 0]
         self._feed_truth()
         measured_speeds = self.motor_sensor.measure(self.rotors.speeds)
@@ -289,7 +308,7 @@ class Fleet:
             offsets = np.concatenate((offsets, hubs), axis=1)
             forces = np.concatenate((forces, added[:, :, None] * rotation[:, None, :, 2]), axis=1)
         for load in self.components.loads:
-            extra = load.point_load(self.time[index], rotation)
+            extra = load.point_load(self.time[index], rotation, index)
             if extra is not None:
                 offsets = np.concatenate((offsets, extra[0]), axis=1)
                 forces = np.concatenate((forces, extra[1]), axis=1)

@@ -93,6 +93,15 @@ class RigidBodyState:
         )
 
 
+@dataclass(frozen=True)
+class Tool:
+    """The tool's tip as the world builds it: ``offset`` (3,) in the body frame, radius, friction (m)."""
+
+    offset: np.ndarray
+    radius: float
+    friction: float
+
+
 class World:
     """A PyBullet client holding a ground plane and ``count`` vehicle bodies."""
 
@@ -104,6 +113,7 @@ class World:
         gui: bool = False,
         spacing: float = 0.0,
         scene: list[ScenePart] | None = None,
+        tool: Tool | None = None,
     ) -> None:
         if not (isinstance(count, int) and count >= 1):
             raise ValueError(f"count={count!r} must be an integer >= 1 (vehicles in the world)")
@@ -123,6 +133,7 @@ class World:
         if self.client < 0:
             raise RuntimeError("could not connect to a PyBullet physics server")
         self.scene = list(scene or [])
+        self.tool = tool
         self.bodies: list[int] = []
         self.plane = -1
         self._crash_bodies: list[int] = []
@@ -130,16 +141,14 @@ class World:
         self._index_of: dict[int, int] = {}
         self.half_extents = (vehicle.arm + vehicle.rotor_radius,) * 2 + (0.5 * vehicle.hull_height,)
         """Half extents (m) of each vehicle's collision box."""
-        highest = max(
-            [0.0]
-            + [c[2] + h[2] for part in self.scene if part.ends_episode_on_contact for c, h in part.boxes()]
-        )
-        self.clear_height = (
-            highest + float(np.linalg.norm(self.half_extents)) + _CONTACT_THRESHOLD + _MAX_FALL_SPEED * dt
-        )
-        """Height (m) of a body's centre above which it cannot touch the ground or a scene part whose
-        contact ends an episode: the highest such top, the box's bounding radius, the contact threshold
-        and one step's fall. The envs ask for contacts only below it."""
+        highest = max([0.0] + [c[2] + h[2] for part in self.scene for c, h in part.boxes()])
+        reach = float(np.linalg.norm(self.half_extents))
+        if tool is not None:
+            reach = max(reach, float(np.linalg.norm(tool.offset)) + tool.radius)
+        self.clear_height = highest + reach + _CONTACT_THRESHOLD + _MAX_FALL_SPEED * dt
+        """Height (m) of a body's centre above which it cannot touch the ground or a scene part: the
+        highest top, the body's bounding radius (tool included), the contact threshold and one step's
+        fall. The envs ask for contacts only below it."""
         columns = math.ceil(math.sqrt(count))
         grid = np.arange(count)
         self.origins = np.column_stack((grid % columns, grid // columns, np.zeros(count))) * spacing
@@ -177,13 +186,25 @@ class World:
                     p.setCollisionFilterGroupMask(
                         body, -1, _GROUND_GROUP, _VEHICLE_GROUP, physicsClientId=cid
                     )
-                    if part.ends_episode_on_contact:
-                        self._crash_bodies.append(body)
-        v, half_extents = self.vehicle, self.half_extents
-        hull = p.createCollisionShape(p.GEOM_BOX, halfExtents=half_extents, physicsClientId=cid)
-        visual = p.createVisualShape(
-            p.GEOM_BOX, halfExtents=half_extents, rgbaColor=(0.2, 0.2, 0.25, 1.0), physicsClientId=cid
-        )
+                    p.changeDynamics(body, -1, lateralFriction=part.friction, physicsClientId=cid)
+                    self._crash_bodies.append(body)
+        v, half_extents, tool = self.vehicle, self.half_extents, self.tool
+        colour = (0.2, 0.2, 0.25, 1.0)
+        if tool is None:
+            hull = p.createCollisionShape(p.GEOM_BOX, halfExtents=half_extents, physicsClientId=cid)
+            visual = p.createVisualShape(
+                p.GEOM_BOX, halfExtents=half_extents, rgbaColor=colour, physicsClientId=cid
+            )
+        else:  # one rigid body: the hull's box and the tip's sphere (a compound shape)
+            frames = [[0.0, 0.0, 0.0], list(tool.offset)]
+            hull = p.createCollisionShapeArray(
+                [p.GEOM_BOX, p.GEOM_SPHERE], halfExtents=[half_extents, [0.0] * 3], radii=[0.0, tool.radius],
+                collisionFramePositions=frames, physicsClientId=cid,
+            )  # fmt: skip
+            visual = p.createVisualShapeArray(
+                [p.GEOM_BOX, p.GEOM_SPHERE], halfExtents=[half_extents, [0.0] * 3], radii=[0.0, tool.radius],
+                visualFramePositions=frames, rgbaColors=[colour, (0.9, 0.5, 0.1, 1.0)], physicsClientId=cid,
+            )  # fmt: skip
         self.bodies = []
         for i in range(self.count):
             body = p.createMultiBody(
@@ -197,6 +218,8 @@ class World:
                 angularDamping=0.0,
                 physicsClientId=cid,
             )
+            if tool is not None:
+                p.changeDynamics(body, -1, lateralFriction=tool.friction, physicsClientId=cid)
             p.setCollisionFilterGroupMask(body, -1, _VEHICLE_GROUP, _GROUND_GROUP, physicsClientId=cid)
             self.bodies.append(body)
         self._index_of = {body: i for i, body in enumerate(self.bodies)}
@@ -275,14 +298,51 @@ class World:
         p.stepSimulation(cid)
 
     def crash_contacts(self) -> np.ndarray:
-        """(N,) bool: which vehicles touch the ground or a scene part whose contact ends an episode."""
+        """(N,) bool: which vehicles touch the ground or a scene part with anything but the tool's tip."""
         touching = np.zeros(self.count, dtype=bool)
+        tips = self._tips() if self.tool is not None else None
         for body in self._crash_bodies:
             for contact in p.getContactPoints(bodyA=body, physicsClientId=self.client):
                 index = self._index_of.get(contact[2])
-                if index is not None:
+                if index is not None and not (tips is not None and self._at_tip(contact[6], tips[index])):
                     touching[index] = True
         return touching
+
+    def _tips(self) -> np.ndarray:
+        """(N, 3) world positions (PyBullet's frame) of the tool tips' centres."""
+        cid = self.client
+        tips = np.empty((self.count, 3))
+        for i, body in enumerate(self.bodies):
+            position, orientation = p.getBasePositionAndOrientation(body, cid)
+            rotation = np.reshape(p.getMatrixFromQuaternion(orientation, physicsClientId=cid), (3, 3))
+            tips[i] = np.asarray(position) + rotation @ self.tool.offset
+        return tips
+
+    def _at_tip(self, point: tuple, tip: np.ndarray) -> bool:
+        """Whether a contact point on a vehicle lies on its tool's tip (within 5 mm of the sphere)."""
+        return float(np.linalg.norm(np.asarray(point) - tip)) < self.tool.radius + 0.005
+
+    def add_contact_loads(self, wrench: np.ndarray, tip_force: np.ndarray) -> None:
+        """Add to (N, 6) ``wrench`` the force and torque about the centre of mass (world frame) that
+        PyBullet's contact solver applied to each vehicle in the last step, and write into (N, 3)
+        ``tip_force`` the part of the force on the tool's tip. Per contact point: the normal force along
+        the normal on the other body (pointing at the vehicle) plus both lateral friction forces along
+        their directions, as Bullet reports them for the vehicle (body A): a tip held still against a
+        sideways push of 0.3 N reads friction -0.3 N along the push (tests/test_contacts.py)."""
+        cid = self.client
+        tip_force[:] = 0.0
+        tips = self._tips() if self.tool is not None else None
+        for i, body in enumerate(self.bodies):
+            contacts = p.getContactPoints(bodyA=body, physicsClientId=cid)
+            if not contacts:
+                continue
+            centre = np.asarray(p.getBasePositionAndOrientation(body, cid)[0])
+            for c in contacts:
+                force = c[9] * np.asarray(c[7]) + c[10] * np.asarray(c[11]) + c[12] * np.asarray(c[13])
+                wrench[i, :3] += force
+                wrench[i, 3:] += np.cross(np.asarray(c[5]) - centre, force)
+                if tips is not None and self._at_tip(c[5], tips[i]):
+                    tip_force[i] += force
 
     def close(self) -> None:
         """Disconnect; safe to call any number of times."""
