@@ -13,11 +13,13 @@ from typing import Any
 from agents.admittance import AdmittancePolicy
 from agents.base import Policy
 from agents.hover import PositionHoldPolicy
+from agents.ida_pbc import IDAPBCPolicy
 from agents.mpc import MPCPolicy
 from agents.pid import PIDPolicy
 
 AGENTS: dict[str, type] = {
     "admittance": AdmittancePolicy, "hold": PositionHoldPolicy, "pid": PIDPolicy, "mpc": MPCPolicy,
+    "ida_pbc": IDAPBCPolicy,
 }  # fmt: skip
 
 SHIPPED = Path(__file__).resolve().parent / "policies"
