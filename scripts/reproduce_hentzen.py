@@ -10,7 +10,6 @@ once per estimator. Writes under ``output``: ``table1.md``, ``fig11_<estimator>.
 
 from __future__ import annotations
 
-import argparse
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -23,10 +22,10 @@ from tqdm import tqdm
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
+from reproduction import run_parts
 
 from agents import make_agent
 from agents.evaluate import Episode, episode_metrics, run_episode
-from quad_wrench_env.config import load_yaml
 
 
 class TimedPolicy:
@@ -239,23 +238,13 @@ def figure8(config: dict, out: Path) -> list[str]:
 PARTS = {"table1": table1, "fig11": fig11, "fig9": fig9, "figure8": figure8}
 
 
+TITLE = "Paper 003 (Hentzen et al. 2019)"
+
+
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--config", default="configs/reproduce_hentzen.yaml")
-    parser.add_argument("--only", nargs="*", choices=sorted(PARTS), help="run only these parts")
-    parser.add_argument("--seeds", nargs="*", type=int, help="override the config's seeds")
-    args = parser.parse_args()
-    config = load_yaml(args.config)
-    if args.seeds:
-        config["seeds"] = args.seeds
-    out = Path(config["output"])
-    out.mkdir(parents=True, exist_ok=True)
-    report = [f"# Paper 003 (Hentzen et al. 2019) in simulation: {args.config}, seeds {config['seeds']}", ""]
-    for name, part in PARTS.items():
-        if not args.only or name in args.only:
-            report += [*part(config, out), ""]
-            (out / "report.md").write_text("\n".join(report))
-    print("\n".join(report))
+    run_parts(
+        PARTS, __doc__.split("\n\n")[0], "configs/reproduce_hentzen.yaml", "Paper 003 (Hentzen et al. 2019)"
+    )
 
 
 if __name__ == "__main__":

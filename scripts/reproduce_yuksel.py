@@ -12,7 +12,6 @@ a wall with the configured vehicles and targets.
 
 from __future__ import annotations
 
-import argparse
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -24,10 +23,10 @@ from tqdm import tqdm
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
+from reproduction import run_parts
 
 from agents.evaluate import episode_metrics, run_episode
 from agents.ida_pbc import IDAPBCPolicy, euler_zyx, load_param_set
-from quad_wrench_env.config import load_yaml
 from quad_wrench_env.vehicle import GRAVITY
 
 DRAG_FREE = {"drag_area": 0.0, "rotor_drag_decel": 0.0}
@@ -279,23 +278,13 @@ def wall(config: dict, out: Path) -> list[str]:
 PARTS = {"fig4": fig4, "fig5": fig5, "fig6": fig6, "wall": wall}
 
 
+TITLE = "Paper 001 (Yüksel et al. 2014)"
+
+
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--config", default="configs/reproduce_yuksel.yaml")
-    parser.add_argument("--only", nargs="*", choices=sorted(PARTS), help="run only these parts")
-    parser.add_argument("--seeds", nargs="*", type=int, help="override the config's seeds")
-    args = parser.parse_args()
-    config = load_yaml(args.config)
-    if args.seeds:
-        config["seeds"] = args.seeds
-    out = Path(config["output"])
-    out.mkdir(parents=True, exist_ok=True)
-    report = [f"# Paper 001 (Yüksel et al. 2014) in simulation: {args.config}, seeds {config['seeds']}", ""]
-    for name, part in PARTS.items():
-        if not args.only or name in args.only:
-            report += [*part(config, out), ""]
-            (out / "report.md").write_text("\n".join(report))
-    print("\n".join(report))
+    run_parts(
+        PARTS, __doc__.split("\n\n")[0], "configs/reproduce_yuksel.yaml", "Paper 001 (Yüksel et al. 2014)"
+    )
 
 
 if __name__ == "__main__":

@@ -196,3 +196,22 @@ def test_metrics_by_hand():
     # the last 5 s: t = 4.5 (1 N), 5.0-6.0 (nothing), 6.5-9.5 (0.8 N, 7 samples)
     assert scores["mean_contact_force_last_5s"] == pytest.approx((1.0 + 7 * 0.8) / 11)
     assert scores["contact_force_error"] == pytest.approx((0.0 + 3 * 1.0 + 7 * 0.2) / 11)
+
+
+def test_the_approach_shaping_telescopes_to_the_potential_difference(make_env):
+    """With γ = 1 the shaping terms of an episode sum to Φ(end) - Φ(start) = -w·(gap_end - gap_start):
+    potential-based, so it cannot change which policy is best. Flying up into the ceiling closes the
+    5 cm gap: the sum is +w·0.05."""
+    env = make_env(
+        ENV_ID, backend="numpy", estimator="oracle", reward={"discount": 1.0, "approach_weight": 10.0}
+    )
+    env.reset(seed=0, options={"surface": "ceiling", "target_force": 1.0})
+    total = 0.0
+    for _ in range(60):
+        _, _, terminated, _, info = env.step(np.array((0.08, 0.0, 0.0, 0.0), dtype=np.float32))
+        total += info["reward_terms"]["approach"]
+        if np.linalg.norm(info["contact_force"]) > 0.05 or terminated:
+            break
+    gap = env.unwrapped.task.gap(env.unwrapped.fleet)[0]
+    assert total == pytest.approx(-10.0 * (gap - 0.05), abs=1e-9)
+    assert gap < 0.005
