@@ -165,6 +165,11 @@ class IDAPBCParams:
     """``"position"``, ``"force"``, ``"balance"`` or ``"auto"`` (module docstring)."""
     target_force: Vector3 = (0.0, 0.0, 0.0)
     """``f*`` (N, world) in ``"force"`` mode when the observation has no ``target_force`` block."""
+    hold_across: bool = True
+    """In ``"force"`` mode, hold ``reference`` across ``f*`` with the position-mode law (32), projected
+    on the plane normal to ``f*`` (a hybrid force/position extension, not in paper 001): without it
+    nothing regulates the position along the surface, and a small bias (the rotors' 2 % thrust
+    spread, friction) lets a vehicle pressing on a wall slide down it at ~0.3 m/s until it crashes."""
     reference: Vector3 | None = None
     """Position set-point (m, world) of ``"position"`` mode; None: the position at the episode's start."""
     yaw_reference: float | None = None
@@ -447,7 +452,13 @@ class IDAPBCPolicy:
         if self._mode == "balance":
             return -force - damping  # Sec. V-C: f* = -f̂_e
         wanted = np.array(p.target_force) if target is None else target
-        return wanted - damping
+        size = float(np.linalg.norm(wanted))
+        if not (p.hold_across and size > 0.0 and self._reference is not None):
+            return wanted - damping
+        normal = wanted / size
+        ratio = self._mass / p.m_d
+        hold = ratio * (-self._k_x * (position - self._reference) - self._r_x * velocity + force) - force
+        return wanted - normal * (normal @ damping) + hold - normal * (normal @ hold)
 
     def desired_force_rate(self, velocity: np.ndarray, acceleration: np.ndarray) -> np.ndarray:
         """``ḟ*`` (N/s) of :meth:`desired_force` for the velocity and the (desired) acceleration, with
