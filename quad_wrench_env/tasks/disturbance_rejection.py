@@ -354,34 +354,49 @@ class DisturbanceRejection(TaskDefaults):
     # -- the reference path --------------------------------------------------------------------------
     def reference(self, t: np.ndarray, scenario: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(n, 3) reference positions and velocities at times ``t`` (n,) of vehicles flying
-        ``scenario`` (n,) (indices into :data:`SCENARIOS`)."""
-        cfg = self.cfg
+        ``scenario`` (n,) (indices into :data:`SCENARIOS`); only the scenarios flown are computed."""
         t = np.asarray(t, dtype=float)
         position, velocity = np.zeros((t.size, 3)), np.zeros((t.size, 3))
-        jc, tp, g, fig = cfg.jet_crossing, cfg.table_pass, cfg.gusts, cfg.figure8
-        rows = scenario == 0  # jet_crossing: z falls at descent_speed between the two hovers
-        s, speed = _glide(t[rows] - jc.hover_seconds, jc.start_height - jc.end_height, jc.descent_speed, EASE)
-        position[rows] = np.column_stack(
+        paths = (self._jet_crossing_path, self._table_pass_path, self._gusts_path, self._figure8_path)
+        for k in np.unique(scenario):
+            rows = scenario == k
+            position[rows], velocity[rows] = paths[k](t[rows])
+        return position, velocity
+
+    def _jet_crossing_path(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """z falls at ``descent_speed`` between the two hovers."""
+        jc = self.cfg.jet_crossing
+        s, speed = _glide(t - jc.hover_seconds, jc.start_height - jc.end_height, jc.descent_speed, EASE)
+        position = np.column_stack(
             (np.full(s.size, jc.path[0]), np.full(s.size, jc.path[1]), jc.start_height - s)
         )
-        velocity[rows, 2] = -speed
-        rows = scenario == 1  # table_pass: x rises at speed over the table
-        s, speed = _glide(t[rows] - tp.hover_seconds, tp.end_x - tp.start_x, tp.speed, EASE)
+        return position, np.column_stack((np.zeros(s.size), np.zeros(s.size), -speed))
+
+    def _table_pass_path(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """x rises at ``speed`` over the table, the hull ``clearance`` above its top."""
+        tp = self.cfg.table_pass
+        s, speed = _glide(t - tp.hover_seconds, tp.end_x - tp.start_x, tp.speed, EASE)
         height = tp.table_height + tp.clearance + 0.5 * self.vehicle.hull_height
-        position[rows] = np.column_stack(
+        position = np.column_stack(
             (tp.start_x + s, np.full(s.size, tp.table_center[1]), np.full(s.size, height))
         )
-        velocity[rows, 0] = speed
-        rows = scenario == 2  # gusts: hover
-        position[rows] = g.position
-        rows = scenario == 3  # figure8
-        phase, rate = fig.phase(t[rows])
+        return position, np.column_stack((speed, np.zeros(s.size), np.zeros(s.size)))
+
+    def _gusts_path(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """A hover."""
+        return np.tile(self.cfg.gusts.position, (t.size, 1)), np.zeros((t.size, 3))
+
+    def _figure8_path(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``x = c_x + A_x sin φ``, ``z = c_z + A_z sin 2φ``."""
+        fig = self.cfg.figure8
+        phase, rate = fig.phase(t)
         (ax, az), (cx, cy, cz) = fig.amplitude, fig.center
-        position[rows] = np.column_stack(
+        position = np.column_stack(
             (cx + ax * np.sin(phase), np.full(phase.size, cy), cz + az * np.sin(2.0 * phase))
         )
-        velocity[rows, 0] = ax * np.cos(phase) * rate
-        velocity[rows, 2] = 2.0 * az * np.cos(2.0 * phase) * rate
+        velocity = np.column_stack(
+            (ax * np.cos(phase) * rate, np.zeros(phase.size), 2.0 * az * np.cos(2.0 * phase) * rate)
+        )
         return position, velocity
 
     def _numbers(self, fleet: Fleet) -> dict[str, np.ndarray]:
