@@ -171,7 +171,14 @@ class IDAPBCParams:
     nothing regulates the position along the surface, and a small bias (the rotors' 2 % thrust
     spread, friction) lets a vehicle pressing on a wall slide down it at ~0.3 m/s until it crashes."""
     reference: Vector3 | None = None
-    """Position set-point (m, world) of ``"position"`` mode; None: the position at the episode's start."""
+    """Position set-point (m, world) of ``"position"`` mode; None: the position at the episode's start
+    plus ``reference_offset``."""
+    reference_offset: Vector3 = (0.0, 0.0, 0.0)
+    """Added to the start position when ``reference`` is None (m, world): e.g. a set-point beyond a
+    surface, so that the reshaped spring ``K_x`` presses the tool on it (paper 001 Fig. 5)."""
+    reference_velocity: Vector3 = (0.0, 0.0, 0.0)
+    """The set-point moves at this velocity (m/s, world), and the damping acts on the velocity error:
+    a tool sliding along a surface."""
     yaw_reference: float | None = None
     """``ψ̄`` (rad); None: the heading at the episode's start."""
     force_map_yaw: str = "measured"
@@ -202,6 +209,8 @@ class IDAPBCParams:
             setattr(self, name, _vector3(name, getattr(self, name)))
         if self.reference is not None:
             self.reference = _vector3("reference", self.reference)
+        self.reference_offset = _vector3("reference_offset", self.reference_offset)
+        self.reference_velocity = _vector3("reference_velocity", self.reference_velocity)
         check_numbers("ida_pbc", self, ("m_d", "max_tilt_deg"))
         check_numbers("ida_pbc", self, ("k_d", "force_damping", "yaw_torque_time_constant"), positive=False)
         if self.yaw_reference is not None:
@@ -533,7 +542,10 @@ class IDAPBCPolicy:
         else:
             force, torque_world = np.zeros(3), np.zeros(3)
         if self._reference is None:
-            self._reference = position.copy()
+            self._reference = position + np.array(p.reference_offset)
+        else:
+            self._reference = self._reference + np.array(p.reference_velocity) * self._dt
+        velocity = velocity - np.array(p.reference_velocity)  # the damping acts on the velocity error
         if self._yaw_bar is None:
             self._yaw_bar = math.atan2(body_x[1], body_x[0])
         target = obs[layout["target_force"]] if "target_force" in layout else None

@@ -235,3 +235,31 @@ def test_ida_pbc_presses_the_wall_with_the_target_force(make_env):
     assert scores["longest_contact_loss_s"] < 0.2
     drift = episode.trace["position"][-1] - episode.trace["position"][0]
     assert abs(drift[2]) < 0.05 and abs(drift[1]) < 0.05
+
+
+@pytest.mark.slow
+def test_the_stiff_set_keeps_the_tip_on_a_rough_ceiling_longer():
+    """Paper 001 Fig. 5 (scripts/reproduce_yuksel.py has the figure): IDA-PBC's set-point 0.125 m
+    beyond a ceiling with 1 cm ridges, moving along it at 0.08 m/s; QC2 (stiff along the thrust) stays
+    in contact a larger fraction of the time than QC1 (compliant), over 3 seeds."""
+    from dataclasses import replace
+
+    from agents.ida_pbc import IDAPBCPolicy, load_param_set
+
+    fractions = {}
+    for name in ("QC1", "QC2"):
+        values = []
+        for seed in range(3):
+            env = gym.make(ENV_ID, roughness=0.01, episode_seconds=15.0)
+            params = replace(
+                load_param_set(name), mode="position", reference_offset=(0.0, 0.0, 0.175),
+                reference_velocity=(0.08, 0.0, 0.0),
+            )  # fmt: skip
+            try:
+                episode = run_episode(IDAPBCPolicy(params), env, seed, {"surface": "ceiling"})
+            finally:
+                env.close()
+            touching = np.linalg.norm(episode.trace["contact_force"], axis=1) > 1e-3
+            values.append(np.mean(touching[int(np.argmax(touching)) :]))
+        fractions[name] = np.mean(values)
+    assert fractions["QC2"] > fractions["QC1"]
