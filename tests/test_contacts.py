@@ -11,6 +11,7 @@ import pytest
 
 from agents.evaluate import run_episode
 from quad_wrench_env.engine.world import Tool, World
+from quad_wrench_env.kernels import NUMBA_AVAILABLE
 from quad_wrench_env.scene import Ceiling, Wall
 from quad_wrench_env.tasks.force_exertion import ForceExertion
 from quad_wrench_env.vehicle import GRAVITY, PRESETS
@@ -263,3 +264,35 @@ def test_the_stiff_set_keeps_the_tip_on_a_rough_ceiling_longer():
             values.append(np.mean(touching[int(np.argmax(touching)) :]))
         fractions[name] = np.mean(values)
     assert fractions["QC2"] > fractions["QC1"]
+
+
+@pytest.mark.skipif(not NUMBA_AVAILABLE, reason="numba is not installed")
+def test_compiled_contact_flight_equals_the_numpy_reference():
+    """Two vehicles, one pushed at the wall and one climbing into the ceiling (the push's compiled load
+    and the contacts read after the compiled step), 100 policy steps on both backends: the contact
+    forces, the true wrench and the positions agree to rounding."""
+    envs = {
+        b: gym.make_vec(
+            ENV_ID, num_envs=2, vectorization_mode="vector_entry_point", backend=b, estimator="oracle"
+        )
+        for b in ("numpy", "numba")
+    }
+    try:
+        for env in envs.values():
+            env.reset(seed=3)
+            env.unwrapped.reset_vehicles(
+                range(2), [3, 4], [{"surface": "wall", "push": 0.5}, {"surface": "ceiling"}]
+            )
+        action = np.array(((0.0, 0.0, 0.0, 0.0), (0.08, 0.0, 0.0, 0.0)), dtype=np.float32)
+        touched = False
+        for _ in range(100):
+            (a, _, ta, _, ia), (b, _, tb, _, ib) = (env.step(action) for env in envs.values())
+            np.testing.assert_allclose(a, b, rtol=1e-5, atol=1e-6)
+            for key in ("contact_force", "wrench_true", "position"):
+                np.testing.assert_allclose(ia[key], ib[key], rtol=1e-7, atol=1e-7, err_msg=key)
+            np.testing.assert_array_equal(ta, tb)
+            touched = touched or np.linalg.norm(ia["contact_force"][1]) > 0.05
+        assert touched
+    finally:
+        for env in envs.values():
+            env.close()
