@@ -242,9 +242,7 @@ TITLE = "Paper 003 (Hentzen et al. 2019)"
 
 
 def main() -> None:
-    run_parts(
-        PARTS, __doc__.split("\n\n")[0], "configs/reproduce_hentzen.yaml", "Paper 003 (Hentzen et al. 2019)"
-    )
+    run_parts(PARTS, __doc__.split("\n\n")[0], "configs/reproduce_hentzen.yaml", TITLE)
 
 
 if __name__ == "__main__":

@@ -27,6 +27,7 @@ from reproduction import run_parts
 
 from agents.evaluate import episode_metrics, run_episode
 from agents.ida_pbc import IDAPBCPolicy, euler_zyx, load_param_set
+from quad_wrench_env.tasks.force_exertion import ForceExertion
 from quad_wrench_env.vehicle import GRAVITY
 
 DRAG_FREE = {"drag_area": 0.0, "rotor_drag_decel": 0.0}
@@ -197,9 +198,7 @@ def fig5(config: dict, out: Path) -> list[str]:
             first = int(np.argmax(touching)) if touching.any() else len(touching)
             fractions.append(float(np.mean(touching[first:])) if touching.any() else 0.0)
             trace = {"time": rec["t"], "contact_force": rec["contact"], "target_force": rec["contact"] * 0}
-            losses.append(
-                episode_metrics("QuadWrench/ForceExertion-v0", _episode(trace))["longest_contact_loss_s"]
-            )
+            losses.append(ForceExertion.metrics(trace)["longest_contact_loss_s"])
             forces.append(float(np.mean(-rec["contact"][first:, 2])))
             slid.append(float(rec["p"][-1, 0] - rec["p"][0, 0]))
             if seed == config["seeds"][0]:
@@ -225,12 +224,6 @@ def fig5(config: dict, out: Path) -> list[str]:
     fig.savefig(out / "fig5.png", dpi=120)
     plt.close(fig)
     return lines
-
-
-def _episode(trace: dict) -> Any:
-    from agents.evaluate import Episode
-
-    return Episode(0, trace, 0.0, len(trace["time"]), None)
 
 
 # -- wall pressing (ForceExertion acceptance) ---------------------------------------------------------------
@@ -279,9 +272,7 @@ TITLE = "Paper 001 (Yüksel et al. 2014)"
 
 
 def main() -> None:
-    run_parts(
-        PARTS, __doc__.split("\n\n")[0], "configs/reproduce_yuksel.yaml", "Paper 001 (Yüksel et al. 2014)"
-    )
+    run_parts(PARTS, __doc__.split("\n\n")[0], "configs/reproduce_yuksel.yaml", TITLE)
 
 
 if __name__ == "__main__":

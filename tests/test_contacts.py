@@ -30,7 +30,8 @@ def _settle(
     wrench, tip = np.zeros((1, 6)), np.zeros((1, 3))
     for _ in range(steps):
         world.step(force[None], np.zeros((1, 3)), world.state().position + (0.0 if at is None else at))
-    world.add_contact_loads(wrench, tip)
+    state = world.state()
+    world.add_contact_loads(wrench, tip, state.position, state.rotation)
     return wrench[0], tip[0]
 
 
@@ -296,3 +297,18 @@ def test_compiled_contact_flight_equals_the_numpy_reference():
     finally:
         for env in envs.values():
             env.close()
+
+
+def test_the_contact_torque_is_the_lever_arm_crossed_with_the_contact_force():
+    """The tip pressed up on the ceiling and held against a sideways push: the contact's torque about
+    the centre of mass is ``(p - c) × F`` with ``p`` the top of the tip's sphere, written here from the
+    body's pose (0.215 m above the centre, ~0.065 N·m about y for -0.3 N of friction)."""
+    wrench, _, world = _under_ceiling(np.array((0.3, 0.0, 2.0)), steps=100)
+    try:
+        state = world.state()
+        point = state.position[0] + state.rotation[0] @ UP_TOOL.offset + np.array((0.0, 0.0, UP_TOOL.radius))
+        expected = np.cross(point - state.position[0], wrench[:3])
+        assert abs(expected[1]) > 0.05
+        np.testing.assert_allclose(wrench[3:], expected, atol=2e-3)  # the sphere's contact point, ~1 mm
+    finally:
+        world.close()

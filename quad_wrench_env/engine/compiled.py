@@ -187,7 +187,7 @@ class CompiledStep:
             noise.ready()
             after_kernel(read(), *after)
             if contacts:
-                world.add_contact_loads(self.loads, fleet.contact_force)
+                world.add_contact_loads(self.loads, fleet.contact_force, position, self.state.rotation)
             if truth_fed:
                 estimator.observe_truth(self.truth, self.loads)
             estimate()

@@ -268,7 +268,7 @@ class Fleet:
         self.state = after
         self.wrench_true = loads
         if self.world.tool is not None:
-            self.world.add_contact_loads(self.wrench_true, self.contact_force)
+            self.world.add_contact_loads(self.wrench_true, self.contact_force, after.position, after.rotation)
         self.wind_velocity = self.air_at(after.position[:, None, :], slice(None))[:, 0]
         self._feed_truth()
         measured_speeds = self.motor_sensor.measure(self.rotors.speeds)

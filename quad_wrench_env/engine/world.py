@@ -322,25 +322,26 @@ class World:
         """Whether a contact point on a vehicle lies on its tool's tip (within 5 mm of the sphere)."""
         return float(np.linalg.norm(np.asarray(point) - tip)) < self.tool.radius + 0.005
 
-    def add_contact_loads(self, wrench: np.ndarray, tip_force: np.ndarray) -> None:
+    def add_contact_loads(
+        self, wrench: np.ndarray, tip_force: np.ndarray, position: np.ndarray, rotation: np.ndarray
+    ) -> None:
         """Add to (N, 6) ``wrench`` the force and torque about the centre of mass (world frame) that
         PyBullet's contact solver applied to each vehicle in the last step, and write into (N, 3)
-        ``tip_force`` the part of the force on the tool's tip. Per contact point: the normal force along
-        the normal on the other body (pointing at the vehicle) plus both lateral friction forces along
-        their directions, as Bullet reports them for the vehicle (body A): a tip held still against a
-        sideways push of 0.3 N reads friction -0.3 N along the push (tests/test_contacts.py)."""
+        ``tip_force`` the part of the force on the tool's tip; ``position`` (N, 3) and ``rotation``
+        (N, 3, 3) are the vehicles' states after that step (read from the world already). Per contact
+        point: the normal force along the normal on the other body (pointing at the vehicle) plus both
+        lateral friction forces along their directions, as Bullet reports them for the vehicle (body
+        A): a tip held still against a sideways push of 0.3 N reads friction -0.3 N along the push
+        (tests/test_contacts.py)."""
         cid = self.client
         tip_force[:] = 0.0
-        tips = self._tips() if self.tool is not None else None
+        centres = position + self.origins
+        tips = centres + rotation @ self.tool.offset if self.tool is not None else None
         for i, body in enumerate(self.bodies):
-            contacts = p.getContactPoints(bodyA=body, physicsClientId=cid)
-            if not contacts:
-                continue
-            centre = np.asarray(p.getBasePositionAndOrientation(body, cid)[0])
-            for c in contacts:
+            for c in p.getContactPoints(bodyA=body, physicsClientId=cid):
                 force = c[9] * np.asarray(c[7]) + c[10] * np.asarray(c[11]) + c[12] * np.asarray(c[13])
                 wrench[i, :3] += force
-                wrench[i, 3:] += np.cross(np.asarray(c[5]) - centre, force)
+                wrench[i, 3:] += np.cross(np.asarray(c[5]) - centres[i], force)
                 if tips is not None and self._at_tip(c[5], tips[i]):
                     tip_force[i] += force
 
