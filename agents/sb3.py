@@ -15,6 +15,7 @@ import csv
 import dataclasses
 import math
 import time
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -25,7 +26,7 @@ import yaml
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.vec_env import VecNormalize
 
-from quad_wrench_env.config import check_numbers, load_yaml
+from quad_wrench_env.config import build, check_numbers, load_yaml
 
 
 @dataclass(frozen=True)
@@ -124,6 +125,9 @@ class TrainConfig:
     """Keyword arguments of the SB3 algorithm (``n_steps``, ``batch_size``, ``learning_rate``, ...)."""
     net_arch: list[int] = field(default_factory=lambda: [64, 64])
     activation: str = "tanh"
+    log_std_init: float = 0.0
+    """PPO's initial log standard deviation of its Gaussian actions (SB3's default 0: σ = 1, half
+    the [-1, 1] action range). Lower it where a random action of that size ends every episode."""
     normalize_observations: bool = True
     normalize_rewards: bool = True
     clip_observations: float = 10.0
@@ -143,6 +147,10 @@ class TrainConfig:
                 raise ValueError(f"{name}={value!r} must be an integer >= 1")
         check_numbers("train", self, ("max_minutes",), positive=False)
         check_numbers("train", self, ("clip_observations",))
+        if not (isinstance(self.log_std_init, (int, float)) and math.isfinite(self.log_std_init)):
+            raise ValueError(f"log_std_init={self.log_std_init!r} must be a finite number")
+        if self.log_std_init != 0.0 and self.algorithm != "ppo":
+            raise ValueError(f"log_std_init={self.log_std_init!r} is PPO's; {self.algorithm} learns its own")
         for name in ("normalize_observations", "normalize_rewards"):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"{name}={getattr(self, name)!r} must be true or false")
@@ -150,6 +158,36 @@ class TrainConfig:
 
 ALGORITHMS = ("ppo", "sac")
 ACTIVATIONS = ("tanh", "relu")
+
+
+def set_keys(values: Mapping[str, Any], updates: Mapping[str, Any]) -> dict[str, Any]:
+    """``values`` with each dotted key of ``updates`` set (``hyperparameters.learning_rate``: the
+    ``learning_rate`` of the ``hyperparameters`` section, made where missing); ``values`` is untouched."""
+    out = dict(values)
+    for key, value in updates.items():
+        node = out
+        *parents, leaf = key.split(".")
+        for name in parents:
+            node[name] = dict(node[name]) if isinstance(node.get(name), Mapping) else {}
+            node = node[name]
+        node[leaf] = value
+    return out
+
+
+def apply_overrides(values: Mapping[str, Any], overrides: list[str]) -> dict[str, Any]:
+    """``values`` with each ``key.sub=value`` of ``overrides`` set (value parsed as YAML)."""
+    updates = {}
+    for item in overrides:
+        key, sep, text = item.partition("=")
+        if not sep or not key:
+            raise ValueError(f"--set {item!r} must read key=value")
+        updates[key] = yaml.safe_load(text)
+    return set_keys(values, updates)
+
+
+def train_config(values: Mapping[str, Any], updates: Mapping[str, Any]) -> TrainConfig:
+    """The :class:`TrainConfig` of the mapping ``values`` with the dotted keys of ``updates`` set."""
+    return build(TrainConfig, set_keys(values, updates))
 
 
 def _algorithm(name: str) -> type[BaseAlgorithm]:
@@ -235,6 +273,8 @@ def train(config: TrainConfig, folder: str | Path, resume: bool = False, progres
         env.seed(config.seed)
         activation = {"tanh": torch.nn.Tanh, "relu": torch.nn.ReLU}[config.activation]
         policy_kwargs = {"net_arch": list(config.net_arch), "activation_fn": activation}
+        if config.algorithm == "ppo":
+            policy_kwargs["log_std_init"] = config.log_std_init
         model = algorithm(
             "MlpPolicy", env, seed=config.seed, device="cpu", verbose=0, policy_kwargs=policy_kwargs,
             tensorboard_log=str(folder / "tensorboard"), **config.hyperparameters,

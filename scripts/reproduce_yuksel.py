@@ -83,13 +83,15 @@ def fig6(config: dict, out: Path) -> list[str]:
         f"## Fig. 6: balance mode ({setup['params']}), {config['estimator']}, seeds {config['seeds']}", "",
         "Per settled window: max |acceleration| (m/s²) and the largest per-axis error of f_ne against -f_e "
         "(N); pass: |a| < 0.05 and every axis within 10 % of the target (0.1 N).", "",
-        "| air | window (s) | max abs(a) | max f_ne error | passes |", "|---|---|---|---|---|",
+        "| torque scale | air | window (s) | max abs(a) | max f_ne error | passes |",
+        "|---|---|---|---|---|---|",
     ]  # fmt: skip
-    for drag in (False, True):
+    for scale, drag in ((s, d) for s in setup["torque_scales"] for d in (False, True)):
+        profile = [[*row[:5], *(scale * np.array(row[5:]))] for row in setup["profile"]]
         records = []
-        for seed in tqdm(config["seeds"], desc=f"Fig. 6 drag={drag}", unit="episode", leave=False):
+        for seed in tqdm(config["seeds"], desc=f"Fig. 6 x{scale} drag={drag}", unit="episode", leave=False):
             policy = IDAPBCPolicy(replace(load_param_set(setup["params"]), mode="balance"))
-            env = free_air(config, setup["profile"], drag)
+            env = free_air(config, profile, drag)
             try:
                 records.append(record(env, policy, seed, {"offset_y": 0.0, "fan_motion": "static"}))
             finally:
@@ -104,10 +106,9 @@ def fig6(config: dict, out: Path) -> list[str]:
                 worst_a, worst_f = max(worst_a, float(np.linalg.norm(accel))), max(worst_f, float(error))
                 passes += int(np.linalg.norm(accel) < 0.05 and error < 0.1)
             air = "default drag" if drag else "drag-free"
-            lines.append(
-                f"| {air} | {start}-{stop} | {worst_a:.3f} | {worst_f:.3f} | {passes}/{len(records)} |"
-            )
-        if not drag:
+            scores = f"{worst_a:.3f} | {worst_f:.3f} | {passes}/{len(records)}"
+            lines.append(f"| {scale:g} | {air} | {start}-{stop} | {scores} |")
+        if not drag and scale == 1.0:
             rec = records[0]
             fig, axes = plt.subplots(3, 2, figsize=(11, 7), sharex=True)
             accel = np.gradient(rec["v"], rec["t"], axis=0)
@@ -230,9 +231,9 @@ def fig5(config: dict, out: Path) -> list[str]:
 def wall(config: dict, out: Path) -> list[str]:
     setup = config["wall"]
     lines = [
-        f"## Wall pressing, IDA-PBC ({setup['params']}), {config['estimator']}, seeds {config['seeds']}", "",
-        "| vehicle | target (N) | mean force last 5 s (N) | within 10 % | longest loss after first touch (s) "
-        "| ended early |", "|---|---|---|---|---|---|",
+        f"## Wall pressing, IDA-PBC, {config['estimator']}, seeds {config['seeds']}", "",
+        "| vehicle | parameter set | target (N) | mean force last 5 s (N) | within 10 % "
+        "| longest loss after first touch (s) | ended early |", "|---|---|---|---|---|---|---|",
     ]  # fmt: skip
     reference_margin = None
     for vehicle in setup["vehicles"]:
@@ -250,7 +251,7 @@ def wall(config: dict, out: Path) -> list[str]:
                 env = gym.make("QuadWrench/ForceExertion-v0", vehicle=vehicle)
                 try:
                     episode = run_episode(
-                        IDAPBCPolicy(load_param_set(setup["params"])), env, seed,
+                        IDAPBCPolicy(load_param_set(setup["params"][vehicle])), env, seed,
                         {"surface": "wall", "target_force": scaled},
                     )  # fmt: skip
                 finally:
@@ -260,7 +261,8 @@ def wall(config: dict, out: Path) -> list[str]:
             force = [s["mean_contact_force_last_5s"] for s in scores]
             within = sum(abs(f - scaled) <= 0.1 * scaled for f in force)
             loss = max(s["longest_contact_loss_s"] for s in scores)
-            lines.append(f"| {vehicle} | {scaled:.2f} | {np.mean(force):.3f} ± {np.std(force):.3f} | "
+            lines.append(f"| {vehicle} | {setup['params'][vehicle]} | {scaled:.2f} | "
+                         f"{np.mean(force):.3f} ± {np.std(force):.3f} | "
                          f"{within}/{len(force)} | {loss:.2f} | {early}/{len(force)} |")  # fmt: skip
     return lines
 

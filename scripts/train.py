@@ -16,28 +16,9 @@ import csv
 import math
 import time
 from pathlib import Path
-from typing import Any
 
-import yaml
-
-from agents.sb3 import TrainConfig, train
+from agents.sb3 import TrainConfig, apply_overrides, train
 from quad_wrench_env.config import build, load_yaml
-
-
-def apply_overrides(values: dict[str, Any], overrides: list[str]) -> dict[str, Any]:
-    """``values`` with each ``key.sub=value`` of ``overrides`` set (value parsed as YAML)."""
-    out = dict(values)
-    for item in overrides:
-        key, sep, text = item.partition("=")
-        if not sep or not key:
-            raise ValueError(f"--set {item!r} must read key=value")
-        node = out
-        *parents, leaf = key.split(".")
-        for name in parents:
-            node[name] = dict(node.get(name) or {})
-            node = node[name]
-        node[leaf] = yaml.safe_load(text)
-    return out
 
 
 def main() -> None:

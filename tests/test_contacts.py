@@ -220,20 +220,29 @@ def test_the_approach_shaping_telescopes_to_the_potential_difference(make_env):
     assert gap < 0.005
 
 
-def test_ida_pbc_presses_the_wall_with_the_target_force(make_env):
-    """Paper 001's IDA-PBC on the observer's estimate (yuksel1kg, 10 s): after touching, the tip presses
-    with the observed 0.5 N to within 10 % over the last 5 s (the issue's acceptance) and never loses
-    contact; holding the position across f* keeps it from sliding down the wall (without it, seed 2
-    slid 1.1 m in 6 s and crashed)."""
+@pytest.mark.parametrize(
+    ("vehicle", "params", "target"), [("yuksel1kg", "default", 0.5), ("ardrone2", "ardrone2", 0.75)]
+)
+def test_ida_pbc_presses_the_wall_with_the_target_force(make_env, vehicle, params, target):
+    """Paper 001's IDA-PBC on the observer's estimate (15 s, the issue's episode): after touching, the
+    tip presses with the observed target to within 10 % over the last 5 s (the issue's acceptance) and
+    never loses contact;
+    holding the position across f* keeps it from sliding down the wall (without it, yuksel1kg's seed 2
+    slid 1.1 m in 6 s and crashed). ardrone2's tool pushes on a 0.36 m lever against a yaw inertia of
+    4.8e-3 kg·m², which buckles in ~0.13 s: with the default set's slow yaw, or with paper 001's
+    unscaled observer gains (a 170 rad/s torque observer on this vehicle), every episode crashed the
+    hull into the wall; its own set (configs/ida_pbc.yaml) and the scaled gains hold it, though the
+    tilt creeps to its set-point over ~12 s against the tip's friction (the force reaches 0.64 N at
+    5-10 s, 0.75 N at 14 s). The target 0.75 N is 1 N scaled by the thrust margins (7.4 N of 9.8 N)."""
     from agents import make_agent
 
-    env = make_env(ENV_ID, backend="numpy", episode_seconds=10.0)
+    env = make_env(ENV_ID, backend="numpy", vehicle=vehicle)
     episode = run_episode(
-        make_agent("ida_pbc", params="default"), env, 2, {"surface": "wall", "target_force": 0.5}
+        make_agent("ida_pbc", params=params), env, 2, {"surface": "wall", "target_force": target}
     )
     scores = ForceExertion.metrics(episode.trace)
     assert episode.termination_reason is None
-    assert scores["mean_contact_force_last_5s"] == pytest.approx(0.5, rel=0.1)
+    assert scores["mean_contact_force_last_5s"] == pytest.approx(target, rel=0.1)
     assert scores["longest_contact_loss_s"] < 0.2
     drift = episode.trace["position"][-1] - episode.trace["position"][0]
     assert abs(drift[2]) < 0.05 and abs(drift[1]) < 0.05

@@ -11,9 +11,13 @@ needs no acceleration, and its error obeys ``ė = -L e`` (eq. 8): ``exp(-c t / m
 The project's frames are used: z up (the paper's NED flips the signs of g and of the thrust),
 ``g = m g₀ e_z`` and ``G ū = (ρ R e_z, Tᵀ τ̄)`` with the body torque τ̄ mapped to generalised forces
 by ``Tᵀ``. The Coriolis term is evaluated as ``C(η, η̇) η̇ = Tᵀ (J Ṫ η̇ + ω × J ω)``, which is what
-the Lagrangian with ``𝕁 = TᵀJT`` gives. Separate gains ``c_force`` and ``c_torque`` (paper 001:
-5 and 0.5). The force part is integrated exactly (``L = c/m`` is scalar), the torque part with
-backward Euler (``L = c 𝕁⁻¹`` is stiff for light vehicles).
+the Lagrangian with ``𝕁 = TᵀJT`` gives. Separate gains ``c_force`` and ``c_torque``: paper 001's
+5 N·s/m and 0.5 N·m·s/rad are for its 1 kg vehicle (J_x = 0.13 kg·m²); by default they are scaled to
+the vehicle's mass and roll inertia, so that the error time constants ``m/c`` (0.2 s) and ``J/c``
+(0.26 s) are paper 001's on every vehicle (unscaled, a 0.003 kg·m² ardrone2 would get a 170 rad/s
+torque observer that passes the measurement noise straight through). The force part is integrated
+exactly (``L = c/m`` is scalar), the torque part with backward Euler (``L = c 𝕁⁻¹`` is stiff for
+light vehicles).
 
 The velocities ``ẋ``, ``η̇`` come from the measured poses by finite differences, low-pass filtered
 with time constants ``velocity_time_constant`` and ``rate_time_constant`` (paper 000 Sec. IV: the
@@ -48,25 +52,42 @@ from quad_wrench_env.rotations import (
     euler_zyx_from_quat,
     wrap_angle,
 )
-from quad_wrench_env.vehicle import GRAVITY, VehicleParams
+from quad_wrench_env.vehicle import GRAVITY, PRESETS, VehicleParams
+
+PAPER_001_VEHICLE = "yuksel1kg"
+"""The preset of paper 001's vehicle (1 kg, J_x = 0.13 kg·m²), for which its gains 5 and 0.5 were chosen."""
 
 
 @dataclass
 class ObserverGains:
     """Observer gains (paper 001) and the measurement filters (paper 000 Sec. IV)."""
 
-    c_force: float = 5.0
-    c_torque: float = 0.5
+    c_force: float | None = None
+    """N·s/m; None: paper 001's 5 N·s/m times ``m / 1 kg`` (the force error's time constant ``m/c``
+    is then paper 001's 0.2 s)."""
+    c_torque: float | None = None
+    """N·m·s/rad; None: paper 001's 0.5 times ``J_x / 0.13 kg·m²`` (time constant ``J_x/c`` = 0.26 s)."""
     velocity_time_constant: float = 0.05
     """s; first-order low-pass on the finite-difference velocity (0 = none)."""
     rate_time_constant: float = 0.05
     """s; first-order low-pass on the finite-difference Euler-angle rates (0 = none)."""
 
     def __post_init__(self) -> None:
-        check_numbers("estimator_params", self, ("c_force", "c_torque"))
+        check_numbers(
+            "estimator_params",
+            self,
+            tuple(n for n in ("c_force", "c_torque") if getattr(self, n) is not None),
+        )
         check_numbers(
             "estimator_params", self, ("velocity_time_constant", "rate_time_constant"), positive=False
         )
+
+    def for_vehicle(self, vehicle: VehicleParams) -> tuple[float, float]:
+        """``(c_force, c_torque)`` on ``vehicle``: the given gains, or paper 001's scaled to it."""
+        paper = PRESETS[PAPER_001_VEHICLE]
+        c_force = self.c_force if self.c_force is not None else 5.0 * vehicle.mass / paper.mass
+        c_torque = self.c_torque if self.c_torque is not None else 0.5 * vehicle.inertia[0] / paper.inertia[0]
+        return c_force, c_torque
 
 
 def euler_kinematics(roll: np.ndarray, pitch: np.ndarray) -> np.ndarray:
@@ -124,7 +145,8 @@ class ObserverBank(FilterBank, EulerAttitudes):
         self.mass = vehicle.mass
         self.inertia = np.array(vehicle.inertia)
         g = self.gains
-        self._force_decay = math.exp(-g.c_force * dt / self.mass)
+        self.c_force, self.c_torque = g.for_vehicle(vehicle)
+        self._force_decay = math.exp(-self.c_force * dt / self.mass)
         self._velocity_alpha = _alpha(dt, g.velocity_time_constant)
         self._rate_alpha = _alpha(dt, g.rate_time_constant)
         self.positions = np.zeros((count, 3))
@@ -137,7 +159,7 @@ class ObserverBank(FilterBank, EulerAttitudes):
         self.torques_generalised = np.zeros((count, 3))
         self.kernel_constants = observer_constants(
             dt, self.mass, self.inertia, GRAVITY,
-            (g.c_force, g.c_torque, self._force_decay, self._velocity_alpha, self._rate_alpha),
+            (self.c_force, self.c_torque, self._force_decay, self._velocity_alpha, self._rate_alpha),
         )  # fmt: skip
         """The compiled step's constants (:func:`~quad_wrench_env.kernels.observer.observer_constants`)."""
         self.version = 0
@@ -165,14 +187,14 @@ class ObserverBank(FilterBank, EulerAttitudes):
 
     def _numpy_step(self, thrusts, body_torques, positions, quaternions, velocities, body_rates) -> None:
         self._measure(positions, quaternions, velocities, body_rates)
-        g, dt = self.gains, self.dt
+        dt = self.dt
         roll, pitch = self.eulers[:, 0], self.eulers[:, 1]
         R = self.attitudes()[1]
         # force block (eq. 13 with L = c/m): Ψ' = e^{-cT/m} Ψ + (1 - e^{-cT/m}) (m g e_z - ρ R e_z - c ẋ)
-        drive = -np.asarray(thrusts, dtype=float)[:, None] * R[:, :, 2] - g.c_force * self.velocities
+        drive = -np.asarray(thrusts, dtype=float)[:, None] * R[:, :, 2] - self.c_force * self.velocities
         drive[:, 2] += self.mass * GRAVITY
         self.psi_force = self._force_decay * self.psi_force + (1.0 - self._force_decay) * drive
-        self.forces = self.psi_force + g.c_force * self.velocities
+        self.forces = self.psi_force + self.c_force * self.velocities
         # torque block (eq. 13 with L = c 𝕁⁻¹), backward Euler: (𝕁 + c T) Ψ' = 𝕁 Ψ + c T (C η̇ - Tᵀτ̄ - c η̇)
         T_eta = euler_kinematics(roll, pitch)
         J_gen = T_eta.transpose(0, 2, 1) @ (self.inertia[:, None] * T_eta)
@@ -182,11 +204,11 @@ class ObserverBank(FilterBank, EulerAttitudes):
         coriolis = _apply_transposed(
             T_eta, self.inertia * _apply(T_dot, eta_rate) + cross(omega, self.inertia * omega)
         )
-        drive_torque = coriolis - _apply_transposed(T_eta, body_torques) - g.c_torque * eta_rate
-        gain = g.c_torque * dt
+        drive_torque = coriolis - _apply_transposed(T_eta, body_torques) - self.c_torque * eta_rate
+        gain = self.c_torque * dt
         right = _apply(J_gen, self.psi_torque) + gain * drive_torque
         self.psi_torque = np.linalg.solve(J_gen + gain * np.eye(3), right[:, :, None])[:, :, 0]
-        self.torques_generalised = self.psi_torque + g.c_torque * eta_rate
+        self.torques_generalised = self.psi_torque + self.c_torque * eta_rate
 
     def _measure(
         self,
