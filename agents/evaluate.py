@@ -67,10 +67,20 @@ def _canonical_id(env_id: str) -> str:
     return env_id.split(":", 1)[1] if ":" in env_id else env_id
 
 
-def run_episode(policy: Policy, env: gym.Env, seed: int, options: Mapping[str, Any] | None = None) -> Episode:
-    """Run ``policy`` on ``env`` for one episode from ``reset(seed=seed, options=options)``."""
+def run_episode(
+    policy: Policy,
+    env: gym.Env,
+    seed: int,
+    options: Mapping[str, Any] | None = None,
+    on_step: Callable[[gym.Env, dict[str, Any]], None] | None = None,
+) -> Episode:
+    """Run ``policy`` on ``env`` for one episode from ``reset(seed=seed, options=options)``;
+    ``on_step(env, info)``, if given, is called after the reset and after every step (e.g. to record a
+    frame, :mod:`agents.video`)."""
     observation, info = env.reset(seed=seed, options=dict(options or {}))
     policy.reset(env)
+    if on_step is not None:
+        on_step(env, info)
     keys = (*TRACE_KEYS, *env.unwrapped.task.trace_keys)
     records: dict[str, list] = {k: [info[k]] for k in keys if k in info}
     rewards = [0.0]
@@ -82,6 +92,8 @@ def run_episode(policy: Policy, env: gym.Env, seed: int, options: Mapping[str, A
         rewards.append(reward)
         for key, values in records.items():
             values.append(info[key])
+        if on_step is not None:
+            on_step(env, info)
         if terminated or truncated:
             reason = info.get("termination_reason")
             break

@@ -86,6 +86,9 @@ class EvaluationConfig:
     every_steps: int = 250_000
     options: dict[str, Any] = field(default_factory=dict)
     """Reset options of the evaluation episodes ({}: the env's default distribution)."""
+    env: dict[str, Any] = field(default_factory=dict)
+    """Env keyword arguments that replace the training env's in evaluation, e.g. to score a policy
+    trained on an easier variant (a curriculum) on the task's own episodes."""
     metric: str = "return"
     """A metric of the harness's scores (``agents.evaluate.episode_metrics``); the best checkpoint is
     the one with the best mean over the seeds."""
@@ -97,6 +100,8 @@ class EvaluationConfig:
             raise ValueError(f"evaluation.seeds={seeds!r} must be a non-empty list of integers >= 0")
         if not (_is_int(self.every_steps) and self.every_steps >= 1):
             raise ValueError(f"evaluation.every_steps={self.every_steps!r} must be an integer >= 1")
+        if not isinstance(self.env, dict):
+            raise ValueError(f"evaluation.env={self.env!r} must be a mapping of env keyword arguments")
         if not isinstance(self.metric, str):
             raise ValueError(f"evaluation.metric={self.metric!r} must be a metric name")
         if not isinstance(self.lower_is_better, bool):
@@ -347,7 +352,7 @@ def train(config: TrainConfig, folder: str | Path, resume: bool = False, progres
         def evaluate(self) -> None:
             self.next_eval = self.num_timesteps + e.every_steps
             policy = SB3Policy(model, scaling())
-            result = evaluate(policy, config.env_id, e.seeds, options=e.options, **config.env)
+            result = evaluate(policy, config.env_id, e.seeds, options=e.options, **{**config.env, **e.env})
             if e.metric not in result.mean:
                 raise ValueError(
                     f"evaluation.metric={e.metric!r}; allowed for {config.env_id}: {sorted(result.mean)}"

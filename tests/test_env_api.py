@@ -204,12 +204,12 @@ def test_rgb_array_render_shows_a_scene(make_env):
     env.reset(seed=0)
     env.step(np.zeros(4, dtype=np.float32))
     image = env.render()
-    assert image.shape == (360, 480, 3) and image.dtype == np.uint8
+    assert image.shape == (480, 640, 3) and image.dtype == np.uint8
     assert image.std() > 10  # not a blank frame
 
 
 def test_an_estimator_bank_swapped_in_mid_episode_is_the_one_stepped():
-    """What scripts/compare_estimators.py does: wrap the env's bank after reset; every physics step
+    """What quad-wrench compare estimators does: wrap the env's bank after reset; every physics step
     then goes through the wrapper (the compiled step rebinds to it)."""
 
     class Counting:
