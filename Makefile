@@ -17,7 +17,7 @@ $(STAMP): pyproject.toml $(CONSTRAINTS)
 	touch $(STAMP)
 
 run: $(STAMP)  ## the main job: agents compared on FanTracking (configs/fan_tracking.yaml)
-	$(PY) scripts/compare_fan_tracking.py --config configs/fan_tracking.yaml
+	$(VENV)/bin/quad-wrench demo
 
 test: $(STAMP)  ## the fast test suite (what CI runs)
 	$(PY) -m pytest -q
@@ -29,7 +29,7 @@ lint: $(STAMP)
 	$(VENV)/bin/ruff check . && $(VENV)/bin/ruff format --check .
 
 bench: $(STAMP)
-	$(PY) scripts/bench.py
+	$(VENV)/bin/quad-wrench bench
 
 clean:
 	rm -rf $(VENV) results

@@ -2,7 +2,7 @@
 
 :func:`make_agent` builds an agent by the name used in ``configs/`` files: a classical controller of
 :data:`AGENTS`, a learned policy shipped with the package (:func:`shipped_agents`, under
-``agents/policies/``), or the path of a user's own training run folder (``scripts/train.py``).
+``agents/policies/``), or the path of a user's own training run folder (``quad-wrench train``).
 """
 
 from __future__ import annotations

@@ -142,14 +142,16 @@ def write_report(out: Path, header: list[str], parts: Mapping[str, Callable[[], 
     return table
 
 
-FAN_TRACKING_COLUMNS = (
-    ("mean_abs_error_after_5s", "mean abs(y - y_axis) after 5 s [m]", "{:.3f}"),
-    ("fraction_within_0.15m", "time within 0.15 m", "{:.0%}"),
-    ("time_to_0.15m", "first within 0.15 m [s]", "{:.2f}"),
-    ("mean_abs_standoff_error_after_5s", "mean abs(x - x_ref) after 5 s [m]", "{:.3f}"),
-    ("terminated_early", "ended early", "{:.0%}"),
-)
-"""FanTracking's columns for :func:`metrics_table`: metric, title, format."""
+ENDED_EARLY_COLUMN = ("terminated_early", "ended early", "{:.0%}")
+
+
+def table_columns(env_id: str) -> tuple[tuple[str, str, str], ...]:
+    """The columns of :func:`metrics_table` for ``env_id``: its task's ``metric_columns``, then whether
+    an episode ended early."""
+    task = TASKS_BY_ID.get(_canonical_id(env_id))
+    if task is None:
+        raise ValueError(f"unknown env id {env_id!r}; allowed: {sorted(TASKS_BY_ID)}")
+    return (*task.metric_columns, ENDED_EARLY_COLUMN)
 
 
 def metrics_table(

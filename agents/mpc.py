@@ -4,7 +4,7 @@ Model (paper 003 eqs. 1-2 with the attitude identified as a first-order system, 
 z up, state ``x = [p, v, φ, θ]`` (8) and input ``u = [T_ref, φ_ref, θ_ref]`` (3, plus the slack ``ε``
 when the soft constraint is on)::
 
-    ṗ = v,   v̇ = (T/m)·R(φ, θ, ψ)·e_z + f̂/m + g,   φ̇ = (φ_ref - φ)/τ,   θ̇ = (θ_ref - θ)/τ
+    ṗ = v,   v̇ = (T/m)·R(φ, θ, ψ)·e_z + f̂/m - g e_z,   φ̇ = (φ_ref - φ)/τ,   θ̇ = (θ_ref - θ)/τ
 
 with ``R = Rz(ψ)·Ry(θ)·Rx(φ)``, the yaw ``ψ`` held at its current estimate (it is not optimised; the
 yaw is flown by a separate proportional yaw-rate command) and the estimated external force ``f̂``

@@ -26,7 +26,7 @@ import yaml
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.vec_env import VecNormalize
 
-from quad_wrench_env.config import build, check_numbers, load_yaml
+from quad_wrench_env.config import build, check_numbers, load_yaml, set_keys
 
 
 @dataclass(frozen=True)
@@ -163,31 +163,6 @@ class TrainConfig:
 
 ALGORITHMS = ("ppo", "sac")
 ACTIVATIONS = ("tanh", "relu")
-
-
-def set_keys(values: Mapping[str, Any], updates: Mapping[str, Any]) -> dict[str, Any]:
-    """``values`` with each dotted key of ``updates`` set (``hyperparameters.learning_rate``: the
-    ``learning_rate`` of the ``hyperparameters`` section, made where missing); ``values`` is untouched."""
-    out = dict(values)
-    for key, value in updates.items():
-        node = out
-        *parents, leaf = key.split(".")
-        for name in parents:
-            node[name] = dict(node[name]) if isinstance(node.get(name), Mapping) else {}
-            node = node[name]
-        node[leaf] = value
-    return out
-
-
-def apply_overrides(values: Mapping[str, Any], overrides: list[str]) -> dict[str, Any]:
-    """``values`` with each ``key.sub=value`` of ``overrides`` set (value parsed as YAML)."""
-    updates = {}
-    for item in overrides:
-        key, sep, text = item.partition("=")
-        if not sep or not key:
-            raise ValueError(f"--set {item!r} must read key=value")
-        updates[key] = yaml.safe_load(text)
-    return set_keys(values, updates)
 
 
 def train_config(values: Mapping[str, Any], updates: Mapping[str, Any]) -> TrainConfig:

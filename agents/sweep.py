@@ -7,7 +7,7 @@ search ``space`` over its dotted keys (``hyperparameters.learning_rate``, ``seed
 (``agents.sb3.train``) into ``<folder>/runs/<trial id>/``, scores it by the best evaluation of its
 ``curve.csv`` under the base config's ``evaluation.metric``, and writes one table of all trials
 (``results.csv``, ``results.md``) and the best trial's full training config (``best_config.yaml``,
-which ``scripts/train.py`` takes as it is).
+which ``quad-wrench train`` takes as it is).
 """
 
 from __future__ import annotations
@@ -24,8 +24,8 @@ from typing import Any
 
 import yaml
 
-from agents.sb3 import TrainConfig, apply_overrides, train, train_config
-from quad_wrench_env.config import build, check_numbers, load_yaml
+from agents.sb3 import TrainConfig, train, train_config
+from quad_wrench_env.config import apply_overrides, build, check_numbers, load_yaml
 
 SEARCHES = ("grid", "random", "optuna")
 DISTRIBUTIONS = ("choice", "uniform", "loguniform", "randint")

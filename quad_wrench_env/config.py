@@ -191,3 +191,28 @@ def build_named(spec: Any, key: str, classes: Mapping[str, type], where: str) ->
     if name not in classes:
         raise ValueError(f"{where}: unknown {key} {name!r}; allowed: {sorted(classes)}")
     return name, build(classes[name], fields, prefix=f"{where}.")
+
+
+def set_keys(values: Mapping[str, Any], updates: Mapping[str, Any]) -> dict[str, Any]:
+    """``values`` with each dotted key of ``updates`` set (``hyperparameters.learning_rate``: the
+    ``learning_rate`` of the ``hyperparameters`` section, made where missing); ``values`` is untouched."""
+    out = dict(values)
+    for key, value in updates.items():
+        node = out
+        *parents, leaf = key.split(".")
+        for name in parents:
+            node[name] = dict(node[name]) if isinstance(node.get(name), Mapping) else {}
+            node = node[name]
+        node[leaf] = value
+    return out
+
+
+def apply_overrides(values: Mapping[str, Any], overrides: list[str]) -> dict[str, Any]:
+    """``values`` with each ``key.sub=value`` of ``overrides`` set (value parsed as YAML)."""
+    updates = {}
+    for item in overrides:
+        key, sep, text = item.partition("=")
+        if not sep or not key:
+            raise ValueError(f"--set {item!r} must read key=value")
+        updates[key] = yaml.safe_load(text)
+    return set_keys(values, updates)

@@ -11,7 +11,7 @@
   mixer, while the world uses the true per-rotor coefficients.
 
 Every random draw comes from the vehicle's own Generator (the env's ``np_random``), drawn in blocks
-(:class:`quad_wrench_env.envs.noise.NoiseBlocks`) and handed in.
+(:class:`quad_wrench_env.engine.noise.NoiseBlocks`) and handed in.
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""The benchmark's measuring functions do what scripts/ rely on (no wall-clock times asserted)."""
+"""The benchmark's measuring functions do what quad-wrench bench relies on (no wall-clock times asserted)."""
 
 from __future__ import annotations
 

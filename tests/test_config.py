@@ -120,7 +120,8 @@ def test_pyproject_lists_every_package():
     every folder of Python files, or a non-editable install silently lacks it."""
     tomllib = pytest.importorskip("tomllib")
     setuptools = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]
-    folders = [d for top in ("quad_wrench_env", "agents") for d in (ROOT / top, *(ROOT / top).rglob("*"))]
+    tops = ("quad_wrench_env", "agents", "quad_wrench_cli")
+    folders = [d for top in tops for d in (ROOT / top, *(ROOT / top).rglob("*"))]
     packages = {".".join(d.relative_to(ROOT).parts) for d in folders if d.is_dir() and any(d.glob("*.py"))}
     assert set(setuptools["packages"]) == {*packages, "quad_wrench_env.configs"}
     assert setuptools["package-dir"] == {"quad_wrench_env.configs": "configs"}

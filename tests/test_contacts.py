@@ -183,6 +183,21 @@ def test_bad_options_are_refused(make_env, options, match):
         env.reset(seed=0, options=options)
 
 
+def test_a_start_gap_range_is_drawn_per_episode_from_the_seed(make_env):
+    """``start_gap=[low, high]`` (a training curriculum) draws each episode's gap from the seed: the
+    same seed the same gap, different seeds different gaps, all within the range; a bad range is
+    refused by name."""
+    env = make_env(ENV_ID, backend="numpy", start_gap=[0.0, 0.05])
+    gaps = []
+    for seed in (3, 4, 3):
+        env.reset(seed=seed, options={"surface": "wall"})
+        gaps.append(float(env.unwrapped.task.gap(env.unwrapped.fleet)[0]))
+    assert gaps[0] == gaps[2] != gaps[1]
+    assert all(0.0 <= g <= 0.05 for g in gaps)
+    with pytest.raises(ValueError, match=r"start_gap=\[0.05, 0.01\]"):
+        make_env(ENV_ID, backend="numpy", start_gap=[0.05, 0.01])
+
+
 def test_the_task_needs_its_tool(make_env):
     with pytest.raises(ValueError, match="tool.enabled=False"):
         make_env(ENV_ID, backend="numpy", tool={"enabled": False})
@@ -250,7 +265,7 @@ def test_ida_pbc_presses_the_wall_with_the_target_force(make_env, vehicle, param
 
 @pytest.mark.slow
 def test_the_stiff_set_keeps_the_tip_on_a_rough_ceiling_longer():
-    """Paper 001 Fig. 5 (scripts/reproduce_yuksel.py has the figure): IDA-PBC's set-point 0.125 m
+    """Paper 001 Fig. 5 (quad-wrench reproduce yuksel has the figure): IDA-PBC's set-point 0.125 m
     beyond a ceiling with 1 cm ridges, moving along it at 0.08 m/s; QC2 (stiff along the thrust) stays
     in contact a larger fraction of the time than QC1 (compliant), over 3 seeds."""
     from dataclasses import replace

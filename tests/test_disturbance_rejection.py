@@ -298,7 +298,7 @@ def test_compiled_flight_equals_the_numpy_reference_in_every_scenario():
 
 @pytest.mark.slow
 def test_compensation_helps_where_paper_003_says_it_does():
-    """Table I's ordering at 10 m/s over 5 seeds with the UKF (scripts/reproduce_hentzen.py has the
+    """Table I's ordering at 10 m/s over 5 seeds with the UKF (quad-wrench reproduce hentzen has the
     full table): PID + comp below PID, MPC + comp below MPC, MPC + slack below MPC."""
     switches = {
         "PID": ("pid", {}), "PID + comp": ("pid", {"compensation": True}), "MPC": ("mpc", {}),

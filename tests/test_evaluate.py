@@ -2,16 +2,14 @@
 
 from __future__ import annotations
 
-import importlib.util
 import math
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 from agents.evaluate import Episode, episode_metrics, evaluate
-from quad_wrench_env.config import load_yaml
+from quad_wrench_cli.compare_estimators import record
+from quad_wrench_env.config import config_path, load_yaml
 from tests.conftest import FAN_TRACKING
 
 
@@ -62,16 +60,10 @@ def test_evaluate_runs_every_seed_and_is_reproducible():
         evaluate(policy, FAN_TRACKING, [])
 
 
-def test_the_estimator_comparison_records_a_short_flight(monkeypatch):
-    """scripts/compare_estimators.py swaps a recording bank into the env: a short flight records
+def test_the_estimator_comparison_records_a_short_flight():
+    """quad-wrench compare estimators swaps a recording bank into the env: a short flight records
     one sensor sample and one true wrench per physics step."""
-    path = Path(__file__).parents[1] / "scripts" / "compare_estimators.py"
-    spec = importlib.util.spec_from_file_location("compare_estimators", path)
-    script = importlib.util.module_from_spec(spec)
-    monkeypatch.setitem(sys.modules, spec.name, script)  # its dataclasses look their module up
-    spec.loader.exec_module(script)
-    config = load_yaml(Path(__file__).parents[1] / "configs" / "compare_estimators.yaml")
-    stream = script.record(config, 0, episode_seconds=0.2)
+    stream = record(load_yaml(config_path("compare_estimators.yaml")), 0, episode_seconds=0.2)
     assert len(stream.inputs) == len(stream.truth) == round(0.2 / stream.dt)
     thrust, torque, position, quaternion = stream.inputs[-1]
     assert math.isfinite(thrust) and torque.shape == position.shape == (3,) and quaternion.shape == (4,)

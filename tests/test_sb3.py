@@ -168,13 +168,13 @@ def test_sb3_vec_env_forwards_reward_terms_and_task_entries_every_step():
         env.close()
 
 
-def test_train_script_refuses_an_unknown_key_with_exit_code_2():
+def test_the_train_command_refuses_an_unknown_key_with_exit_code_2():
     import subprocess
     import sys
     from pathlib import Path
 
     root = Path(__file__).resolve().parent.parent
-    command = [sys.executable, "scripts/train.py", "configs/train_fan_tracking.yaml", "--set", "nonsense=1"]
-    done = subprocess.run(command, cwd=root, capture_output=True, text=True, timeout=120)
+    command = [sys.executable, "-m", "quad_wrench_env", "train", "configs/train_fan_tracking.yaml", "--set"]
+    done = subprocess.run([*command, "nonsense=1"], cwd=root, capture_output=True, text=True, timeout=120)
     assert done.returncode == 2
     assert "'nonsense'" in done.stderr

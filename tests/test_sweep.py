@@ -52,7 +52,7 @@ def test_a_grid_sweep_runs_each_trial_and_writes_the_table_and_the_best_config(t
         assert row["run"] == str(tmp_path / "sweep" / "runs" / row["trial"])
     best = min(rows, key=lambda r: float(r[METRIC]))
     assert result.best["trial"] == best["trial"] == rows[0]["trial"]  # best first
-    config = build(TrainConfig, load_yaml(tmp_path / "sweep" / "best_config.yaml"))  # as scripts/train.py
+    config = build(TrainConfig, load_yaml(tmp_path / "sweep" / "best_config.yaml"))  # as quad-wrench train
     assert config.hyperparameters["learning_rate"] == float(best["hyperparameters.learning_rate"])
     assert config == result.config and config.num_envs == 2
     assert len((tmp_path / "sweep" / "results.md").read_text().splitlines()) == 2 + 2

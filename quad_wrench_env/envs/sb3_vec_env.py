@@ -6,7 +6,7 @@ train on N vehicles flown in one world directly:
     model = PPO("MlpPolicy", VecNormalize(VecMonitor(venv)), n_steps=256, batch_size=1024, n_epochs=5)
     model.learn(1_000_000)
 
-(PPO's default ``n_steps=2048`` would fly 65k samples before its first update; ``scripts/train.py``
+(PPO's default ``n_steps=2048`` would fly 65k samples before its first update; ``quad-wrench train``
 runs the project's configs.)
 
 Both restart an episode in the step that ends it; the adapter moves the ended episode's last

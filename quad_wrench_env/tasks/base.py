@@ -36,6 +36,9 @@ class Task(Protocol):
     """The task's own reasons to end an episode (may be empty), after the engine's."""
     trace_keys: ClassVar[tuple[str, ...]]
     """``info`` keys of its own that the evaluation harness records at every step."""
+    metric_columns: ClassVar[tuple[tuple[str, str, str], ...]]
+    """``(metric, title with units, format)`` of the comparison tables: which of :meth:`metrics` a
+    table shows, in order (may be empty: the harness's own scores only)."""
 
     def __init__(self, cfg: Any, vehicle: VehicleParams, count: int) -> None: ...
 
@@ -71,6 +74,7 @@ class TaskDefaults:
     observation_blocks: ClassVar[tuple[tuple[str, int, float], ...]] = ()
     termination_reasons: ClassVar[tuple[str, ...]] = ()
     trace_keys: ClassVar[tuple[str, ...]] = ()
+    metric_columns: ClassVar[tuple[tuple[str, str, str], ...]] = ()
 
     def terminations(self, fleet: Fleet) -> np.ndarray | None:
         return None

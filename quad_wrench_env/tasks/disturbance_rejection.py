@@ -269,6 +269,11 @@ class DisturbanceRejection(TaskDefaults):
     env_id: ClassVar[str] = "QuadWrench/DisturbanceRejection-v0"
     config_class: ClassVar[type[EnvConfig]] = DisturbanceRejectionConfig
     reset_options: ClassVar[tuple[str, ...]] = ("scenario", "jet_speed", "wind_speed")
+    metric_columns: ClassVar[tuple[tuple[str, str, str], ...]] = (
+        ("max_horizontal_deviation", "max horizontal deviation [m]", "{:.3f}"),
+        ("mean_tracking_error", "mean tracking error [m]", "{:.3f}"),
+        ("max_vertical_error", "max vertical error [m]", "{:.3f}"),
+    )
     observation_blocks: ClassVar[tuple[tuple[str, int, float], ...]] = (
         ("reference_position", 3, 20.0),
         ("reference_velocity", 3, 20.0),

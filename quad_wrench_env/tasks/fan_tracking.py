@@ -48,8 +48,9 @@ effort     ``-effort_weight·mean(a²)``                  smooth commands
 crash      ``-crash_penalty`` on an early end, else 0
 =========  ===========================================  ==========================================
 
-Episode end: terminated on ``crash`` (below ``crash_height``, or touching the ground or a table),
-``flip`` (tilt above ``flip_tilt_deg``) or ``out_of_arena``, named in ``info["termination_reason"]``;
+Episode end: terminated on ``crash`` (below ``crash_height``, or the hull touching the ground or any
+scene part), ``flip`` (tilt above ``flip_tilt_deg``) or ``out_of_arena``, named in
+``info["termination_reason"]``;
 truncated after ``episode_seconds`` (30 s at 50 Hz: 1500 steps; physics at 200 Hz).
 
 Reset options: ``offset_y`` (initial offset from the jet axis, m), ``fan_motion`` (``"random"``, a
@@ -196,6 +197,12 @@ class FanTracking(TaskDefaults):
     config_class: ClassVar[type[EnvConfig]] = FanTrackingConfig
     reset_options: ClassVar[tuple[str, ...]] = ("offset_y", "fan_motion")
     trace_keys: ClassVar[tuple[str, ...]] = ("fan_position", "jet_axis_y", "axis_error", "standoff_error")
+    metric_columns: ClassVar[tuple[tuple[str, str, str], ...]] = (
+        ("mean_abs_error_after_5s", "mean abs(y - y_axis) after 5 s [m]", "{:.3f}"),
+        ("fraction_within_0.15m", "time within 0.15 m", "{:.0%}"),
+        ("time_to_0.15m", "first within 0.15 m [s]", "{:.2f}"),
+        ("mean_abs_standoff_error_after_5s", "mean abs(x - x_ref) after 5 s [m]", "{:.3f}"),
+    )
 
     def __init__(self, cfg: FanTrackingConfig, vehicle: VehicleParams, count: int) -> None:
         arena = cfg.arena

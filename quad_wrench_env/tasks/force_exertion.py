@@ -96,8 +96,9 @@ class ForceExertionConfig(EnvConfig):
     roughness: float = 0.0
     """Ridge height (m) of both surfaces (paper 001 Fig. 5's rough ceiling); 0 is flat."""
     surface_friction: float = 0.5
-    start_gap: float = 0.05
-    """Distance (m) from the tip to the surface at the start."""
+    start_gap: float | tuple[float, float] = 0.05
+    """Distance (m) from the tip to the surface at the start, or ``[low, high]``: drawn per episode (a
+    training curriculum that also starts some episodes at the surface)."""
     target_range: tuple[float, float] = (0.05, 0.1)
     """Range of ``|f*|`` in units of the vehicle's weight ``m·g``."""
     push: float = 0.0
@@ -110,7 +111,14 @@ class ForceExertionConfig(EnvConfig):
             raise ValueError(f"surface={self.surface!r}; allowed: {[RANDOM, *SURFACES]}")
         if not self.tool.enabled:
             raise ValueError("tool.enabled=False: ForceExertion presses with the tool's tip; enable the tool")
-        check_numbers("env", self, ("wall_x", "ceiling_height", "surface_friction", "start_gap"))
+        check_numbers("env", self, ("wall_x", "ceiling_height", "surface_friction"))
+        gaps = self.start_gap if isinstance(self.start_gap, (list, tuple)) else (self.start_gap,)
+        finite = all(
+            isinstance(g, (int, float)) and not isinstance(g, bool) and math.isfinite(g) for g in gaps
+        )
+        if not (len(gaps) in (1, 2) and finite and 0.0 <= gaps[0] <= gaps[-1]):
+            raise ValueError(f"start_gap={self.start_gap!r} must be a distance >= 0 (m) or [low, high]")
+        self.start_gap = float(gaps[0]) if len(gaps) == 1 else (float(gaps[0]), float(gaps[1]))
         check_numbers("env", self, ("roughness",), positive=False)
         low, high = self.target_range = tuple(self.target_range)
         if not (0.0 <= low <= high and math.isfinite(high)):
@@ -127,6 +135,11 @@ class ForceExertion(TaskDefaults):
     reset_options: ClassVar[tuple[str, ...]] = ("surface", "target_force", "push")
     observation_blocks: ClassVar[tuple[tuple[str, int, float], ...]] = (("target_force", 3, 100.0),)
     trace_keys: ClassVar[tuple[str, ...]] = ("contact_force", "target_force")
+    metric_columns: ClassVar[tuple[tuple[str, str, str], ...]] = (
+        ("contact_force_error", "abs(f - f*) over the last 5 s [N]", "{:.3f}"),
+        ("mean_contact_force_last_5s", "abs(f) over the last 5 s [N]", "{:.3f}"),
+        ("longest_contact_loss_s", "longest contact loss [s]", "{:.2f}"),
+    )
 
     def __init__(self, cfg: ForceExertionConfig, vehicle: VehicleParams, count: int) -> None:
         self.cfg = cfg
@@ -169,18 +182,19 @@ class ForceExertion(TaskDefaults):
         else:
             magnitude = float(rng.uniform(*cfg.target_range)) * weight
         push = _number(options, "push", allow_negative=True) if "push" in options else cfg.push
+        gap = cfg.start_gap if isinstance(cfg.start_gap, float) else float(rng.uniform(*cfg.start_gap))
         self.surface[index] = SURFACES.index(surface)
         self.push.force[index] = (push, 0.0, 0.0)
         tip, radius = self._tip_offset(), cfg.tool.tip_radius
         if surface == "wall":
             self.target_force[index] = (magnitude, 0.0, 0.0)
-            x = cfg.wall_x - cfg.start_gap - radius - tip[0] - cfg.roughness
+            x = cfg.wall_x - gap - radius - tip[0] - cfg.roughness
             position = np.array((x, 0.0, 1.2))
         else:
             self.target_force[index] = (0.0, 0.0, magnitude)
-            z = cfg.ceiling_height - cfg.start_gap - radius - tip[2] - cfg.roughness
+            z = cfg.ceiling_height - gap - radius - tip[2] - cfg.roughness
             position = np.array((1.75, 0.0, z))
-        self.potential[index] = -cfg.reward.approach_weight * cfg.start_gap
+        self.potential[index] = -cfg.reward.approach_weight * gap
         return position, 0.0
 
     def gap(self, fleet: Fleet) -> np.ndarray:

@@ -1,7 +1,9 @@
 """Speed benchmark: this project's env against PyBullet's own floor and against the peers, one run.
 
-    python scripts/bench.py [--steps 2000] [--repeats 3] [--soak-minutes 60]
-                            [--gym-pybullet-drones PATH] [--skip-peers] [--peers-dir DIR]
+    quad-wrench bench [--steps 2000] [--repeats 3] [--soak-minutes 60]
+                      [--peers [--gym-pybullet-drones PATH] [--peers-dir DIR]]
+    quad-wrench bench --estimators [--steps 4000] [--repeats 5]
+
 
 Tables printed (all measured in this run, best of ``--repeats`` for timings):
 1. floors: one bare PyBullet step of one body with its state read and either four rotor forces
@@ -20,26 +22,30 @@ Tables printed (all measured in this run, best of ``--repeats`` for timings):
    vehicle), timed in isolation;
 5. peak memory of this process; with ``--soak-minutes`` the rates and resident memory of the first
    and last ten simulated minutes of one long run;
-6. the peers, each in a virtual environment of its own under ``--peers-dir`` (created on first use,
-   never in this project's dependencies): PyFlyt's QuadX-Hover-v4, RotorPy's simulator and its batched
-   torch env with 64 vehicles, and gym-pybullet-drones' HoverAviary when ``--gym-pybullet-drones``
-   names a checkout of its source (it is not on the package index). A peer that cannot be installed
-   or run is reported as skipped, with the reason.
+6. with ``--peers`` only, the peers, each in a virtual environment of its own under ``--peers-dir``
+   (installed on first use, never in this project's dependencies; how much pip will download is said
+   before anything else runs): PyFlyt's QuadX-Hover-v4, RotorPy's simulator and its batched torch env
+   with 64 vehicles, and gym-pybullet-drones' HoverAviary when ``--gym-pybullet-drones`` names a
+   checkout of its source (it is not on the package index). A peer that cannot be installed or run is
+   reported as skipped, with the reason.
+
+``--estimators`` times the wrench estimators instead (:mod:`quad_wrench_cli.bench_estimators`).
 """
 
 from __future__ import annotations
 
 import argparse
-import json
 import resource
-import subprocess
-import sys
 import time
 from pathlib import Path
 
 import gymnasium as gym
+from rich.console import Console
 
 from agents import make_agent
+from quad_wrench_cli import bench_estimators
+from quad_wrench_cli.common import UsageError, markdown_table, show
+from quad_wrench_cli.peers import download_summary, jobs, missing, peers
 from quad_wrench_env.bench import (
     FLOORS,
     bare_pybullet_step_seconds,
@@ -52,175 +58,10 @@ from quad_wrench_env.bench import (
 from quad_wrench_env.estimators import ESTIMATORS
 from quad_wrench_env.kernels import NUMBA_AVAILABLE
 
-ROOT = Path(__file__).resolve().parents[1]
 POLICY_HZ, SUBSTEPS, EPISODE_SECONDS, VECTOR_ENVS = 50, 4, 30.0, 64
 BACKENDS = ("numba", "numpy") if NUMBA_AVAILABLE else ("numpy",)
-
-PYFLYT = """
-import json, time, gymnasium as gym, numpy as np, PyFlyt.gym_envs
-env = gym.make("PyFlyt/QuadX-Hover-v4", agent_hz=40)
-env.reset(seed=0); env.action_space.seed(0)
-steps, resets, start = 4000, 0, time.perf_counter()
-reset_time = 0.0
-for _ in range(steps):
-    *_, term, trunc, _ = env.step(env.action_space.sample() * 0.0)
-    if term or trunc:
-        t = time.perf_counter(); env.reset(); reset_time += time.perf_counter() - t; resets += 1
-total = time.perf_counter() - start
-print(json.dumps({"sim_rate": steps / 40 / total, "sim_rate_no_resets": steps / 40 / (total - reset_time),
-                  "resets": resets, "reset_ms": 1e3 * reset_time / max(resets, 1)}))
-"""
-
-GYM_PYBULLET_DRONES = """
-import json, time, numpy as np
-from gym_pybullet_drones.envs.HoverAviary import HoverAviary
-env = HoverAviary()
-env.reset(seed=0)
-hz = env.CTRL_FREQ
-steps, resets, start = 2000, 0, time.perf_counter()
-reset_time = 0.0
-action = np.zeros(env.action_space.shape, dtype=np.float32)
-for _ in range(steps):
-    *_, term, trunc, _ = env.step(action)
-    if term or trunc:
-        t = time.perf_counter(); env.reset(); reset_time += time.perf_counter() - t; resets += 1
-total = time.perf_counter() - start
-print(json.dumps({"sim_rate": steps / hz / total, "sim_rate_no_resets": steps / hz / (total - reset_time),
-                  "resets": resets, "reset_ms": 1e3 * reset_time / max(resets, 1)}))
-"""
-
-ROTORPY_CORE = """
-import json, time, numpy as np
-from rotorpy.vehicles.multirotor import Multirotor
-from rotorpy.vehicles.crazyflie_params import quad_params
-vehicle = Multirotor(quad_params)
-state = dict(vehicle.initial_state)
-hover = np.sqrt(quad_params["mass"] * 9.81 / (4 * quad_params["k_eta"]))
-control = {"cmd_motor_speeds": np.full(4, hover)}
-dt, steps, start = 0.01, 1000, time.perf_counter()
-for _ in range(steps):
-    state = vehicle.step(state, control, dt)
-total = time.perf_counter() - start
-print(json.dumps({"sim_rate": steps * dt / total, "sim_rate_no_resets": steps * dt / total}))
-"""
-
-ROTORPY_BATCHED = """
-import json, time, numpy as np, torch
-from rotorpy.learning.quadrotor_environments import QuadrotorEnv
-from rotorpy.vehicles.crazyflie_params import quad_params
-torch.set_num_threads(1)
-n = 64
-hover = np.sqrt(quad_params["mass"] * 9.81 / (4 * quad_params["k_eta"]))
-init = {"x": torch.zeros(n, 3).double(), "v": torch.zeros(n, 3).double(),
-        "q": torch.tensor([0, 0, 0, 1]).repeat(n, 1).double(), "w": torch.zeros(n, 3).double(),
-        "wind": torch.zeros(n, 3).double(), "rotor_speeds": torch.full((n, 4), hover).double()}
-env = QuadrotorEnv(num_envs=n, initial_states=init, control_mode="cmd_motor_speeds")
-env.reset()
-steps, start = 500, time.perf_counter()
-action = np.zeros((n, 4), dtype=np.float32)
-for _ in range(steps):
-    env.step(action)
-total = time.perf_counter() - start
-rate = n * steps * env.t_step / total
-print(json.dumps({"sim_rate": rate, "sim_rate_no_resets": rate, "vehicles": n}))
-"""
-
-PEERS = {
-    "PyFlyt QuadX-Hover-v4 (240 Hz physics, 40 Hz agent)": (["PyFlyt"], PYFLYT, "pyflyt"),
-    "RotorPy Multirotor.step (100 Hz)": (["rotorpy"], ROTORPY_CORE, "rotorpy"),
-    "RotorPy batched QuadrotorEnv, 64 vehicles (vehicle-s/wall s)": (
-        ["rotorpy[batched]", "stable-baselines3"],
-        ROTORPY_BATCHED,
-        "rotorpy",
-    ),
-}
-
-
-def table(header: list[str], rows: list[list[str]]) -> str:
-    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
-    return "\n".join(lines + ["| " + " | ".join(row) + " |" for row in rows])
-
-
-def peer_python(peers_dir: Path, name: str, requirements: list[str]) -> Path:
-    """The python of the peer's own virtual environment, created and filled on first use."""
-    venv = peers_dir / name
-    python = venv / "bin" / "python"
-    stamp = venv / ("installed-" + "-".join(sorted(r.replace("/", "_") for r in requirements)))
-    if not stamp.exists():
-        subprocess.run([sys.executable, "-m", "venv", str(venv)], check=True)
-        subprocess.run(
-            [
-                str(python),
-                "-m",
-                "pip",
-                "install",
-                "--quiet",
-                "-c",
-                str(ROOT / "constraints.txt"),
-                *requirements,
-            ],
-            check=True,
-            capture_output=True,
-            text=True,
-        )
-        stamp.touch()
-    return python
-
-
-def run_peer(python: Path, snippet: str, extra_path: str | None = None) -> dict:
-    env = None
-    if extra_path:
-        import os
-
-        env = {**os.environ, "PYTHONPATH": extra_path}
-    done = subprocess.run([str(python), "-c", snippet], capture_output=True, text=True, timeout=900, env=env)
-    if done.returncode != 0:
-        raise RuntimeError(done.stderr.strip().splitlines()[-1] if done.stderr.strip() else "failed")
-    return json.loads(done.stdout.strip().splitlines()[-1])
-
-
-def peers(args: argparse.Namespace) -> str:
-    peers_dir = Path(args.peers_dir).expanduser()
-    peers_dir.mkdir(parents=True, exist_ok=True)
-    rows = []
-    jobs = dict(PEERS)
-    if args.gym_pybullet_drones:
-        requirements = [
-            "numpy",
-            "scipy",
-            "transforms3d",
-            "matplotlib",
-            "pybullet",
-            "gymnasium",
-            "setuptools<81",
-        ]
-        jobs["gym-pybullet-drones HoverAviary (240 Hz physics, 30 Hz agent)"] = (
-            requirements,
-            GYM_PYBULLET_DRONES,
-            "gym-pybullet-drones",
-        )
-    else:
-        rows.append(
-            [
-                "gym-pybullet-drones HoverAviary",
-                "skipped: pass --gym-pybullet-drones PATH (not on PyPI)",
-                "",
-                "",
-            ]
-        )
-    for label, (requirements, snippet, venv_name) in jobs.items():
-        try:
-            python = peer_python(peers_dir, venv_name, requirements)
-            extra = (
-                str(Path(args.gym_pybullet_drones).resolve()) if venv_name == "gym-pybullet-drones" else None
-            )
-            result = run_peer(python, snippet, extra)
-            reset = f"{result['reset_ms']:.1f}" if "reset_ms" in result else "n/a"
-            rows.append([label, f"{result['sim_rate']:.1f}", f"{result['sim_rate_no_resets']:.1f}", reset])
-        except (subprocess.SubprocessError, RuntimeError, OSError, ValueError) as error:
-            message = getattr(error, "stderr", None) or str(error)
-            rows.append([label, f"skipped: {str(message).strip().splitlines()[-1][:120]}", "", ""])
-    return table(["peer", "sim s per wall s, resets counted", "without resets", "reset ms"], rows)
+STEPS, REPEATS = 2000, 3
+"""Defaults of ``--steps`` and ``--repeats``."""
 
 
 def resident_mib() -> float:
@@ -334,21 +175,75 @@ def vector_rows(args: argparse.Namespace, floors: dict[str, float]) -> list[list
     return rows
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--steps", type=int, default=2000)
-    parser.add_argument("--repeats", type=int, default=3)
+def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
-        "--soak-minutes", type=float, default=0.0, help="0 (no soak) or at least 20: two 10-minute windows"
+        "--steps",
+        type=_count,
+        metavar="N",
+        help=f"policy steps per timing (default: {STEPS}; with --estimators "
+        f"{bench_estimators.STEPS} estimator steps)",
     )
-    parser.add_argument("--gym-pybullet-drones", metavar="PATH")
-    parser.add_argument("--skip-peers", action="store_true")
-    parser.add_argument("--peers-dir", default="~/.cache/quad-wrench-env/peers")
-    args = parser.parse_args()
+    parser.add_argument(
+        "--repeats",
+        type=_count,
+        metavar="N",
+        help=f"timings per row, the best kept (default: {REPEATS}; with "
+        f"--estimators {bench_estimators.REPEATS})",
+    )
+    parser.add_argument(
+        "--soak-minutes",
+        type=float,
+        metavar="MINUTES",
+        default=0.0,
+        help="simulated minutes of one long run: 0 (none, the default) or at least 20 (two 10-min windows)",
+    )
+    parser.add_argument(
+        "--estimators", action="store_true", help="time the wrench estimators instead (µs per estimator step)"
+    )
+    parser.add_argument(
+        "--peers",
+        action="store_true",
+        help="also time the peer simulators, installing them on first use (the download size is said first)",
+    )
+    parser.add_argument(
+        "--gym-pybullet-drones",
+        metavar="PATH",
+        help="with --peers: time gym-pybullet-drones from this checkout",
+    )
+    parser.add_argument(
+        "--peers-dir",
+        default="~/.cache/quad-wrench-env/peers",
+        metavar="DIR",
+        help="the peers' virtual environments (default: %(default)s)",
+    )
+
+
+def _count(text: str) -> int:
+    """argparse type: an integer >= 1."""
+    if not text.isdigit() or int(text) < 1:
+        raise argparse.ArgumentTypeError(f"{text!r} must be an integer >= 1")
+    return int(text)
+
+
+def run(args: argparse.Namespace) -> int:
     if args.soak_minutes and not args.soak_minutes >= 20:
-        parser.error(
+        raise UsageError(
             f"--soak-minutes {args.soak_minutes:g}: allowed 0 (no soak) or at least 20 (two 10-min windows)"
         )
+    if args.gym_pybullet_drones and not args.peers:
+        raise UsageError("--gym-pybullet-drones times a peer: add --peers")
+    if args.gym_pybullet_drones and not Path(args.gym_pybullet_drones).is_dir():
+        raise UsageError(f"--gym-pybullet-drones {args.gym_pybullet_drones!r} is not a folder")
+    if args.estimators:
+        bench_estimators.report(
+            args.steps or bench_estimators.STEPS, args.repeats or bench_estimators.REPEATS
+        )
+        return 0
+    args.steps, args.repeats = args.steps or STEPS, args.repeats or REPEATS
+    if args.peers:
+        with Console(stderr=True).status("working out the peers' download size with pip ..."):
+            summary = download_summary(missing(jobs(args), Path(args.peers_dir).expanduser()))
+        print(summary, flush=True)
 
     floors = {
         floor: min(bare_pybullet_step_seconds(4 * args.steps, floor=floor) for _ in range(args.repeats))
@@ -362,8 +257,8 @@ def main() -> None:
         / VECTOR_ENVS
         for floor in FLOORS
     }
-    print(
-        table(
+    show(
+        markdown_table(
             [
                 "floor: bare PyBullet step with state read and ...",
                 "1 body, µs",
@@ -373,8 +268,8 @@ def main() -> None:
         )
         + "\n"
     )
-    print(
-        table(
+    show(
+        markdown_table(
             [
                 "single env",
                 "µs/policy step",
@@ -390,8 +285,8 @@ def main() -> None:
     )
     if NUMBA_AVAILABLE:
         shares = paired_floor_shares(args.steps // 4, 4 * args.repeats, estimator="ukf", backend="numba")
-        print(
-            table(
+        show(
+            markdown_table(
                 ["single env, timed with the floors in alternating blocks", "µs/physics step",
                  *(f"floor ({floor}) / ours" for floor in FLOORS)],
                 [["FanTracking-v1, ukf, numba", f"{shares['physics step'] * 1e6:.1f}",
@@ -399,14 +294,14 @@ def main() -> None:
             )
             + "\n"
         )  # fmt: skip
-        print(
-            table(
+        show(
+            markdown_table(
                 ["disturbances on the compiled path", "µs/physics step", "vs plain"], disturbance_rows(args)
             )
             + "\n"
         )
-    print(
-        table(
+    show(
+        markdown_table(
             [
                 "vector env (one core)",
                 "µs per vehicle and physics step",
@@ -431,15 +326,12 @@ def main() -> None:
     for title, unit, calls, num_envs, backend in part_tables:
         parts = component_seconds(calls, num_envs=num_envs, backend=backend)
         rows = [[name, f"{seconds * 1e6:.2f}"] for name, seconds in parts.items()]
-        print(table([f"part of a step ({title})", unit], rows) + "\n")
+        show(markdown_table([f"part of a step ({title})", unit], rows) + "\n")
     print(
         f"peak memory of this process: {resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024:.0f} MiB\n"
     )
     if args.soak_minutes > 0:
         print(soak(args.soak_minutes) + "\n")
-    if not args.skip_peers:
-        print(peers(args))
-
-
-if __name__ == "__main__":
-    main()
+    if args.peers:
+        show(peers(args))
+    return 0

@@ -1,6 +1,8 @@
 """Reproduce paper 000's Figs. 3, 4, 6 and 7 in simulation: PNG figures and a markdown table.
 
-python scripts/reproduce_mckinnon.py --config configs/reproduce_mckinnon.yaml [--only fig3 fig4]
+    quad-wrench reproduce mckinnon [--config configs/reproduce_mckinnon.yaml] [--only fig3 fig4] [--seeds 0 1]
+
+Writes the figures and ``table.md`` under the config's ``output`` (``results/reproduce_mckinnon``).
 """
 
 from __future__ import annotations
@@ -13,13 +15,15 @@ from typing import Any
 import gymnasium as gym
 import matplotlib
 import numpy as np
+from tqdm import tqdm
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 
 from agents import make_agent
 from agents.evaluate import Episode, episode_metrics, run_episode, write_report
-from quad_wrench_env.config import load_yaml
+from quad_wrench_cli import reproduction
+from quad_wrench_cli.common import show
 
 LABELS = ("f_x", "f_y", "f_z", "tau_x", "tau_y", "tau_z")
 
@@ -71,7 +75,7 @@ def fig3(config: dict, out: Path) -> list[str]:
     for spread in c["kf_spreads"]:
         for case, point in c["cases"].items():
             payload = {"mass": 0.0} if point is None else {"mass": c["test_mass"], "point": point}
-            for seed in config["seeds"]:
+            for seed in tqdm(config["seeds"], desc=f"Fig. 3 {case}, kf spread {spread}", leave=False):
                 ep = _hover(config, seed, payload, c["seconds"], kf_spread=spread)
                 keep = ep.trace["time"] >= c["settle"]
                 est, true = ep.trace["wrench_est"][keep], ep.trace["wrench_true"][keep].mean(axis=0)
@@ -84,11 +88,20 @@ def fig3(config: dict, out: Path) -> list[str]:
                     f"{'yes' if np.all(error <= PAPER_SD) else 'no'} |"
                 )
                 if spread == c["kf_spreads"][0]:
-                    ax.scatter(est[::10, 2], est[::10, 4], s=2, alpha=0.3)
-                    ax.plot(true[2], true[4], "k+", ms=12)
+                    ax.scatter(est[::10, 2], est[::10, 4], s=2, alpha=0.3, label=f"UKF: {case}, seed {seed}")
+                    ax.plot(true[2], true[4], "k+", ms=12, label="truth")
     ax.set_xlabel("f_z estimate [N]")
     ax.set_ylabel("tau_y estimate [N·m]")
-    ax.set_title("Fig. 3: hover, 53 g below CoM, 53 g under a rotor (+ = truth)")
+    ax.set_title(
+        f"Fig. 3: hover, 53 g below CoM, 53 g under a rotor (kf spread {c['kf_spreads'][0]}, + = truth)",
+        fontsize=9,
+    )
+    handles, labels = ax.get_legend_handles_labels()
+    unique = dict(zip(labels, handles, strict=True))  # one "truth" entry, the last
+    unique["truth"] = unique.pop("truth")
+    legend = ax.legend(unique.values(), unique.keys(), fontsize=7)
+    for handle in legend.legend_handles[:-1]:
+        handle.set_sizes([20.0])  # the scatters' dots, visible in the legend
     fig.tight_layout()
     fig.savefig(out / "fig3.png", dpi=120)
     plt.close(fig)
@@ -105,15 +118,15 @@ def fig4(config: dict, out: Path) -> list[str]:
     rows = ["| seed | rise f_z [s] | rise tau_x [s] | rise tau_y [s] |", "|---|---|---|---|"]
     fig, axes = plt.subplots(2, 1, figsize=(7, 5), sharex=True)
     payload = {"mass": c["test_mass"], "point": c["point"], "attach_time": c["attach_time"]}
-    for seed in config["seeds"]:
+    for seed in tqdm(config["seeds"], desc="Fig. 4", unit="episode", leave=False):
         ep = _hover(config, seed, payload, c["seconds"])
         t, est, true = ep.trace["time"], ep.trace["wrench_est"], ep.trace["wrench_true"]
         before = est[(t > c["attach_time"] - 2.0) & (t < c["attach_time"])].mean(axis=0)
         step = true[-1] - true[0]
         rises = [rise_time(t, est[:, i], c["attach_time"], before[i], step[i]) for i in (2, 3, 4)]
         rows.append(f"| {seed} | " + " | ".join(f"{r:.2f}" for r in rises) + " |")
-        axes[0].plot(t, est[:, 2], lw=0.8)
-        axes[1].plot(t, est[:, 4], lw=0.8)
+        axes[0].plot(t, est[:, 2], lw=0.8, label=f"UKF estimate (seed {seed})")
+        axes[1].plot(t, est[:, 4], lw=0.8, label=f"UKF estimate (seed {seed})")
     axes[0].plot(t, true[:, 2], "k", lw=1.2, label="truth")
     axes[1].plot(t, true[:, 4], "k", lw=1.2, label="truth")
     axes[0].set_ylabel("f_z [N]")
@@ -122,7 +135,8 @@ def fig4(config: dict, out: Path) -> list[str]:
     axes[0].set_title(
         f"Fig. 4: 53 g attached under a rotor at {c['attach_time']} s (seeds {config['seeds']})"
     )
-    axes[0].legend()
+    axes[0].legend(fontsize=7)
+    axes[1].legend(fontsize=7)
     fig.tight_layout()
     fig.savefig(out / "fig4.png", dpi=120)
     plt.close(fig)
@@ -134,7 +148,7 @@ def fig6(config: dict, out: Path) -> list[str]:
     xs, ys = np.array(c["x"]), np.array(c["y"])
     est = np.zeros((len(xs), len(ys), 6))
     true = np.zeros_like(est)
-    for i, x in enumerate(xs):
+    for i, x in enumerate(tqdm(xs, desc="Fig. 6", unit="row", leave=False)):
         for j, y in enumerate(ys):
             ep = _episode(
                 config,
@@ -188,7 +202,7 @@ def fig7(config: dict, out: Path) -> list[str]:
         "|---|---|---|---|",
     ]
     fig, axes = plt.subplots(2, 1, figsize=(8, 6), sharex=True)
-    for n, seed in enumerate(config["seeds"]):
+    for n, seed in enumerate(tqdm(config["seeds"], desc="Fig. 7", unit="episode", leave=False)):
         ep = _episode(
             config, make_agent("admittance", **c["agent"]), seed, c["options"], episode_seconds=c["seconds"]
         )
@@ -218,23 +232,23 @@ def fig7(config: dict, out: Path) -> list[str]:
 FIGURES = {"fig3": fig3, "fig4": fig4, "fig6": fig6, "fig7": fig7}
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--config", default="configs/reproduce_mckinnon.yaml")
-    parser.add_argument("--only", nargs="*", choices=sorted(FIGURES), help="a subset of the figures")
-    args = parser.parse_args()
-    config = load_yaml(args.config)
+CONFIG = "reproduce_mckinnon.yaml"
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    reproduction.add_arguments(parser, FIGURES, CONFIG)
+
+
+def run(args: argparse.Namespace) -> int:
+    config, label = reproduction.load(args, CONFIG)
     out = Path(config.get("output", "results/reproduce_mckinnon"))
     out.mkdir(parents=True, exist_ok=True)
     env = config.get("env", {})
     lines = [
-        f"# Paper 000 in simulation: config {args.config}, vehicle {env.get('vehicle')}, "
+        f"# Paper 000 in simulation: config {label}, vehicle {env.get('vehicle')}, "
         f"estimator {env.get('estimator')}, seeds {config['seeds']}",
         "",
     ]
     chosen = {name: partial(FIGURES[name], config, out) for name in args.only or FIGURES}
-    print(write_report(out, lines, chosen))
-
-
-if __name__ == "__main__":
-    main()
+    show(write_report(out, lines, chosen))
+    return 0

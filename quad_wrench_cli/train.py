@@ -1,7 +1,7 @@
 """Train a stable-baselines3 policy (PPO or SAC) on any QuadWrench env id from one YAML config.
 
-python scripts/train.py configs/train_fan_tracking.yaml [--set key=value ...] [--run-dir runs/NAME]
-python scripts/train.py --resume runs/NAME [--set total_steps=8000000]
+    quad-wrench train configs/train_fan_tracking.yaml [--set key=value ...] [--run-dir runs/NAME]
+    quad-wrench train --resume runs/NAME [--set total_steps=8000000]
 
 ``--set`` overrides a config key (dots reach into sections, values are read as YAML), e.g.
 ``--set env.observe_wrench=false --set hyperparameters.learning_rate=1e-4``. The run folder holds the
@@ -17,25 +17,40 @@ import math
 import time
 from pathlib import Path
 
-from agents.sb3 import TrainConfig, apply_overrides, train
+from quad_wrench_cli.common import UsageError, key_value, usage_errors
 from quad_wrench_env.config import build, load_yaml
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("config", nargs="?", help="a training config (configs/train_*.yaml)")
-    parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="override a key")
-    parser.add_argument("--run-dir", help="the run folder (default: runs/<config name>-<time>)")
-    parser.add_argument("--resume", metavar="RUN", help="continue this run from its last checkpoint")
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "config", nargs="?", metavar="CONFIG", help="a training config (configs/train_*.yaml)"
+    )
+    parser.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        type=key_value,
+        metavar="KEY=VALUE",
+        help="override a config key (repeatable; dots reach into sections, the value is read as YAML)",
+    )
+    parser.add_argument(
+        "--run-dir", metavar="DIR", help="the run folder (default: runs/<config name>-<time>)"
+    )
+    parser.add_argument(
+        "--resume", metavar="RUN", help="continue the run folder RUN from its last checkpoint"
+    )
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
-    args = parser.parse_args()
+
+
+def run(args: argparse.Namespace) -> int:
+    from agents.sb3 import TrainConfig, train  # torch: loaded only to train
+    from quad_wrench_env.config import apply_overrides
+
     if (args.config is None) == (args.resume is None):
-        parser.error("give a config to start a run, or --resume RUN to continue one")
+        raise UsageError("give a config to start a run, or --resume RUN to continue one")
     source = Path(args.resume) / "config.yaml" if args.resume else Path(args.config)
-    try:
+    with usage_errors():
         config = build(TrainConfig, apply_overrides(load_yaml(source), args.set))
-    except (ValueError, FileNotFoundError) as error:
-        parser.error(str(error))
     if args.resume:
         folder = Path(args.resume)
     else:
@@ -53,7 +68,4 @@ def main() -> None:
             f"; best {e.metric} {float(best['metric']):.4g} at {best['steps']} steps on seeds {e.seeds}"
         )
     print(summary)
-
-
-if __name__ == "__main__":
-    main()
+    return 0

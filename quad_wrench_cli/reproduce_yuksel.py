@@ -1,7 +1,7 @@
 """Reproduce paper 001's Figs. 4-6 with IDA-PBC (agents/ida_pbc.py) on the observer's estimate, and the
 wall-pressing check of ForceExertion-v0: PNG figures and a markdown report.
 
-python scripts/reproduce_yuksel.py --config configs/reproduce_yuksel.yaml [--only fig4 fig5 fig6 wall]
+    quad-wrench reproduce yuksel [--config configs/reproduce_yuksel.yaml] [--only fig4 fig5 fig6 wall]
 
 Figs. 4 and 6 fly ``yuksel1kg`` (paper 001's m = 1 kg, J = diag(0.13, 0.13, 0.22)) in free air (the
 FanTracking env with its fan off and a large arena) under the paper's scheduled wrench, drag-free as
@@ -12,6 +12,7 @@ a wall with the configured vehicles and targets.
 
 from __future__ import annotations
 
+import argparse
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -23,10 +24,10 @@ from tqdm import tqdm
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
-from reproduction import run_parts
 
 from agents.evaluate import episode_metrics, run_episode
 from agents.ida_pbc import IDAPBCPolicy, euler_zyx, load_param_set
+from quad_wrench_cli import reproduction
 from quad_wrench_env.tasks.force_exertion import ForceExertion
 from quad_wrench_env.vehicle import GRAVITY
 
@@ -113,10 +114,10 @@ def fig6(config: dict, out: Path) -> list[str]:
             fig, axes = plt.subplots(3, 2, figsize=(11, 7), sharex=True)
             accel = np.gradient(rec["v"], rec["t"], axis=0)
             for i, name in enumerate("xyz"):
-                axes[i, 0].plot(rec["t"], accel[:, i], label=f"a_{name}")
+                axes[i, 0].plot(rec["t"], accel[:, i], label=f"a_{name} (m/s²)")
                 axes[i, 0].plot(rec["t"], rec["fne"][:, i], label=f"f_ne,{name} (N)")
                 axes[i, 0].plot(rec["t"], -rec["w"][:, i], "k--", linewidth=1, label=f"-f_e,{name} (N)")
-                axes[i, 0].set_ylabel(f"{name}: m/s² or N")
+                axes[i, 0].set_ylabel(f"{name} (m/s² or N)")
                 axes[i, 0].legend(fontsize=7)
             _plot_wrench(axes[:, 1], rec, config["estimator"])
             for ax in axes[-1]:
@@ -273,9 +274,12 @@ PARTS = {"fig4": fig4, "fig5": fig5, "fig6": fig6, "wall": wall}
 TITLE = "Paper 001 (Yüksel et al. 2014)"
 
 
-def main() -> None:
-    run_parts(PARTS, __doc__.split("\n\n")[0], "configs/reproduce_yuksel.yaml", TITLE)
+CONFIG = "reproduce_yuksel.yaml"
 
 
-if __name__ == "__main__":
-    main()
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    reproduction.add_arguments(parser, PARTS, CONFIG)
+
+
+def run(args: argparse.Namespace) -> int:
+    return reproduction.run_parts(args, PARTS, CONFIG, TITLE)

@@ -1,6 +1,6 @@
 """Compare agents, classical and learned, on one env id: the same held-out seeds, every case.
 
-python scripts/compare_agents.py --config configs/compare_agents.yaml
+    quad-wrench compare agents [--config configs/compare_agents.yaml]
 
 Each agent flies each case (reset options and env overrides on top of the config's ``env`` and the
 agent's own ``env``) through ``agents.evaluate``; writes ``table.md`` (mean ± sd over the seeds),
@@ -19,28 +19,29 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
+from tqdm import tqdm
 
 from agents import SHIPPED, make_agent, shipped_agents
-from agents.evaluate import FAN_TRACKING_COLUMNS, Evaluation, evaluate, metrics_table
+from agents.evaluate import Evaluation, evaluate, metrics_table, table_columns
+from quad_wrench_cli.common import add_config_argument, load_config, show, usage_errors
 from quad_wrench_env.config import load_yaml, merged
 
-COLUMNS = {"QuadWrench/FanTracking-v1": FAN_TRACKING_COLUMNS}
-"""Table columns per env id."""
+CONFIG = "compare_agents.yaml"
 
 
 def run_all(config: dict) -> dict[tuple[str, str], Evaluation]:
     results = {}
-    for label, spec in config["agents"].items():
-        for case, setup in config["cases"].items():
-            env = merged(merged(config.get("env", {}), spec.get("env", {})), setup.get("env", {}))
-            results[label, case] = evaluate(
-                make_agent(spec["agent"], **spec.get("params", {})),
-                config["env_id"],
-                config["seeds"],
-                options=setup.get("options", {}),
-                **env,
-            )
-            print(f"done: {label} / {case}", flush=True)
+    jobs = [(label, case) for label in config["agents"] for case in config["cases"]]
+    for label, case in tqdm(jobs, desc="agents x cases", unit="evaluation"):
+        spec, setup = config["agents"][label], config["cases"][case]
+        env = merged(merged(config.get("env", {}), spec.get("env", {})), setup.get("env", {}))
+        results[label, case] = evaluate(
+            make_agent(spec["agent"], **spec.get("params", {})),
+            config["env_id"],
+            config["seeds"],
+            options=setup.get("options", {}),
+            **env,
+        )
     return results
 
 
@@ -55,6 +56,7 @@ def plot(results: dict[tuple[str, str], Evaluation], metric: str, title: str, pa
         ax.bar(np.arange(len(cases)) + k * width, means, width, yerr=spreads, label=agent, capsize=2)
     ax.set_xticks(np.arange(len(cases)) + 0.4 - width / 2, cases, rotation=20, ha="right")
     ax.set_yscale("log")
+    ax.set_xlabel("case")
     ax.set_ylabel(title)
     ax.set_title(f"seeds {results[agents[0], cases[0]].seeds}")
     ax.legend(fontsize=7)
@@ -67,6 +69,7 @@ def plot_training(config: dict, path: Path) -> bool:
     """The evaluation curves (``curve.csv``) of the learned agents, against wall time; False if none."""
     fig, ax = plt.subplots(figsize=(7, 4))
     plotted = False
+    titles = {key: title for key, title, _ in table_columns(config["env_id"])}  # with their units
     for label, spec in config["agents"].items():
         folder = SHIPPED / spec["agent"] if spec["agent"] in shipped_agents() else Path(spec["agent"])
         if not (folder / "curve.csv").is_file():
@@ -76,7 +79,7 @@ def plot_training(config: dict, path: Path) -> bool:
         metric = load_yaml(folder / "config.yaml")["evaluation"]["metric"]
         minutes = [float(r["wall_seconds"]) / 60.0 for r in rows]
         ax.plot(minutes, [float(r["metric"]) for r in rows], "o-", label=label)
-        ax.set_ylabel(f"{metric} on the evaluation seeds")
+        ax.set_ylabel(f"{titles.get(metric, metric)} on the evaluation seeds", fontsize=8)
         plotted = True
     if plotted:
         ax.set_yscale("log")
@@ -89,22 +92,23 @@ def plot_training(config: dict, path: Path) -> bool:
     return plotted
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--config", default="configs/compare_agents.yaml")
-    args = parser.parse_args()
-    config = load_yaml(args.config)
-    columns = COLUMNS[config["env_id"]]
-    out = Path(config["output"])
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    add_config_argument(parser, CONFIG)
+
+
+def run(args: argparse.Namespace) -> int:
+    config, label = load_config(args.config, CONFIG)
+    with usage_errors():
+        columns = table_columns(config["env_id"])
+        out = Path(config["output"])
+        for spec in config["agents"].values():  # unknown agents and gains, before any flight
+            make_agent(spec["agent"], **spec.get("params", {}))
     out.mkdir(parents=True, exist_ok=True)
     results = run_all(config)
-    title = f"{config['env_id']}, config {args.config}, env {config.get('env', {})}, seeds {config['seeds']}"
+    title = f"{config['env_id']}, config {label}, env {config.get('env', {})}, seeds {config['seeds']}"
     table = "\n".join([title, "", *metrics_table(results, columns), ""])
     (out / "table.md").write_text(table)
     plot(results, columns[0][0], columns[0][1], out / "errors.png")
     curves = " and training.png" if plot_training(config, out / "training.png") else ""
-    print(f"\n{table}\nwrote {out / 'table.md'}, {out / 'errors.png'}{curves}")
-
-
-if __name__ == "__main__":
-    main()
+    show(f"{table}\nwrote {out / 'table.md'}, {out / 'errors.png'}{curves}")
+    return 0

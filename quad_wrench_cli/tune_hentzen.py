@@ -1,7 +1,7 @@
 """Tune paper 003's position controllers once, the same way for both (its Sec. V-F: "an overdamped
 position step response with minimum rise time").
 
-python scripts/tune_hentzen.py --config configs/tune_hentzen.yaml
+    quad-wrench reproduce tune-hentzen [--config configs/tune_hentzen.yaml] [--only pid mpc]
 
 Each controller family maps one number, its bandwidth ``λ`` (1/s), to its gains (:data:`FAMILIES`).
 For every candidate ``λ`` the controller, without compensation, answers a reference step of ``step``
@@ -23,12 +23,12 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 import yaml
-from reproduce_mckinnon import rise_time
 
 from agents import make_agent
 from agents.evaluate import run_episode
 from agents.mpc import MPCGains
-from quad_wrench_env.config import load_yaml
+from quad_wrench_cli.common import add_config_argument, load_config, show, usage_errors
+from quad_wrench_cli.reproduce_mckinnon import rise_time
 from quad_wrench_env.vehicle import GRAVITY
 
 ENV_ID = "QuadWrench/DisturbanceRejection-v0"
@@ -117,19 +117,26 @@ def tune(agent: str, bandwidths: list[float], config: dict) -> tuple[float, list
     return min(admissible, key=lambda r: r["rise"])["bandwidth"], rows
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--config", default="configs/tune_hentzen.yaml")
-    parser.add_argument("--only", nargs="*", choices=sorted(FAMILIES), help="tune only these agents")
-    args = parser.parse_args()
-    config = load_yaml(args.config)
-    out = Path(config["output"])
+CONFIG = "tune_hentzen.yaml"
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    add_config_argument(parser, CONFIG)
+    parser.add_argument(
+        "--only", nargs="+", choices=list(FAMILIES), help="tune only these agents (default: all)"
+    )
+
+
+def run(args: argparse.Namespace) -> int:
+    config, _ = load_config(args.config, CONFIG)
+    with usage_errors():
+        out = Path(config["output"])
+        lines = [
+            f"# Tuning of paper 003's controllers ({config['estimator']}, seeds {config['seeds']}, "
+            f"step {config['step']} m, overshoot <= {config['max_overshoot']:.0%})", "",
+            "| agent | λ (1/s) | rise x (s) | rise z (s) | max overshoot |", "|---|---|---|---|---|",
+        ]  # fmt: skip
     out.mkdir(parents=True, exist_ok=True)
-    lines = [
-        f"# Tuning of paper 003's controllers ({config['estimator']}, seeds {config['seeds']}, "
-        f"step {config['step']} m, overshoot <= {config['max_overshoot']:.0%})", "",
-        "| agent | λ (1/s) | rise x (s) | rise z (s) | max overshoot |", "|---|---|---|---|---|",
-    ]  # fmt: skip
     chosen = {}
     for agent, bandwidths in config["bandwidths"].items():
         if args.only and agent not in args.only:
@@ -142,8 +149,5 @@ def main() -> None:
             lines.append(f"| {agent} | {r['bandwidth']}{mark} | {rises} | {r['overshoot']:.1%} |")
     (out / "tuning.md").write_text("\n".join(lines) + "\n")
     (out / "gains.yaml").write_text(yaml.safe_dump(chosen, sort_keys=False))
-    print("\n".join(lines))
-
-
-if __name__ == "__main__":
-    main()
+    show("\n".join(lines))
+    return 0

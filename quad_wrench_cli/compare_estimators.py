@@ -1,6 +1,6 @@
 """Compare the UKF, the EKF and the nonlinear observer on the same recorded flights.
 
-    python scripts/compare_estimators.py --config configs/compare_estimators.yaml [--only fig5 fig4 cost]
+    quad-wrench compare estimators [--config configs/compare_estimators.yaml] [--only fig5 fig4 cost]
 
 Writes figures and ``table.md`` to the config's ``output`` folder.
 """
@@ -16,19 +16,21 @@ from typing import Any
 import gymnasium as gym
 import matplotlib
 import numpy as np
+from tqdm import tqdm
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 
 from agents import make_agent
 from agents.evaluate import run_episode, write_report
+from quad_wrench_cli.common import add_config_argument, load_config, show, usage_errors
 from quad_wrench_env.bench import bare_pybullet_step_seconds, estimator_step_seconds
-from quad_wrench_env.config import load_yaml
 from quad_wrench_env.estimators import OracleBank, make_estimator
 from quad_wrench_env.kernels import NUMBA_AVAILABLE
 from quad_wrench_env.vehicle import make_vehicle
 
 LABELS = ("f_x", "f_y", "f_z", "tau_x", "tau_y", "tau_z")
+UNITS = ("N", "N", "N", "N·m", "N·m", "N·m")
 
 
 @dataclass
@@ -140,7 +142,7 @@ def fig5(config: dict, out: Path) -> list[str]:
     for case, settings in c["cases"].items():
         metrics: dict[str, list[dict]] = {name: [] for name in config["estimators"]}
         traces = {}
-        for seed in config["seeds"]:
+        for seed in tqdm(config["seeds"], desc=f"Fig. 5 {case}", unit="flight", leave=False):
             stream = record(
                 config,
                 seed,
@@ -190,7 +192,7 @@ def fig4_yuksel(config: dict, out: Path) -> list[str]:
         "|---|---|---|---|---|",
     ]
     for spread in c["kf_spreads"]:
-        for seed in config["seeds"]:
+        for seed in tqdm(config["seeds"], desc=f"Fig. 4 kf spread {spread}", unit="flight", leave=False):
             stream = record(
                 config,
                 seed,
@@ -264,8 +266,8 @@ def _plot(t: np.ndarray, true: np.ndarray, traces: dict, path: Path, title: str)
         for name, est in reversed(traces.items()):  # the noisiest (observer) underneath
             ax.plot(t, est[:, i], lw=0.7, label=name)
         ax.plot(t, true[:, i], "k", lw=1.2, label="truth")
-        ax.set_ylabel(LABELS[i])
-    axes[0].legend(fontsize=7, ncol=4)
+        ax.set_ylabel(f"{LABELS[i]} [{UNITS[i]}]")
+        ax.legend(fontsize=6, ncol=4, loc="upper left")
     axes[0].set_title(title)
     axes[-1].set_xlabel("time [s]")
     fig.tight_layout()
@@ -274,20 +276,20 @@ def _plot(t: np.ndarray, true: np.ndarray, traces: dict, path: Path, title: str)
 
 
 PARTS = {"fig5": fig5, "fig4": fig4_yuksel, "cost": cost}
+CONFIG = "compare_estimators.yaml"
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--config", default="configs/compare_estimators.yaml")
-    parser.add_argument("--only", nargs="*", choices=sorted(PARTS))
-    args = parser.parse_args()
-    config = load_yaml(args.config)
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    add_config_argument(parser, CONFIG)
+    parser.add_argument("--only", nargs="+", choices=list(PARTS), help="run only these parts (default: all)")
+
+
+def run(args: argparse.Namespace) -> int:
+    config, label = load_config(args.config, CONFIG)
+    with usage_errors():
+        lines = [f"# Estimator comparison: config {label}, seeds {config['seeds']}", ""]
     out = Path(config.get("output", "results/compare_estimators"))
     out.mkdir(parents=True, exist_ok=True)
-    lines = [f"# Estimator comparison: config {args.config}, seeds {config['seeds']}", ""]
     chosen = {name: partial(PARTS[name], config, out) for name in args.only or PARTS}
-    print(write_report(out, lines, chosen))
-
-
-if __name__ == "__main__":
-    main()
+    show(write_report(out, lines, chosen))
+    return 0

@@ -1,15 +1,16 @@
 """Reproduce paper 003's Table I and Figs. 9 and 11, and Neural-Fly's figure-8 benchmark, in simulation.
 
-python scripts/reproduce_hentzen.py --config configs/reproduce_hentzen.yaml [--only table1 fig11 fig9 figure8]
+    quad-wrench reproduce hentzen [--config configs/reproduce_hentzen.yaml] [--only table1 fig11 fig9 figure8]
 
 Every controller flies QuadWrench/DisturbanceRejection-v0 with the gains of the config's ``gains``
-(tuned once by ``scripts/tune_hentzen.py`` on other seeds, never per scenario), on the config's seeds,
-once per estimator. Writes under ``output``: ``table1.md``, ``fig11_<estimator>.png``, ``fig9.png``,
-``figure8.md``, ``figure8.png`` and ``report.md`` (all tables, seeds and settings).
+(tuned once by ``quad-wrench reproduce tune-hentzen`` on other seeds, never per scenario), on the
+config's seeds, once per estimator. Writes under ``output``: ``table1.md``, ``fig11_<estimator>.png``,
+``fig9.png``, ``figure8.md``, ``figure8.png`` and ``report.md`` (all tables, seeds and settings).
 """
 
 from __future__ import annotations
 
+import argparse
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -22,10 +23,10 @@ from tqdm import tqdm
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
-from reproduction import run_parts
 
 from agents import make_agent
 from agents.evaluate import Episode, episode_metrics, run_episode
+from quad_wrench_cli import reproduction
 
 
 class TimedPolicy:
@@ -151,11 +152,12 @@ def fig11(config: dict, out: Path) -> list[str]:
                 )
             lines.append(f"| {label} | {estimator} | {_cells(maxima)} | {_cells(over)} |")
         for axis in (top, bottom):
-            for edge in table:
-                axis.axvline(edge, color="grey", linestyle=":", linewidth=1)
+            for n, edge in enumerate(table):
+                label = "table edge" if n == 0 else "_table edge"  # one legend entry for both edges
+                axis.axvline(edge, color="grey", linestyle=":", linewidth=1, label=label)
         top.set_ylabel("estimated f_z (N)")
         bottom.set_ylabel("z error (cm)")
-        bottom.set_xlabel("x (m); dotted: the table's edges")
+        bottom.set_xlabel("x (m)")
         top.set_title(f"Table pass at 0.3 m/s, 8 cm over the table ({estimator}, seeds {seeds})")
         top.legend(fontsize=7)
         bottom.legend(fontsize=7)
@@ -179,6 +181,7 @@ def fig9(config: dict, out: Path) -> list[str]:
     fig, ax = plt.subplots(figsize=(6, 4))
     ax.boxplot(list(seconds.values()), whis=(0, 100))
     ax.set_xticks(range(1, len(seconds) + 1), list(seconds))
+    ax.set_xlabel("controller (box: quartiles, whiskers: min and max)")
     ax.set_ylabel("time per iteration (ms)")
     ax.set_title(f"Controller iteration, jet crossing at {setup['jet_speed']:g} m/s (this machine)")
     fig.tight_layout()
@@ -226,8 +229,8 @@ def figure8(config: dict, out: Path) -> list[str]:
             ax.plot(speeds, values, "x--", label=f"{label} (real flight)")
         ax.set_xlabel("wind speed (m/s)")
         ax.set_title(f"estimate: {estimator}")
+        ax.legend(fontsize=7)
     np.atleast_1d(axes)[0].set_ylabel("mean tracking error (cm)")
-    np.atleast_1d(axes)[-1].legend(fontsize=7)
     fig.tight_layout()
     fig.savefig(out / "figure8.png", dpi=120)
     plt.close(fig)
@@ -241,9 +244,12 @@ PARTS = {"table1": table1, "fig11": fig11, "fig9": fig9, "figure8": figure8}
 TITLE = "Paper 003 (Hentzen et al. 2019)"
 
 
-def main() -> None:
-    run_parts(PARTS, __doc__.split("\n\n")[0], "configs/reproduce_hentzen.yaml", TITLE)
+CONFIG = "reproduce_hentzen.yaml"
 
 
-if __name__ == "__main__":
-    main()
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    reproduction.add_arguments(parser, PARTS, CONFIG)
+
+
+def run(args: argparse.Namespace) -> int:
+    return reproduction.run_parts(args, PARTS, CONFIG, TITLE)

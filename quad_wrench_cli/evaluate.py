@@ -1,0 +1,126 @@
+"""Evaluate one agent on one env id over seeds: each seed's metrics and their mean.
+
+    quad-wrench evaluate admittance QuadWrench/FanTracking-v1 --seeds 0 1 2
+    quad-wrench evaluate pid QuadWrench/DisturbanceRejection-v0 --seeds 0 1 --env estimator=ekf \\
+        --agent-param bandwidth=3.5 --options '{"scenario": "jet_crossing"}' --json out.json
+    quad-wrench evaluate runs/NAME QuadWrench/FanTracking-v1 --seeds 100 101 --csv out.csv --video out.mp4
+
+AGENT is a classical agent, a shipped learned policy (``quad-wrench list`` names both) or a training run
+folder. The episodes run through the one harness (:func:`agents.evaluate.evaluate`); the table shows
+each seed's metrics and their mean ± standard deviation; ``--json`` and ``--csv`` write them for tools
+(JSON: null where a metric is undefined or never reached).
+"""
+
+from __future__ import annotations
+
+import argparse
+
+import gymnasium as gym
+from rich.console import Console
+from tqdm import tqdm
+
+from agents import make_agent
+from agents.evaluate import Evaluation, evaluate, metrics_table
+from quad_wrench_cli.common import (
+    env_id,
+    json_object,
+    key_value,
+    seed,
+    show,
+    usage_errors,
+    write_csv,
+    write_json,
+)
+from quad_wrench_env.config import apply_overrides
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "agent",
+        metavar="AGENT",
+        help="a classical agent or shipped policy (quad-wrench list), or a run folder",
+    )
+    parser.add_argument(
+        "env_id", metavar="ENV_ID", type=env_id, help="an env id, e.g. QuadWrench/FanTracking-v1"
+    )
+    parser.add_argument(
+        "--seeds", nargs="+", type=seed, required=True, metavar="SEED", help="one episode each"
+    )
+    parser.add_argument(
+        "--env",
+        action="append",
+        default=[],
+        type=key_value,
+        metavar="KEY=VALUE",
+        help="a gym.make argument (repeatable; the value is read as YAML; dots reach into sections)",
+    )
+    parser.add_argument(
+        "--agent-param",
+        action="append",
+        default=[],
+        type=key_value,
+        metavar="KEY=VALUE",
+        help="an agent parameter, e.g. bandwidth=3.5 (repeatable; a learned policy takes none)",
+    )
+    parser.add_argument(
+        "--options",
+        type=json_object,
+        default={},
+        metavar="JSON",
+        help='reset options of every episode, e.g. \'{"fan_motion": "static", "offset_y": 0.8}\'',
+    )
+    parser.add_argument("--json", metavar="PATH", help="write the metrics as JSON to PATH")
+    parser.add_argument(
+        "--csv", metavar="PATH", help="write the metrics as CSV to PATH (one row per seed, then the mean)"
+    )
+    parser.add_argument(
+        "--video",
+        metavar="PATH",
+        type=_video_path,
+        help="record the first seed's episode to PATH (.mp4 or .gif)",
+    )
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+
+
+def _video_path(text: str) -> str:
+    """argparse type: a video file name that :func:`agents.video.record_video` writes."""
+    if not text.lower().endswith((".mp4", ".gif")):
+        raise argparse.ArgumentTypeError(f"{text!r} must end in .mp4 or .gif")
+    return text
+
+
+def run(args: argparse.Namespace) -> int:
+    with usage_errors():
+        env_kwargs, agent_params = apply_overrides({}, args.env), apply_overrides({}, args.agent_param)
+        policy = make_agent(args.agent, **agent_params)
+        env = gym.make(args.env_id, **env_kwargs)  # bad settings and reset options, before any episode
+        try:
+            env.reset(seed=args.seeds[0], options=args.options)
+        finally:
+            env.close()
+    seeds = tqdm(args.seeds, desc=f"{args.agent} on {args.env_id}", unit="episode", disable=args.no_progress)
+    runs = [evaluate(policy, args.env_id, [s], options=args.options, **env_kwargs) for s in seeds]
+    result = Evaluation(
+        args.env_id, args.seeds, [m for r in runs for m in r.per_seed], [e for r in runs for e in r.episodes]
+    )
+    columns = tuple((key, key, "{:.4g}") for key in result.per_seed[0])
+    rows = {(args.agent, f"seed {r.seeds[0]}"): r for r in runs} | {(args.agent, "mean ± sd"): result}
+    title = f"{args.agent} on {args.env_id}, env {env_kwargs}, options {args.options}, seeds {args.seeds}"
+    show("\n".join([title, "", *metrics_table(rows, columns)]))
+    per_seed = [{"seed": s, **m} for s, m in zip(result.seeds, result.per_seed, strict=True)]
+    if args.json:
+        write_json(args.json, {
+            "agent": args.agent, "agent_params": agent_params, "env_id": args.env_id, "env": env_kwargs,
+            "options": args.options, "seeds": result.seeds, "per_seed": per_seed, "mean": result.mean,
+        })  # fmt: skip
+    if args.csv:
+        write_csv(args.csv, [*per_seed, {"seed": "mean", **result.mean}])
+    if args.video:
+        from agents.video import record_video  # imageio and the renderer: loaded only to record
+
+        with Console(stderr=True).status(f"recording seed {args.seeds[0]}'s episode to {args.video} ..."):
+            record_video(policy, args.env_id, args.video, args.seeds[0], args.options, **env_kwargs)
+    written = [path for path in (args.json, args.csv, args.video) if path]
+    if written:
+        print("wrote " + ", ".join(written))
+    return 0

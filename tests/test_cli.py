@@ -1,0 +1,154 @@
+"""The ``quad-wrench`` command line: every command's help, bad arguments (exit code 2, a message, no
+traceback), ``list --json``, a short ``evaluate`` with its JSON and CSV, ``python -m quad_wrench_env``."""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import math
+import subprocess
+import sys
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+
+from agents import make_agent
+from agents.evaluate import evaluate
+from quad_wrench_cli import peers
+from quad_wrench_cli.common import load_config
+from quad_wrench_cli.main import build_parser, main
+from quad_wrench_env.tasks import TASKS
+from tests.conftest import FAN_TRACKING
+
+
+def _commands(parser: argparse.ArgumentParser, path: tuple[str, ...] = ()) -> Iterator[tuple]:
+    """``(path, parser)`` of the command line and of every command under it, groups included."""
+    yield path, parser
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for name, sub in action.choices.items():
+                yield from _commands(sub, (*path, name))
+
+
+COMMANDS = dict(_commands(build_parser()))
+
+
+def test_every_command_of_the_issue_is_there():
+    top = {path[0] for path in COMMANDS if path}
+    assert top == {"demo", "train", "evaluate", "compare", "reproduce", "bench", "sweep", "list"}
+    assert {("reproduce", p) for p in ("mckinnon", "yuksel", "hentzen")} <= set(COMMANDS)
+    assert {("compare", "agents"), ("compare", "estimators")} <= set(COMMANDS)
+
+
+@pytest.mark.parametrize("path", list(COMMANDS), ids=lambda path: " ".join(path) or "quad-wrench")
+def test_the_help_of_every_command_names_each_option_and_explains_it(path, capsys):
+    with pytest.raises(SystemExit) as exit_:
+        main([*path, "--help"])
+    assert exit_.value.code == 0
+    out = capsys.readouterr().out
+    assert out.startswith("usage: quad-wrench")
+    for action in COMMANDS[path]._actions:
+        assert action.help, f"{' '.join(path)}: {action.option_strings or action.dest} has no help text"
+        names = action.option_strings or [action.metavar or action.dest]
+        assert all(name in out for name in names), names
+
+
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (["nobody"], "invalid choice: 'nobody'"),
+        (["reproduce", "nobody"], "invalid choice: 'nobody'"),
+        (["compare"], "required"),
+        (["evaluate", "nobody", FAN_TRACKING, "--seeds", "0"], "unknown agent 'nobody'"),
+        (["evaluate", "hold", "QuadWrench/Nope-v0", "--seeds", "0"], "unknown env id 'QuadWrench/Nope-v0'"),
+        (["evaluate", "hold", FAN_TRACKING, "--seeds", "x"], "seed 'x' must be an integer >= 0"),
+        (["evaluate", "hold", FAN_TRACKING, "--seeds", "0", "--env", "nonsense=1"], "'nonsense'"),
+        (
+            ["evaluate", "hold", FAN_TRACKING, "--seeds", "0", "--env", "episode_seconds"],
+            "must read KEY=VALUE",
+        ),
+        (["evaluate", "hold", FAN_TRACKING, "--seeds", "0", "--agent-param", "k_xy=fast"], "k_xy"),
+        (["evaluate", "hold", FAN_TRACKING, "--seeds", "0", "--options", '{"bogus": 1}'], "'bogus'"),
+        (["evaluate", "hold", FAN_TRACKING, "--seeds", "0", "--options", "[1]"], "JSON object"),
+        (["evaluate", "hold", FAN_TRACKING, "--seeds", "0", "--video", "out.avi"], ".mp4 or .gif"),
+        (["demo", "--seeds", "x"], "seed 'x'"),
+        (["demo", "--config", "missing.yaml"], "'missing.yaml' does not exist"),
+        (["reproduce", "mckinnon", "--config", "missing.yaml"], "'missing.yaml' does not exist"),
+        (["reproduce", "yuksel", "--only", "fig9"], "invalid choice: 'fig9'"),
+        (["train", "missing.yaml"], "'missing.yaml' does not exist"),
+        (["train"], "give a config"),
+        (["sweep", "missing.yaml"], "'missing.yaml' does not exist"),
+        (["bench", "--soak-minutes", "5"], "at least 20"),
+        (["bench", "--gym-pybullet-drones", "."], "add --peers"),
+        (["bench", "--steps", "0"], "integer >= 1"),
+    ],
+)
+def test_bad_arguments_exit_with_code_2_and_a_message(argv, message, capsys, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)  # missing.yaml is missing; nothing is written where the tests run
+    with pytest.raises(SystemExit) as exit_:
+        main(argv)
+    err = capsys.readouterr().err
+    assert exit_.value.code == 2
+    assert "error: " in err and message in err, err
+    assert "Traceback" not in err
+
+
+def test_list_json_holds_the_vehicle_presets_and_the_env_ids(capsys):
+    assert main(["list", "--json"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    assert set(data["vehicles"]) == {"ardrone2", "crazyflie2", "hummingbird", "yuksel1kg"}
+    assert data["vehicles"]["yuksel1kg"]["mass_kg"] == 1.0
+    assert data["env_ids"] == [task.env_id for task in TASKS]
+    assert {"hold", "admittance", "pid", "mpc", "ida_pbc"} <= set(data["agents"])
+    assert "ppo_fan_tracking" in data["policies"] and "QC1" in data["ida_pbc_sets"]
+    assert "jet_crossing" in data["scenarios"] and "wall" in data["surfaces"]
+
+
+def test_evaluate_writes_each_seeds_metrics_as_json_and_csv(tmp_path, capsys):
+    """The harness's own numbers, seed by seed (NaN, a window the short episode never reached: null)."""
+    out = tmp_path / "out"
+    argv = ["evaluate", "hold", FAN_TRACKING, "--seeds", "0", "1", "--env", "episode_seconds=2"]
+    assert main([*argv, "--no-progress", "--json", str(out / "m.json"), "--csv", str(out / "m.csv")]) == 0
+    assert "mean ± sd" in capsys.readouterr().out
+    expected = evaluate(make_agent("hold"), FAN_TRACKING, [0, 1], episode_seconds=2)
+    data = json.loads((out / "m.json").read_text())
+    assert data["seeds"] == [0, 1] and data["env"] == {"episode_seconds": 2}
+    for seed, row, metrics in zip((0, 1), data["per_seed"], expected.per_seed, strict=True):
+        assert row == {"seed": seed, **{k: v if math.isfinite(v) else None for k, v in metrics.items()}}
+    with (out / "m.csv").open() as handle:
+        rows = list(csv.DictReader(handle))
+    assert [r["seed"] for r in rows] == ["0", "1", "mean"]
+    assert float(rows[2]["return"]) == pytest.approx(expected.mean["return"])
+
+
+def test_bench_has_nothing_to_download_once_the_peers_are_installed(tmp_path):
+    """Only peers not yet installed are resolved with pip (their download size said before installing)."""
+    chosen = peers.jobs(argparse.Namespace(gym_pybullet_drones=None))
+    assert set(peers.missing(chosen, tmp_path)) == {"pyflyt", "rotorpy"}
+    for requirements, _, name in chosen.values():
+        stamp = peers._stamp(tmp_path, name, requirements)
+        stamp.parent.mkdir(parents=True, exist_ok=True)
+        stamp.touch()
+    assert peers.missing(chosen, tmp_path) == {}
+    assert "nothing to download" in peers.download_summary({})
+
+
+def test_a_default_config_is_the_shipped_one_from_any_folder(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    config, label = load_config(None, "reproduce_mckinnon.yaml")
+    assert label == "configs/reproduce_mckinnon.yaml" and config["env_id"] == FAN_TRACKING.split(":")[-1]
+
+
+def test_python_m_quad_wrench_env_runs_the_command_line():
+    root = Path(__file__).resolve().parent.parent
+    done = subprocess.run(
+        [sys.executable, "-m", "quad_wrench_env", "--help"],
+        cwd=root,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.startswith("usage: python -m quad_wrench_env") and "reproduce" in done.stdout
