@@ -56,18 +56,39 @@ class ObservationScaling:
             return cls(data["mean"], data["var"], float(data["clip"]), float(data["epsilon"]))
 
 
+MEANING_KEYS = ("action_type", "observe_wrench")
+"""Env settings that change what an action or an observation means without changing its shape."""
+
+
 class SB3Policy:
     """A trained SB3 model, behind its observation scaling if it had one, as a Policy."""
 
-    def __init__(self, model: BaseAlgorithm, scaling: ObservationScaling | None = None) -> None:
+    def __init__(
+        self,
+        model: BaseAlgorithm,
+        scaling: ObservationScaling | None = None,
+        trained_on: dict[str, Any] | None = None,
+    ) -> None:
+        """``trained_on``: the training env's settings (a run's ``env`` section); :meth:`reset`
+        refuses an env whose :data:`MEANING_KEYS` differ from them."""
         self.model = model
         self.scaling = scaling
+        self.trained_on = dict(trained_on or {})
 
     def reset(self, env: gym.Env) -> None:
         expected = self.model.observation_space.shape
         got = env.observation_space.shape
         if got != expected:
             raise ValueError(f"the model was trained on observations of shape {expected}, the env has {got}")
+        cfg = env.unwrapped.cfg
+        defaults = {f.name: f.default for f in dataclasses.fields(cfg)}
+        for key in MEANING_KEYS:
+            trained = self.trained_on.get(key, defaults[key])  # not given: the task's default
+            if trained != getattr(cfg, key):
+                raise ValueError(
+                    f"the policy was trained with {key}={trained!r}, the env has "
+                    f"{key}={getattr(cfg, key)!r}; make the env with {key}={trained!r}"
+                )
 
     def act(self, observation: np.ndarray) -> np.ndarray:
         obs = observation if self.scaling is None else self.scaling(observation)
@@ -183,14 +204,15 @@ def load_policy(folder: str | Path) -> SB3Policy:
     config = folder / "config.yaml"
     if not config.is_file():
         raise FileNotFoundError(f"{str(folder)!r} is not a training run folder (no config.yaml)")
-    algorithm = load_yaml(config).get("algorithm", "ppo")
+    settings = load_yaml(config)
     for name in ("best", "final"):
         model = folder / name / "model.zip"
         if model.is_file():
             scaling = folder / name / "scaling.npz"
             return SB3Policy(
-                _algorithm(algorithm).load(model, device="cpu"),
+                _algorithm(settings.get("algorithm", "ppo")).load(model, device="cpu"),
                 ObservationScaling.load(scaling) if scaling.is_file() else None,
+                trained_on=settings.get("env", {}),
             )
     raise FileNotFoundError(f"{str(folder)!r} holds no best/model.zip or final/model.zip")
 

@@ -61,6 +61,12 @@ def key_value(text: str) -> str:
     return text
 
 
+def add_key_value_argument(parser: argparse.ArgumentParser, flag: str, help: str) -> None:
+    """A repeatable ``flag KEY=VALUE`` option (collected as a list of strings, each checked by
+    :func:`key_value`)."""
+    parser.add_argument(flag, action="append", default=[], type=key_value, metavar="KEY=VALUE", help=help)
+
+
 def json_object(text: str) -> dict[str, Any]:
     """argparse type: a JSON object, e.g. ``'{"fan_motion": "static", "offset_y": 0.8}'``."""
     try:

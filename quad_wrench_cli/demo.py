@@ -58,8 +58,10 @@ def plot(results: dict[tuple[str, str], Evaluation], path: Path) -> None:
             t = episode.trace["time"]
             if first:
                 top.plot(t, episode.trace["fan_position"][:, 1], "k--", label="y_fan")
-                top.plot(t, episode.trace["jet_axis_y"], "k:", label="jet axis at vehicle")
-                bottom.plot(t, episode.trace["wrench_true"][:, 5], color="0.6", lw=0.8, label="tau_z true")
+                top.plot(t, episode.trace["jet_axis_y"], "k:", label=f"jet axis at vehicle ({agent})")
+                bottom.plot(
+                    t, episode.trace["wrench_true"][:, 5], color="0.6", lw=0.8, label=f"tau_z true ({agent})"
+                )
                 first = False
             top.plot(t, episode.trace["position"][:, 1], label=f"y ({agent})")
             bottom.plot(t, episode.trace["wrench_est"][:, 5], lw=1.0, label=f"tau_z est ({agent})")

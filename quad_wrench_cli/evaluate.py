@@ -22,9 +22,9 @@ from tqdm import tqdm
 from agents import make_agent
 from agents.evaluate import Evaluation, evaluate, metrics_table
 from quad_wrench_cli.common import (
+    add_key_value_argument,
     env_id,
     json_object,
-    key_value,
     seed,
     show,
     usage_errors,
@@ -46,21 +46,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--seeds", nargs="+", type=seed, required=True, metavar="SEED", help="one episode each"
     )
-    parser.add_argument(
+    add_key_value_argument(
+        parser,
         "--env",
-        action="append",
-        default=[],
-        type=key_value,
-        metavar="KEY=VALUE",
-        help="a gym.make argument (repeatable; the value is read as YAML; dots reach into sections)",
+        "a gym.make argument (repeatable; the value is read as YAML; dots reach into sections)",
     )
-    parser.add_argument(
+    add_key_value_argument(
+        parser,
         "--agent-param",
-        action="append",
-        default=[],
-        type=key_value,
-        metavar="KEY=VALUE",
-        help="an agent parameter, e.g. bandwidth=3.5 (repeatable; a learned policy takes none)",
+        "an agent parameter, e.g. bandwidth=3.5 (repeatable; a learned policy takes none)",
     )
     parser.add_argument(
         "--options",

@@ -214,7 +214,9 @@ def fig7(config: dict, out: Path) -> list[str]:
         t = ep.trace["time"]
         if n == 0:
             axes[0].plot(t, ep.trace["fan_position"][:, 1], "k--", label="y_fan")
-            axes[1].plot(t, ep.trace["wrench_true"][:, 5], color="0.6", lw=0.8, label="tau_z true")
+            axes[1].plot(
+                t, ep.trace["wrench_true"][:, 5], color="0.6", lw=0.8, label=f"tau_z true (seed {seed})"
+            )
         axes[0].plot(t, ep.trace["position"][:, 1], lw=1.0, label=f"y (seed {seed})")
         axes[1].plot(t, ep.trace["wrench_est"][:, 5], lw=0.8, label=f"tau_z UKF (seed {seed})")
     axes[0].set_ylabel("y [m]")

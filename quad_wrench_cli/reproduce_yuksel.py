@@ -156,6 +156,7 @@ def fig4(config: dict, out: Path) -> list[str]:
             axes[i, 0].legend(fontsize=7)
         if name == setup["params"][0]:
             _plot_wrench(axes[:, 1], rec, config["estimator"])
+            axes[0, 1].set_title(f"external force in the {name} flight", fontsize=9)
     for ax in axes[-1]:
         ax.set_xlabel("time (s)")
     fig.suptitle(

@@ -15,18 +15,13 @@ import sys
 import time
 from pathlib import Path
 
-from quad_wrench_cli.common import UsageError, key_value, show, usage_errors
+from quad_wrench_cli.common import UsageError, add_key_value_argument, show, usage_errors
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("config", metavar="CONFIG", help="a sweep config (configs/sweep_*.yaml)")
-    parser.add_argument(
-        "--set",
-        action="append",
-        default=[],
-        type=key_value,
-        metavar="KEY=VALUE",
-        help="override a sweep-config key (repeatable; e.g. num_samples=4, search=optuna)",
+    add_key_value_argument(
+        parser, "--set", "override a sweep-config key (repeatable; e.g. num_samples=4, search=optuna)"
     )
     parser.add_argument(
         "--folder", metavar="DIR", help="the sweep folder, new or empty (default: runs/<config name>-<time>)"

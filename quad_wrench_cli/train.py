@@ -17,7 +17,7 @@ import math
 import time
 from pathlib import Path
 
-from quad_wrench_cli.common import UsageError, key_value, usage_errors
+from quad_wrench_cli.common import UsageError, add_key_value_argument, usage_errors
 from quad_wrench_env.config import build, load_yaml
 
 
@@ -25,13 +25,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "config", nargs="?", metavar="CONFIG", help="a training config (configs/train_*.yaml)"
     )
-    parser.add_argument(
+    add_key_value_argument(
+        parser,
         "--set",
-        action="append",
-        default=[],
-        type=key_value,
-        metavar="KEY=VALUE",
-        help="override a config key (repeatable; dots reach into sections, the value is read as YAML)",
+        "override a config key (repeatable; dots reach into sections, the value is read as YAML)",
     )
     parser.add_argument(
         "--run-dir", metavar="DIR", help="the run folder (default: runs/<config name>-<time>)"

@@ -132,6 +132,17 @@ def test_shipped_agents_load_and_act_on_their_env(name):
         make_agent(name, k_p=1.0)
 
 
+def test_a_policy_refuses_an_env_whose_actions_or_observations_mean_otherwise():
+    """Same shapes, other meanings: a policy trained without the wrench (or on the velocity action)
+    is refused on an env with the wrench (or the attitude action), naming the setting to use."""
+    policy = make_agent("ppo_fan_tracking_no_wrench")
+    policy.reset(gym.make(FAN_TRACKING, observe_wrench=False))
+    with pytest.raises(ValueError, match="observe_wrench=False, the env has observe_wrench=True"):
+        policy.reset(gym.make(FAN_TRACKING))
+    with pytest.raises(ValueError, match="trained with action_type='velocity'"):
+        policy.reset(gym.make(FAN_TRACKING, observe_wrench=False, action_type="attitude"))
+
+
 def test_ppo_fan_tracking_is_shipped():
     assert "ppo_fan_tracking" in shipped_agents()
 
