@@ -69,17 +69,20 @@ class SB3Policy:
         scaling: ObservationScaling | None = None,
         trained_on: dict[str, Any] | None = None,
     ) -> None:
-        """``trained_on``: the training env's settings (a run's ``env`` section); :meth:`reset`
-        refuses an env whose :data:`MEANING_KEYS` differ from them."""
+        """``trained_on``: the training env's settings (a run's ``env`` section; a key not in it had
+        the task's default); :meth:`reset` refuses an env whose :data:`MEANING_KEYS` differ from them.
+        None: unknown (a bare model), nothing but the observation's shape is checked."""
         self.model = model
         self.scaling = scaling
-        self.trained_on = dict(trained_on or {})
+        self.trained_on = None if trained_on is None else dict(trained_on)
 
     def reset(self, env: gym.Env) -> None:
         expected = self.model.observation_space.shape
         got = env.observation_space.shape
         if got != expected:
             raise ValueError(f"the model was trained on observations of shape {expected}, the env has {got}")
+        if self.trained_on is None:
+            return
         cfg = env.unwrapped.cfg
         defaults = {f.name: f.default for f in dataclasses.fields(cfg)}
         for key in MEANING_KEYS:
@@ -348,7 +351,7 @@ def train(config: TrainConfig, folder: str | Path, resume: bool = False, progres
 
         def evaluate(self) -> None:
             self.next_eval = self.num_timesteps + e.every_steps
-            policy = SB3Policy(model, scaling())
+            policy = SB3Policy(model, scaling(), trained_on=config.env)
             result = evaluate(policy, config.env_id, e.seeds, options=e.options, **{**config.env, **e.env})
             if e.metric not in result.mean:
                 raise ValueError(

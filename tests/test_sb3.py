@@ -18,7 +18,7 @@ from quad_wrench_env.envs.sb3_vec_env import SB3VecEnv
 from tests.conftest import FAN_TRACKING
 
 SMALL = {
-    "env": {"episode_seconds": 6.0},
+    "env": {"episode_seconds": 6.0, "observe_wrench": False},  # not the default: checked on reload
     "num_envs": 4,
     "checkpoint_every_steps": 1024,
     "evaluation": {
@@ -61,11 +61,11 @@ def test_config_to_run_folder_to_reloaded_agent_to_evaluation(tmp_path, algorith
     assert int(rows[-1]["steps"]) >= 2048 and all(math.isfinite(float(r["metric"])) for r in rows)
     policy = make_agent(str(folder))
     assert isinstance(policy, SB3Policy) and policy.scaling is not None
-    result = evaluate(policy, FAN_TRACKING, [5], episode_seconds=6.0)
+    result = evaluate(policy, FAN_TRACKING, [5], episode_seconds=6.0, observe_wrench=False)
     assert math.isfinite(result.per_seed[0]["mean_abs_error_after_5s"])
     trained = [float(r["metric"]) for r in rows if int(r["steps"]) > config.num_envs]
     best = min(trained)  # the kept model is the best trained one on the eval seeds
-    again = evaluate(load_policy(folder), FAN_TRACKING, [1], episode_seconds=6.0)
+    again = evaluate(load_policy(folder), FAN_TRACKING, [1], episode_seconds=6.0, observe_wrench=False)
     assert again.per_seed[0]["mean_abs_error_after_5s"] == pytest.approx(best, rel=1e-6)
 
 
@@ -83,7 +83,9 @@ def test_a_run_resumes_from_its_newest_model_and_keeps_its_best(tmp_path):
     walls = [float(r["wall_seconds"]) for r in rows]
     assert steps == sorted(steps) and steps[-1] >= 2048 and walls == sorted(walls)
     after = [float(r["metric"]) for r in rows[len(before) :]]
-    kept = evaluate(load_policy(folder), FAN_TRACKING, [1], episode_seconds=6.0).per_seed[0]
+    kept = evaluate(
+        load_policy(folder), FAN_TRACKING, [1], episode_seconds=6.0, observe_wrench=False
+    ).per_seed[0]
     assert kept["mean_abs_error_after_5s"] == pytest.approx(min([best_before, *after]), rel=1e-6)
 
 

@@ -62,6 +62,8 @@ def test_the_example_sweep_loads_with_its_base_beside_it():
     config = load_sweep_config(config_path("sweep_fan_tracking.yaml"), ["num_samples=2", "search=optuna"])
     assert config.num_samples == 2 and config.search == "optuna"
     assert build(TrainConfig, config.base_values()).evaluation.metric == METRIC
+    quick = load_sweep_config(config_path("sweep_quick.yaml"))  # the README's 2-trial try
+    assert quick.search == "grid" and len(quick.space["hyperparameters.learning_rate"]["grid"]) == 2
 
 
 @pytest.mark.parametrize(
