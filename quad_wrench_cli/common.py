@@ -11,7 +11,7 @@ import math
 from collections.abc import Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import gymnasium as gym
 import numpy as np
@@ -19,6 +19,9 @@ from rich.console import Console
 from rich.markdown import Markdown
 
 from quad_wrench_env.config import config_path, load_yaml
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 ENV_NAMESPACE = "QuadWrench/"
 
@@ -157,3 +160,12 @@ def write_csv(path: str | Path, rows: Sequence[Mapping[str, Any]]) -> None:
         writer = csv.DictWriter(handle, list(rows[0]))
         writer.writeheader()
         writer.writerows(rows)
+
+
+def save_figure(fig: Figure, path: str | Path, dpi: int = 120) -> None:
+    """Lay ``fig`` out, write it to ``path`` and close it (every job's figures end this way)."""
+    import matplotlib.pyplot as plt  # not at import: --help stays quick
+
+    fig.tight_layout()
+    fig.savefig(path, dpi=dpi)
+    plt.close(fig)

@@ -23,7 +23,7 @@ from tqdm import tqdm
 
 from agents import SHIPPED, make_agent, shipped_agents
 from agents.evaluate import Evaluation, evaluate, metrics_table, table_columns
-from quad_wrench_cli.common import add_config_argument, load_config, show, usage_errors
+from quad_wrench_cli.common import add_config_argument, load_config, save_figure, show, usage_errors
 from quad_wrench_env.config import load_yaml, merged
 
 CONFIG = "compare_agents.yaml"
@@ -60,9 +60,7 @@ def plot(results: dict[tuple[str, str], Evaluation], metric: str, title: str, pa
     ax.set_ylabel(title)
     ax.set_title(f"seeds {results[agents[0], cases[0]].seeds}")
     ax.legend(fontsize=7)
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    save_figure(fig, path)
 
 
 def plot_training(config: dict, path: Path) -> bool:

@@ -23,7 +23,7 @@ import matplotlib.pyplot as plt
 
 from agents import make_agent
 from agents.evaluate import run_episode, write_report
-from quad_wrench_cli.common import add_config_argument, load_config, show, usage_errors
+from quad_wrench_cli.common import add_config_argument, load_config, save_figure, show, usage_errors
 from quad_wrench_env.bench import bare_pybullet_step_seconds, estimator_step_seconds
 from quad_wrench_env.estimators import OracleBank, make_estimator
 from quad_wrench_env.kernels import NUMBA_AVAILABLE
@@ -270,9 +270,7 @@ def _plot(t: np.ndarray, true: np.ndarray, traces: dict, path: Path, title: str)
         ax.legend(fontsize=6, ncol=4, loc="upper left")
     axes[0].set_title(title)
     axes[-1].set_xlabel("time [s]")
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path, dpi=110)
 
 
 PARTS = {"fig5": fig5, "fig4": fig4_yuksel, "cost": cost}

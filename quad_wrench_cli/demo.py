@@ -20,7 +20,7 @@ from tqdm import tqdm
 
 from agents import make_agent
 from agents.evaluate import Evaluation, evaluate, metrics_table, table_columns
-from quad_wrench_cli.common import add_config_argument, load_config, seed, show, usage_errors
+from quad_wrench_cli.common import add_config_argument, load_config, save_figure, seed, show, usage_errors
 
 CONFIG = "fan_tracking.yaml"
 
@@ -71,9 +71,7 @@ def plot(results: dict[tuple[str, str], Evaluation], path: Path) -> None:
         bottom.set_xlabel("time [s]")
         top.legend(fontsize=7)
         bottom.legend(fontsize=7)
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    save_figure(fig, path)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

@@ -27,6 +27,7 @@ import matplotlib.pyplot as plt
 from agents import make_agent
 from agents.evaluate import Episode, episode_metrics, run_episode
 from quad_wrench_cli import reproduction
+from quad_wrench_cli.common import save_figure
 
 
 class TimedPolicy:
@@ -161,9 +162,7 @@ def fig11(config: dict, out: Path) -> list[str]:
         top.set_title(f"Table pass at 0.3 m/s, 8 cm over the table ({estimator}, seeds {seeds})")
         top.legend(fontsize=7)
         bottom.legend(fontsize=7)
-        fig.tight_layout()
-        fig.savefig(out / f"fig11_{estimator}.png", dpi=120)
-        plt.close(fig)
+        save_figure(fig, out / f"fig11_{estimator}.png")
     return lines
 
 
@@ -184,9 +183,7 @@ def fig9(config: dict, out: Path) -> list[str]:
     ax.set_xlabel("controller (box: quartiles, whiskers: min and max)")
     ax.set_ylabel("time per iteration (ms)")
     ax.set_title(f"Controller iteration, jet crossing at {setup['jet_speed']:g} m/s (this machine)")
-    fig.tight_layout()
-    fig.savefig(out / "fig9.png", dpi=120)
-    plt.close(fig)
+    save_figure(fig, out / "fig9.png")
     lines = ["## Fig. 9: time per controller iteration (ms, this machine; paper: Odroid XU4)", "",
              "| controller | mean | max | paper mean |", "|---|---|---|---|"]  # fmt: skip
     for label, ms in seconds.items():
@@ -231,9 +228,7 @@ def figure8(config: dict, out: Path) -> list[str]:
         ax.set_title(f"estimate: {estimator}")
         ax.legend(fontsize=7)
     np.atleast_1d(axes)[0].set_ylabel("mean tracking error (cm)")
-    fig.tight_layout()
-    fig.savefig(out / "figure8.png", dpi=120)
-    plt.close(fig)
+    save_figure(fig, out / "figure8.png")
     (out / "figure8.md").write_text("\n".join(lines) + "\n")
     return lines
 

@@ -23,7 +23,7 @@ import matplotlib.pyplot as plt
 from agents import make_agent
 from agents.evaluate import Episode, episode_metrics, run_episode, write_report
 from quad_wrench_cli import reproduction
-from quad_wrench_cli.common import show
+from quad_wrench_cli.common import save_figure, show
 
 LABELS = ("f_x", "f_y", "f_z", "tau_x", "tau_y", "tau_z")
 
@@ -102,9 +102,7 @@ def fig3(config: dict, out: Path) -> list[str]:
     legend = ax.legend(unique.values(), unique.keys(), fontsize=7)
     for handle in legend.legend_handles[:-1]:
         handle.set_sizes([20.0])  # the scatters' dots, visible in the legend
-    fig.tight_layout()
-    fig.savefig(out / "fig3.png", dpi=120)
-    plt.close(fig)
+    save_figure(fig, out / "fig3.png")
     return [
         "## Fig. 3: static accuracy (statistics over the last "
         f"{c['seconds'] - c['settle']:.0f} s of each hover)",
@@ -137,9 +135,7 @@ def fig4(config: dict, out: Path) -> list[str]:
     )
     axes[0].legend(fontsize=7)
     axes[1].legend(fontsize=7)
-    fig.tight_layout()
-    fig.savefig(out / "fig4.png", dpi=120)
-    plt.close(fig)
+    save_figure(fig, out / "fig4.png")
     return ["## Fig. 4: step response (10-90 % rise time of the estimate)", "", *rows]
 
 
@@ -174,9 +170,7 @@ def fig6(config: dict, out: Path) -> list[str]:
             ax.set_xlabel("y [m]")
             ax.set_ylabel("x (distance from fan) [m]")
     fig.suptitle(f"Fig. 6: loads in front of the fan, {c['seconds']} s hover per point (seed {c['seed']})")
-    fig.tight_layout()
-    fig.savefig(out / "fig6.png", dpi=120)
-    plt.close(fig)
+    save_figure(fig, out / "fig6.png")
     rows = ["| x [m] | y [m] | f_x est | f_x true | tau_z est | tau_z true |", "|---|---|---|---|---|---|"]
     middle = len(xs) // 2
     for j, y in enumerate(ys):
@@ -225,9 +219,7 @@ def fig7(config: dict, out: Path) -> list[str]:
     axes[0].legend(fontsize=7)
     axes[1].legend(fontsize=7)
     axes[0].set_title("Fig. 7: admittance control on the UKF's tau_z, fan 2.3 m away moving along y")
-    fig.tight_layout()
-    fig.savefig(out / "fig7.png", dpi=120)
-    plt.close(fig)
+    save_figure(fig, out / "fig7.png")
     return ["## Fig. 7: fan tracking with the UKF estimate", "", *rows]
 
 

@@ -28,6 +28,7 @@ import matplotlib.pyplot as plt
 from agents.evaluate import episode_metrics, run_episode
 from agents.ida_pbc import IDAPBCPolicy, euler_zyx, load_param_set
 from quad_wrench_cli import reproduction
+from quad_wrench_cli.common import save_figure
 from quad_wrench_env.tasks.force_exertion import ForceExertion
 from quad_wrench_env.vehicle import GRAVITY
 
@@ -125,9 +126,7 @@ def fig6(config: dict, out: Path) -> list[str]:
             fig.suptitle(
                 f"Fig. 6: IDA-PBC balancing a 1 N push ({setup['params']}, seed {config['seeds'][0]})"
             )
-            fig.tight_layout()
-            fig.savefig(out / "fig6.png", dpi=120)
-            plt.close(fig)
+            save_figure(fig, out / "fig6.png")
     return lines
 
 
@@ -162,9 +161,7 @@ def fig4(config: dict, out: Path) -> list[str]:
     fig.suptitle(
         "Fig. 4: 1 N along x (5-10 s), 1 N along -z (15-20 s), 1 N·m about x (25-30 s), all (35-40 s)"
     )
-    fig.tight_layout()
-    fig.savefig(out / "fig4.png", dpi=120)
-    plt.close(fig)
+    save_figure(fig, out / "fig4.png")
     return lines
 
 
@@ -223,9 +220,7 @@ def fig5(config: dict, out: Path) -> list[str]:
     for ax in axes:
         ax.legend(fontsize=7)
     fig.suptitle("Fig. 5: compliant vs stiff IDA-PBC sliding along a rough ceiling")
-    fig.tight_layout()
-    fig.savefig(out / "fig5.png", dpi=120)
-    plt.close(fig)
+    save_figure(fig, out / "fig5.png")
     return lines
 
 
