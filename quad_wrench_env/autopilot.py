@@ -31,7 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from quad_wrench_env.engine.world import RigidBodyState
-from quad_wrench_env.rotations import cross, quat_from_euler_zyx, rotation_matrices, wrap_angle
+from quad_wrench_env.rotations import cross, quat_from_euler_zyx, rotation_matrices, rows_times, wrap_angle
 from quad_wrench_env.vehicle import GRAVITY, Mixer, VehicleParams
 
 _E_Z = np.array((0.0, 0.0, 1.0))
@@ -146,7 +146,7 @@ class Autopilot:
         (n, 3, 3) with zero errors, the cascade commands ``rotor_speeds`` (n, 4): the state of a
         vehicle that has been hovering in equilibrium (used at the start of an episode)."""
         g = self.gains
-        command = (rotor_speeds * rotor_speeds) @ self.mixer.allocation.T
+        command = rows_times(rotor_speeds * rotor_speeds, self.mixer.allocation.T)
         self.rate_integral[index] = command[:, 1:] / (self._inertia * g.rate_i)
         thrust_vector = command[:, :1] * rotation[:, :, 2]
         self.velocity_integral[index] = (
@@ -230,7 +230,7 @@ class Autopilot:
     def _mix(self, thrust_and_torque: np.ndarray) -> np.ndarray:
         """(N, 4) rotor speeds for (N, 4) ``[c_t, tau]``; yaw torque is given up first, then speeds
         are clipped."""
-        without_yaw = thrust_and_torque[:, :3] @ self._inverse_t[:3]
+        without_yaw = rows_times(thrust_and_torque[:, :3], self._inverse_t[:3])
         yaw_part = thrust_and_torque[:, 3:] * self._inverse_t[3]
         lo, hi = self._w2_min, self._w2_max
         unsaturated = without_yaw + yaw_part

@@ -34,6 +34,7 @@ __all__ = [
     "quat_normalize",
     "rotation_matrices",
     "rotation_matrix",
+    "rows_times",
     "skew",
     "tilt_angle",
     "to_pybullet",
@@ -172,22 +173,35 @@ def _homogeneous_rotation(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     )
 
 
+def rows_times(rows: np.ndarray, matrix: np.ndarray) -> np.ndarray:
+    """``rows @ matrix`` for (..., k) ``rows`` and a (k, m) ``matrix``, summed over ``k`` in order by
+    elementwise operations, so that each row's result has the same bits whatever the other rows are.
+    ``@`` on an (N, k) array is one BLAS product whose kernel (and so the grouping of its sums) the
+    library picks by N and by the CPU: a vehicle of a fleet of 3 then differs in the last bits from
+    the same vehicle alone (seen with OpenBLAS's AVX-512 kernels)."""
+    out = np.zeros((*rows.shape[:-1], matrix.shape[1]))
+    for k in range(matrix.shape[0]):
+        out += rows[..., k, None] * matrix[k]
+    return out
+
+
 def quat_multiply_rows(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Hamilton products ``a ⊗ b`` row-wise for (..., 4) arrays (leading dimensions broadcast), as
     one matrix product with the bilinear tensor of ``⊗``; a single quaternion on either side
     multiplies every row."""
     if a.ndim == 1:
-        return b @ (a @ _PRODUCT_JIK)  # a ⊗ b = b @ M(a), M[j, k] = Σ_i a_i P[i, j, k]
+        return rows_times(b, a @ _PRODUCT_JIK)  # a ⊗ b = b @ M(a), M[j, k] = Σ_i a_i P[i, j, k]
     if b.ndim == 1:
-        return a @ (_PRODUCT_IKJ @ b)  # a ⊗ b = a @ N(b), N[i, k] = Σ_j P[i, j, k] b_j
+        return rows_times(a, _PRODUCT_IKJ @ b)  # a ⊗ b = a @ N(b), N[i, k] = Σ_j P[i, j, k] b_j
     outer = a[..., :, None] * b[..., None, :]  # leading dimensions broadcast
-    return outer.reshape(*outer.shape[:-2], 16) @ _PRODUCT
+    return rows_times(outer.reshape(*outer.shape[:-2], 16), _PRODUCT)
 
 
 def rotation_matrices(q: np.ndarray) -> np.ndarray:
-    """(..., 3, 3) body -> world matrices of (..., 4) unit quaternions (one matrix product)."""
+    """(..., 3, 3) body -> world matrices of (..., 4) unit quaternions (one product with the bilinear
+    tensor, :func:`rows_times`)."""
     outer = q[..., :, None] * q[..., None, :]
-    return (outer.reshape(*q.shape[:-1], 16) @ _ROTATION).reshape(*q.shape[:-1], 3, 3)
+    return rows_times(outer.reshape(*q.shape[:-1], 16), _ROTATION).reshape(*q.shape[:-1], 3, 3)
 
 
 def euler_zyx_from_quat(q: np.ndarray) -> np.ndarray:

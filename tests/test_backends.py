@@ -336,9 +336,10 @@ def test_step_views_cut_the_buffer_as_step_fields_say(count):
 
 
 @pytest.mark.parametrize("shape", [(18, 25), (5, 3), (1, 1)])
-def test_weighted_gram_is_the_symmetric_product_with_regrouped_sums(shape):
-    """``weighted_gram`` (reassociated sums on numba) equals ``W Cᵀ`` to rounding, its result exactly
-    symmetric and the same bits on every call (the determinism the envs' seeds promise)."""
+def test_weighted_gram_is_the_symmetric_product_summed_in_order(shape):
+    """``weighted_gram`` equals ``W Cᵀ`` to rounding and, to the bit, each entry summed over the
+    columns in order as plain floats (what the UKF's SIMD lanes do: sums regrouped by the compiler
+    would depend on the CPU's vector width), exactly symmetric, the same bits on every call."""
     rng = np.random.default_rng(1)
     columns = rng.standard_normal(shape)
     weighted = columns * rng.uniform(-0.5, 2.0, shape[1])
@@ -346,6 +347,11 @@ def test_weighted_gram_is_the_symmetric_product_with_regrouped_sums(shape):
     weighted_gram(weighted, columns, out)
     weighted_gram(weighted, columns, again)
     np.testing.assert_allclose(out, weighted @ columns.T, rtol=1e-13, atol=1e-13 * shape[1])
+    in_order = np.zeros_like(out)  # the lower triangle, mirrored
+    for a, c in np.ndindex(out.shape):
+        for j in range(shape[1]):
+            in_order[a, c] += float(weighted[max(a, c), j]) * float(columns[min(a, c), j])
+    np.testing.assert_array_equal(out, in_order)
     np.testing.assert_array_equal(out, out.T)
     np.testing.assert_array_equal(out, again)
 

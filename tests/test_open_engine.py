@@ -273,21 +273,29 @@ def test_kernels_in_a_script_are_refused_with_a_reason():
         Slot("wind", CompiledForm("__main__", (("velocity", "v"), ("advance", "a"))), 0)
 
 
-def test_vehicles_of_the_vector_env_never_meet_another_frames_scene():
-    """Frames are spaced by the arena and the scene's boxes: a long table far behind the arena (here
-    reaching x = -7.2) in frame 1 must not stand in vehicle 0's way, which flies as a single env."""
-    table = {"kind": "table", "center": [-7.74, 0.0], "size": [1.0, 8.0], "height": 1.2}
-    settings = {"backend": "numpy", "estimator": "oracle", "scene": [table], "fan": {"enabled": False}}
-    venv = gym.make_vec(FAN_TRACKING, num_envs=2, vectorization_mode="vector_entry_point", **settings)
+def test_the_vehicles_of_a_vector_env_share_one_copy_of_the_scene():
+    """The scene is built once, where every vehicle flies: a vehicle descending onto a table crashes
+    on it at the step a single env's does, whatever its index (a copy per vehicle would be several
+    boxes in one place, each pushing back)."""
+    table = {"kind": "table", "center": [2.3, 0.0], "size": [1.0, 1.0], "height": 0.6}
+    settings = {"estimator": "oracle", "scene": [table], "fan": {"enabled": False}, "crash_height": -1.0}
+    venv = gym.make_vec(FAN_TRACKING, num_envs=3, vectorization_mode="vector_entry_point", **settings)
     env = gym.make(FAN_TRACKING, **settings)
+    down = np.array((0.0, 0.0, -1.0, 0.0))
     try:
-        observations = venv.reset(seed=4)[0]
-        np.testing.assert_array_equal(observations[0], env.reset(seed=4)[0])
-        for _ in range(25):
-            observations, _, terminated, _, _ = venv.step(np.zeros((2, 4)))
-            single, _, single_terminated, _, _ = env.step(np.zeros(4))
-            assert not terminated.any() and not single_terminated
-            np.testing.assert_array_equal(observations[0], single)
+        world = venv.unwrapped.fleet.world
+        venv.reset(seed=3, options={"offset_y": 0.0})
+        env.reset(seed=5, options={"offset_y": 0.0})
+        assert len(world._crash_bodies) == 2  # the ground and one table
+        for step in range(300):
+            _, _, terminated, _, info = venv.step(np.tile(down, (3, 1)))
+            _, _, single_terminated, _, single = env.step(down)
+            assert terminated[2] == single_terminated, f"step {step}"
+            if single_terminated:
+                assert info["final_info"]["termination_reason"][2] == single["termination_reason"] == "crash"
+                assert single["position"][2] > 0.6  # on the table, not the ground
+                break
+        assert single_terminated, "the descent never touched the table"
     finally:
         venv.close()
         env.close()

@@ -37,10 +37,10 @@ def _fly(world: World, force: np.ndarray, torque: np.ndarray, steps: int = STEPS
 
 
 def test_bodies_in_one_spot_never_touch():
-    """Two bodies put in the same place (spacing 0) under the same loads move exactly as one alone:
-    collision groups keep vehicles from touching each other, wherever their frames are."""
+    """Two bodies put in the same place under the same loads move exactly as one alone: collision
+    groups keep vehicles from touching each other."""
     vehicle = make_vehicle("ardrone2")
-    pair, alone = World(vehicle, DT, count=2, spacing=0.0), World(vehicle, DT)
+    pair, alone = World(vehicle, DT, count=2), World(vehicle, DT)
     try:
         start, level = np.array(((0.0, 0.0, 2.0),)), np.array(((1.0, 0.0, 0.0, 0.0),))
         pair.place(np.array((0, 1)), np.repeat(start, 2, axis=0), np.repeat(level, 2, axis=0))
@@ -81,11 +81,6 @@ def test_one_vehicle_step_and_read_equal_the_array_forms():
             pair.step_one((0.0, 0.0, 0.0), (0.0, 0.0, 0.0), (0.0, 0.0, 1.0))
     finally:
         pair.close()
-
-
-def test_spacing_is_refused_by_name_when_not_a_distance():
-    with pytest.raises(ValueError, match="spacing=-1.0"):
-        World(make_vehicle("ardrone2"), DT, count=2, spacing=-1.0)
 
 
 def test_free_fall(world):

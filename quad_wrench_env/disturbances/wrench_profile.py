@@ -14,7 +14,7 @@ import numpy as np
 
 from quad_wrench_env.disturbances.base import CompiledForm
 from quad_wrench_env.kernels import njit
-from quad_wrench_env.rotations import cross
+from quad_wrench_env.rotations import cross, rows_times
 
 _COUPLE_ARM = 0.1
 """m: half the distance between the two forces of a torque couple."""
@@ -57,7 +57,7 @@ class WrenchProfile:
         """(n, 6) ``[f, τ]`` (world) acting at times ``t`` (n,)."""
         t = np.asarray(t, dtype=float)[..., None]
         active = (self.segments[:, 0] <= t) & (t < self.segments[:, 1])
-        return active.astype(float) @ self.segments[:, 2:]
+        return rows_times(active.astype(float), self.segments[:, 2:])
 
     def point_load(
         self, t: np.ndarray, rotation: np.ndarray, index: np.ndarray | slice = slice(None)

@@ -28,16 +28,15 @@ from quad_wrench_env.disturbances.drag import QuadraticDrag
 from quad_wrench_env.engine.actions import ActionMap
 from quad_wrench_env.engine.compiled import CompiledStep
 from quad_wrench_env.engine.components import Components
-from quad_wrench_env.engine.config import ArenaConfig, EnvConfig
+from quad_wrench_env.engine.config import EnvConfig
 from quad_wrench_env.engine.kernels import assemble_observations, termination_codes
 from quad_wrench_env.engine.noise import NoiseBlocks
 from quad_wrench_env.engine.observation import ObservationLayout
 from quad_wrench_env.engine.world import RigidBodyState, Tool, World
 from quad_wrench_env.estimators import OracleBank, make_estimator_bank
 from quad_wrench_env.kernels import resolve_backend
-from quad_wrench_env.rotations import cross, quat_from_matrix
+from quad_wrench_env.rotations import cross, quat_from_matrix, rows_times
 from quad_wrench_env.rotors import Rotors
-from quad_wrench_env.scene import ScenePart
 from quad_wrench_env.sensors import MotionCapture, MotorSpeedSensor
 from quad_wrench_env.vehicle import GRAVITY, VehicleParams
 
@@ -51,16 +50,6 @@ with an onboard state estimator, of its velocity and body rates; they follow the
 
 _WARNED: set[str] = set()
 """Numpy-only settings already warned about (``backend="auto"`` warns once per setting)."""
-
-
-def scene_extent(arena: ArenaConfig, scene: list[ScenePart]) -> tuple[float, float]:
-    """Sizes along x and y of the box holding the arena and every scene part of one vehicle's frame."""
-    low, high = np.array((arena.x_min, -arena.y_half_width)), np.array((arena.x_max, arena.y_half_width))
-    for part in scene:
-        for centre, half in part.boxes():
-            low = np.minimum(low, np.subtract(centre[:2], half[:2]))
-            high = np.maximum(high, np.add(centre[:2], half[:2]))
-    return float(high[0] - low[0]), float(high[1] - low[1])
 
 
 def make_tool(cfg: EnvConfig, vehicle: VehicleParams) -> Tool | None:
@@ -139,13 +128,7 @@ class Fleet:
         """The first column of the sensors' draws, after the wind fields'."""
         width = SENSOR_NOISE_WIDTH + (STATE_ESTIMATOR_NOISE_WIDTH if sensors.state_estimator else 0)
         self.noise = NoiseBlocks(count, column + width)
-        # Frames apart by the larger side of what a frame holds (the arena and the scene's boxes) and two
-        # box diagonals (< 4 hull radii) and a metre more: boxes of vehicles inside their arenas never
-        # overlap, nor meet another frame's scene (see World's docstring).
-        spacing = max(scene_extent(cfg.arena, components.scene)) + 4.0 * vehicle.hull_radius + 1.0
-        self.world = World(
-            vehicle, dt, count, gui=gui, spacing=spacing, scene=components.scene, tool=make_tool(cfg, vehicle)
-        )
+        self.world = World(vehicle, dt, count, gui=gui, scene=components.scene, tool=make_tool(cfg, vehicle))
         self._flip_cos = math.cos(math.radians(cfg.flip_tilt_deg))
         self.time = np.zeros(count)
         self.state: RigidBodyState | None = None
@@ -272,7 +255,7 @@ class Fleet:
         self.wind_velocity = self.air_at(after.position[:, None, :], slice(None))[:, 0]
         self._feed_truth()
         measured_speeds = self.motor_sensor.measure(self.rotors.speeds)
-        nominal = (measured_speeds * measured_speeds) @ self._nominal_allocation_t
+        nominal = rows_times(measured_speeds * measured_speeds, self._nominal_allocation_t)
         sensors = normals[:, self.sensor_noise_column :]
         position, quaternion = self.mocap.measure(after.position, after.quaternion, sensors[:, :6])
         velocity, body_rates = self.mocap.measure_motion(after.velocity, after.body_rates, sensors[:, 6:12])

@@ -8,24 +8,25 @@ loads act on each body as one resultant force through its centre of mass and one
 world frame: callers sum forces applied at body points (``r × F``) before handing them over, which is
 exactly what PyBullet does with a force at a point, in one call instead of one per point.
 
-The vehicles share the world but never touch each other (collision groups: a vehicle collides
-with the ground only), so each body integrates as it would alone; the body is built once and
-later episodes put it back in place (``resetBasePositionAndOrientation`` and ``resetBaseVelocity``
-fix every degree of freedom of a free body, so nothing of an earlier episode survives).
-
-Each vehicle flies in its own frame, whose origin in PyBullet's world is :attr:`World.origins` (a
-square grid on the ground, ``spacing`` apart; vehicle 0 at the world's origin): positions go in and
-come out of the world relative to it. Collision groups keep vehicles that overlap from touching,
-but not from costing: Bullet's broadphase still finds every pair of overlapping bounding boxes of
-moving bodies, and 64 vehicles flying one task in one place cost about 0.8 µs more per body and
-step than 64 kept apart. The ground is an infinite plane, so the shift changes nothing physical; it
-changes the rounding of positions by about the spacing's last bit (1e-14 m for 100 m).
+The vehicles share the world, its ground and one copy of the scene, all at PyBullet's origin, but
+never touch each other (collision groups: a vehicle collides with the ground and the scene parts
+only), so each body integrates exactly as it would alone, in the same coordinates, with the same
+rounding: vehicle i of a fleet gives the same bits as a fleet of one (``tests/test_determinism.py``).
+The contact solver always runs its iterations (``solverResidualThreshold=0``): stopping once a
+residual summed over every contact of the world is small made one vehicle's contact forces depend
+on the others' contacts.
+Frames an arena apart (each vehicle shifted by its own origin) would cost each position the
+rounding of the shift's magnitude (1e-14 m at 10 m) and break that; coinciding vehicles cost
+Bullet's broadphase the pairs of overlapping bounding boxes it finds and then discards (about 0.5
+µs per body and physics step for 64 vehicles flying one task in one place). The body is built once
+and later episodes put it back in place (``resetBasePositionAndOrientation`` and
+``resetBaseVelocity`` fix every degree of freedom of a free body, so nothing of an earlier episode
+survives).
 """
 
 from __future__ import annotations
 
 import contextlib
-import math
 import os
 import sys
 from dataclasses import dataclass
@@ -111,14 +112,11 @@ class World:
         dt: float,
         count: int = 1,
         gui: bool = False,
-        spacing: float = 0.0,
         scene: list[ScenePart] | None = None,
         tool: Tool | None = None,
     ) -> None:
         if not (isinstance(count, int) and count >= 1):
             raise ValueError(f"count={count!r} must be an integer >= 1 (vehicles in the world)")
-        if not (math.isfinite(spacing) and spacing >= 0.0):
-            raise ValueError(f"spacing={spacing!r} must be a finite distance >= 0 m between vehicle frames")
         self.vehicle = vehicle
         self.dt = dt
         self.count = count
@@ -149,45 +147,40 @@ class World:
         """Height (m) of a body's centre above which it cannot touch the ground or a scene part: the
         highest top, the body's bounding radius (tool included), the contact threshold and one step's
         fall. The envs ask for contacts only below it."""
-        columns = math.ceil(math.sqrt(count))
-        grid = np.arange(count)
-        self.origins = np.column_stack((grid % columns, grid // columns, np.zeros(count))) * spacing
-        """(N, 3) origin of each vehicle's frame in PyBullet's world (module docstring)."""
-        self._shifted = bool(self.origins.any())
 
     @property
     def built(self) -> bool:
         return bool(self.bodies)
 
     def build(self) -> None:
-        """Reset the simulation and create the ground and the vehicles (at rest, apart along y)."""
+        """Reset the simulation and create the ground, the scene and the vehicles (at rest)."""
         cid = self.client
         p.resetSimulation(physicsClientId=cid)
         p.setGravity(0.0, 0.0, -GRAVITY, physicsClientId=cid)
         p.setPhysicsEngineParameter(
-            fixedTimeStep=self.dt, numSubSteps=1, deterministicOverlappingPairs=1, physicsClientId=cid
+            fixedTimeStep=self.dt,
+            numSubSteps=1,
+            deterministicOverlappingPairs=1,
+            solverResidualThreshold=0.0,
+            physicsClientId=cid,
         )
         plane_shape = p.createCollisionShape(p.GEOM_PLANE, physicsClientId=cid)
         # a static rigid body (maximal coordinates), not a fixed multibody: ~0.1 µs less per step
         self.plane = p.createMultiBody(0.0, plane_shape, useMaximalCoordinates=1, physicsClientId=cid)
         p.setCollisionFilterGroupMask(self.plane, -1, _GROUND_GROUP, _VEHICLE_GROUP, physicsClientId=cid)
         self._crash_bodies = [self.plane]
-        for part in self.scene:  # a copy in every vehicle's frame
+        for part in self.scene:  # one copy, shared by every vehicle
             for centre, half in part.boxes():
                 shape = p.createCollisionShape(p.GEOM_BOX, halfExtents=half, physicsClientId=cid)
                 look = p.createVisualShape(
                     p.GEOM_BOX, halfExtents=half, rgbaColor=(0.55, 0.45, 0.35, 1.0), physicsClientId=cid
                 )
-                for origin in self.origins:
-                    body = p.createMultiBody(
-                        0.0, shape, look, basePosition=(origin + centre).tolist(), useMaximalCoordinates=1,
-                        physicsClientId=cid,
-                    )  # fmt: skip
-                    p.setCollisionFilterGroupMask(
-                        body, -1, _GROUND_GROUP, _VEHICLE_GROUP, physicsClientId=cid
-                    )
-                    p.changeDynamics(body, -1, lateralFriction=part.friction, physicsClientId=cid)
-                    self._crash_bodies.append(body)
+                body = p.createMultiBody(
+                    0.0, shape, look, basePosition=list(centre), useMaximalCoordinates=1, physicsClientId=cid
+                )
+                p.setCollisionFilterGroupMask(body, -1, _GROUND_GROUP, _VEHICLE_GROUP, physicsClientId=cid)
+                p.changeDynamics(body, -1, lateralFriction=part.friction, physicsClientId=cid)
+                self._crash_bodies.append(body)
         v, half_extents, tool = self.vehicle, self.half_extents, self.tool
         colour = (0.2, 0.2, 0.25, 1.0)
         if tool is None:
@@ -206,10 +199,8 @@ class World:
                 visualFramePositions=frames, rgbaColors=[colour, (0.9, 0.5, 0.1, 1.0)], physicsClientId=cid,
             )  # fmt: skip
         self.bodies = []
-        for i in range(self.count):
-            body = p.createMultiBody(
-                v.mass, hull, visual, basePosition=(*self.origins[i, :2], 1.0), physicsClientId=cid
-            )
+        for _ in range(self.count):
+            body = p.createMultiBody(v.mass, hull, visual, basePosition=(0.0, 0.0, 1.0), physicsClientId=cid)
             p.changeDynamics(
                 body,
                 -1,
@@ -232,21 +223,19 @@ class World:
         cid = self.client
         index = np.asarray(index)
         xyzw = to_pybullet(quaternions).tolist()
-        for i, position, orientation in zip(
-            index.tolist(), (positions + self.origins[index]).tolist(), xyzw, strict=True
-        ):
+        for i, position, orientation in zip(index.tolist(), positions.tolist(), xyzw, strict=True):
             body = self.bodies[i]
             p.resetBasePositionAndOrientation(body, position, orientation, physicsClientId=cid)
             p.resetBaseVelocity(body, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), physicsClientId=cid)
 
     def read(self) -> np.ndarray:
         """(N, 13) rows ``[position, quaternion (x, y, z, w), velocity, angular velocity]`` of the
-        vehicles as PyBullet reports them, positions in each vehicle's frame."""
+        vehicles as PyBullet reports them."""
         return self.read_flat().reshape(self.count, 13)
 
     def read_first(self) -> tuple[tuple, tuple]:
         """Vehicle 0's ``((position, quaternion (x, y, z, w)), (velocity, angular velocity))`` as
-        PyBullet returns them (its frame is PyBullet's world frame: nothing to shift). A world of one
+        PyBullet returns them. A world of one
         vehicle hands them to the compiled step as they are, instead of :meth:`read_flat`'s row:
         about 0.5 µs less per step, as Python builds no array."""
         body, cid = self.bodies[0], self.client
@@ -261,23 +250,18 @@ class World:
             position, orientation = pose(body, cid)
             linear, angular = twist(body, cid)
             flat += position + orientation + linear + angular
-        rows = np.fromiter(flat, float, 13 * self.count)
-        if self._shifted:
-            rows.reshape(self.count, 13)[:, :3] -= self.origins
-        return rows
+        return np.fromiter(flat, float, 13 * self.count)
 
     def state(self) -> RigidBodyState:
         """The true states of all vehicles."""
         return RigidBodyState.from_pybullet(self.read())
 
     def step(self, forces: np.ndarray, torques: np.ndarray, centres_of_mass: np.ndarray) -> None:
-        """Apply (N, 3) world-frame forces at the centres of mass (their current positions, in each
-        vehicle's frame) and (N, 3) world-frame torques, then advance the simulation one step."""
+        """Apply (N, 3) world-frame forces at the centres of mass (their current positions) and (N, 3)
+        world-frame torques, then advance the simulation one step."""
         cid = self.client
         world_frame = p.WORLD_FRAME
         apply_force, apply_torque = p.applyExternalForce, p.applyExternalTorque
-        if self._shifted:
-            centres_of_mass = centres_of_mass + self.origins
         for body, force, torque, com in zip(
             self.bodies, forces.tolist(), torques.tolist(), centres_of_mass.tolist(), strict=True
         ):
@@ -286,9 +270,8 @@ class World:
         p.stepSimulation(cid)
 
     def step_one(self, force: tuple, torque: tuple, centre_of_mass: tuple) -> None:
-        """:meth:`step` for a world of one vehicle, with its loads as the sequences PyBullet takes (its
-        frame is PyBullet's world frame): what the compiled step of a single env calls, about 0.4 µs
-        less than :meth:`step` with arrays."""
+        """:meth:`step` for a world of one vehicle, with its loads as the sequences PyBullet takes:
+        what the compiled step of a single env calls, about 0.4 µs less than :meth:`step` with arrays."""
         if self.count != 1:
             raise ValueError(f"step_one steps a world of one vehicle; this world has {self.count}")
         cid = self.client
@@ -309,7 +292,7 @@ class World:
         return touching
 
     def _tips(self) -> np.ndarray:
-        """(N, 3) world positions (PyBullet's frame) of the tool tips' centres."""
+        """(N, 3) world positions of the tool tips' centres."""
         cid = self.client
         tips = np.empty((self.count, 3))
         for i, body in enumerate(self.bodies):
@@ -335,13 +318,12 @@ class World:
         (tests/test_contacts.py)."""
         cid = self.client
         tip_force[:] = 0.0
-        centres = position + self.origins
-        tips = centres + rotation @ self.tool.offset if self.tool is not None else None
+        tips = position + rotation @ self.tool.offset if self.tool is not None else None
         for i, body in enumerate(self.bodies):
             for c in p.getContactPoints(bodyA=body, physicsClientId=cid):
                 force = c[9] * np.asarray(c[7]) + c[10] * np.asarray(c[11]) + c[12] * np.asarray(c[13])
                 wrench[i, :3] += force
-                wrench[i, 3:] += np.cross(np.asarray(c[5]) - centres[i], force)
+                wrench[i, 3:] += np.cross(np.asarray(c[5]) - position[i], force)
                 if tips is not None and self._at_tip(c[5], tips[i]):
                     tip_force[i] += force
 

@@ -54,22 +54,21 @@ def resolve_backend(backend: str) -> str:
     return backend
 
 
-def njit(function=None, *, inline: bool = False, reassociate: bool = False):
+def njit(function=None, *, inline: bool = False):
     """``numba.njit(cache=True)`` (IEEE arithmetic, no fast-math), or the function unchanged without
     numba; ``inline=True`` inlines a small helper into its callers (a call across modules otherwise
-    costs more than a short loop). ``reassociate=True`` lets the compiler regroup sums so that a
-    reduction runs on SIMD lanes: the last bits change, deterministically (the same inputs give the
-    same bits on one machine); nothing else of IEEE arithmetic does. Such a helper must not be
-    inlined: it would compile under its caller's flags."""
+    costs more than a short loop). No kernel lets the compiler regroup sums (fast-math's
+    ``reassoc``): the grouping would follow the CPU's vector width, and a vehicle of a vector env
+    would no longer give the single env's bits on every host (``tests/test_determinism.py``)."""
     if function is None:
-        return lambda f: njit(f, inline=inline, reassociate=reassociate)
+        return lambda f: njit(f, inline=inline)
     if _numba is None:
         return function
     return _numba.njit(
         cache=True,
         error_model="numpy",
         inline="always" if inline else "never",
-        fastmath={"reassoc"} if reassociate else False,
+        fastmath=False,
     )(function)
 
 

@@ -38,12 +38,14 @@ def cholesky(a, out):
     return True
 
 
-@njit(reassociate=True)
+@njit
 def weighted_gram(weighted, columns, out):
     """``out = weighted columnsᵀ`` for (k, m) ``weighted`` and ``columns`` whose product is symmetric
     (``weighted`` is ``columns`` with each column scaled): the lower triangle as dot products along the
-    contiguous rows, mirrored. Its sums are regrouped onto SIMD lanes (``reassociate``): about 0.4 µs
-    less than rank-one updates for a UKF's (18, 25) sigma-point deviations."""
+    contiguous rows, mirrored, each summed over the columns in order, as the UKF's SIMD lanes sum
+    (:mod:`~quad_wrench_env.kernels.ukf_lanes`): a filter gives the same bits in a bank of any size.
+    (Sums regrouped onto SIMD lanes were 0.4 µs faster per UKF step, but their bits depended on the
+    CPU's vector width and differed from the lanes'.)"""
     m = columns.shape[1]
     for a in range(out.shape[0]):
         for c in range(a + 1):

@@ -11,8 +11,9 @@ numpy reference, which does neither, to 1e-9):
   0-5 go through the model; a pair adds ``2w`` times the centre to the mean and
   ``2w (c₀ c₀ᵀ + δ δᵀ)`` to the covariance (``c₀`` the centre's deviation from the mean). The
   covariance (eq. 27) is then one weighted Gram matrix of 25 deviation columns (the 13 points' and
-  the 12 pairs' ``δ``), its sums regrouped onto SIMD lanes (:func:`~quad_wrench_env.kernels.linalg.
-  weighted_gram`): the same up to rounding, and on one machine bit for bit the same from run to run.
+  the 12 pairs' ``δ``) (:func:`~quad_wrench_env.kernels.linalg.weighted_gram`), each sum in the
+  order of the columns, as on the SIMD lanes (:mod:`~quad_wrench_env.kernels.ukf_lanes`): a filter
+  gives the same bits in a bank of any size.
 * With ``S = L Lᵀ`` (eq. 31) and ``M = P Hᵀ L⁻ᵀ``, the gain is ``K = M L⁻¹`` (29), the update
   ``K ν = M (L⁻¹ ν)`` and ``P - K S Kᵀ = P - M Mᵀ`` (30, 37), symmetric by construction.
 """

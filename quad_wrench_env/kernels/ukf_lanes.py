@@ -10,10 +10,10 @@ filters at once. About 3x fewer µs per filter than the filter-by-filter kernel 
 
 Each block of eight filters is copied into lane layout (a short last block repeats its last
 filter in the spare lanes, whose results are dropped), stepped, and copied back. Each lane does the
-filter-by-filter kernel's operations in the same order, except the covariance sum (eq. 27), which
-runs over the sigma points in order here and regrouped there: the two kernels agree to rounding
-(``tests/test_lanes.py``). Nothing is regrouped here, so the lanes give the same bits on CPUs of
-any vector width.
+filter-by-filter kernel's operations in the same order, with IEEE rounding lane by lane, and no
+branch of one lane depends on another's numbers: a filter gives the same bits on lanes as filter by
+filter, whatever its neighbours, on CPUs of any vector width (``tests/test_lanes.py``,
+``tests/test_determinism.py``).
 """
 
 from __future__ import annotations
