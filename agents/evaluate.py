@@ -173,7 +173,8 @@ def metrics_table(
                 cells.append(f"never ({int(np.sum(np.isinf(values)))}/{len(values)})")
                 continue
             spread = float(np.std(values))
-            cells.append(fmt.format(values.mean()) + (f" ± {fmt.format(spread)}" if spread > 0 else ""))
+            spread_shown = spread > 1e-9 * float(np.abs(values).max())  # not the rounding of equal values
+            cells.append(fmt.format(values.mean()) + (f" ± {fmt.format(spread)}" if spread_shown else ""))
         seeds = ",".join(str(s) for s in ev.seeds)
         lines.append(f"| {agent} | {case} | {seeds} | " + " | ".join(cells) + " |")
     return lines

@@ -372,17 +372,15 @@ class IDAPBCPolicy:
 
     def __init__(self, params: IDAPBCParams | str | None = None, **kwargs: Any) -> None:
         """``params``: a parameter set, or the name of one in ``configs/ida_pbc.yaml`` (what
-        ``make_agent("ida_pbc", params="QC2")`` passes); or keyword parameters."""
+        ``make_agent("ida_pbc", params="QC2")`` passes); or keyword parameters. With neither, the
+        set is the file's default for the task flown (``task_defaults``), chosen at :meth:`reset`."""
         if params is not None and kwargs:
             raise ValueError("pass either params or keyword parameters, not both")
+        self._by_task = params is None and not kwargs
+        """Whether the set follows the task of each :meth:`reset` (none was given)."""
         if isinstance(params, str):
             params = load_param_set(params)
-        self.params = params or build(IDAPBCParams, kwargs, prefix="ida_pbc.")
-        p = self.params
-        self._k_x, self._r_x = np.array(p.k_x), np.array(p.r_x)
-        self._n, self._k_p, self._r_eta = np.array(p.n_d), np.array(p.k_p), np.array(p.r_eta)
-        self._k_v_eta = (self._r_eta - p.k_d * self._n) / (self._n * self._n)
-        self._max_tilt = math.radians(p.max_tilt_deg)
+        self._use(params or build(IDAPBCParams, kwargs, prefix="ida_pbc."))
         self._layout: dict[str, slice] = {}
         self._mass = 1.0
         self._inertia = np.ones(3)
@@ -396,6 +394,14 @@ class IDAPBCPolicy:
         self.last: dict[str, Any] = {}
         """Intermediate values of the last :meth:`act` (``f_star``, ``rho``, ``eta_star``, ``eta_bar``,
         ``eta``, ``torque_gen``, ``body_torque``), for inspection."""
+
+    def _use(self, params: IDAPBCParams) -> None:
+        """Fly ``params`` (and the gains derived from them)."""
+        self.params = p = params
+        self._k_x, self._r_x = np.array(p.k_x), np.array(p.r_x)
+        self._n, self._k_p, self._r_eta = np.array(p.n_d), np.array(p.k_p), np.array(p.r_eta)
+        self._k_v_eta = (self._r_eta - p.k_d * self._n) / (self._n * self._n)
+        self._max_tilt = math.radians(p.max_tilt_deg)
 
     @classmethod
     def from_param_set(cls, name: str | None = None, path: str | Path | None = None) -> IDAPBCPolicy:
@@ -428,6 +434,8 @@ class IDAPBCPolicy:
             raise ValueError(
                 f"IDAPBCPolicy needs the observation blocks {sorted(missing)}, which this env lacks"
             )
+        if self._by_task:
+            self._use(load_param_set(task_default_set(type(base).task_class.env_id)))
         vehicle = base.vehicle
         self._mass = float(vehicle.mass)
         self._inertia = np.array(vehicle.inertia, dtype=float)
@@ -591,6 +599,13 @@ def load_param_set(name: str | None = None, path: str | Path | None = None) -> I
     if chosen not in sets:
         raise ValueError(f"no IDA-PBC parameter set {chosen!r}; available: {sorted(sets)}")
     return build(IDAPBCParams, sets[chosen], prefix=f"ida_pbc.{chosen}.")
+
+
+def task_default_set(env_id: str, path: str | Path | None = None) -> str | None:
+    """The name of the set flown on ``env_id`` when none is named: the file's ``task_defaults`` entry
+    for it, else None (the file's ``default``)."""
+    data = load_yaml(path if path is not None else _config_file())
+    return data.get("task_defaults", {}).get(env_id)
 
 
 def _config_file() -> Path:

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import csv
 import dataclasses
+import inspect
 import math
 import time
 from collections.abc import Mapping
@@ -194,6 +195,76 @@ def train_config(values: Mapping[str, Any], updates: Mapping[str, Any]) -> Train
     return build(TrainConfig, set_keys(values, updates))
 
 
+class TrainingConfigError(ValueError):
+    """A training run refused before anything ran or was written (:func:`check_training`)."""
+
+
+RESERVED_HYPERPARAMETERS = ("policy", "env", "seed", "device", "verbose", "policy_kwargs", "tensorboard_log")
+"""Keyword arguments of the SB3 algorithm that :func:`train` sets itself from the config."""
+
+
+class _Still:
+    """A policy whose action is always zero (the middle of every action type's range)."""
+
+    def reset(self, env: gym.Env) -> None:
+        self.shape = env.action_space.shape
+
+    def act(self, observation: np.ndarray) -> np.ndarray:
+        return np.zeros(self.shape, dtype=np.float32)
+
+
+def check_training(config: TrainConfig, folder: str | Path, resume: bool = False) -> None:
+    """Refuses, before anything runs or is written, what would otherwise fail in the run, by
+    :class:`TrainingConfigError` naming the value and what is allowed: a run folder that is not empty
+    (or, to resume, holds nothing to resume from), an env id that is not registered, env settings the
+    task refuses, hyperparameters the algorithm does not take or refuses (the algorithm is built once
+    on the run's env), and evaluation settings or a metric the harness does not have (one evaluation
+    episode of 0.1 s with the evaluation's env settings lists the metrics)."""
+    from stable_baselines3.common.vec_env import VecMonitor
+
+    import quad_wrench_env  # noqa: F401  (registers the env ids)
+    from agents.evaluate import evaluate
+    from quad_wrench_env.envs.sb3_vec_env import SB3VecEnv
+
+    folder = Path(folder)
+    try:
+        if resume:
+            _latest_snapshot(folder)
+        elif folder.exists() and any(folder.iterdir()):
+            raise ValueError(f"run folder {str(folder)!r} is not empty; resume it or give a new folder")
+        try:
+            gym.spec(config.env_id)
+        except gym.error.Error as error:
+            raise ValueError(f"env_id={config.env_id!r}: {error}") from None
+        algorithm = _algorithm(config.algorithm)
+        parameters = inspect.signature(algorithm.__init__).parameters
+        allowed = {name for name in parameters if not name.startswith("_")}
+        allowed -= {"self", *RESERVED_HYPERPARAMETERS}
+        unknown = sorted(set(config.hyperparameters) - allowed)
+        if unknown:
+            raise ValueError(
+                f"hyperparameters {unknown} are not {algorithm.__name__}'s; allowed: {sorted(allowed)}"
+            )
+        venv = gym.make_vec(
+            config.env_id, num_envs=config.num_envs, vectorization_mode="vector_entry_point", **config.env
+        )
+        try:
+            algorithm("MlpPolicy", VecMonitor(SB3VecEnv(venv)), device="cpu", **config.hyperparameters)
+        except (TypeError, ValueError, AssertionError) as error:
+            raise ValueError(f"hyperparameters={config.hyperparameters!r}: {error}") from None
+        finally:
+            venv.close()
+        e = config.evaluation
+        settings = {**config.env, **e.env, "episode_seconds": 0.1}
+        metrics = evaluate(_Still(), config.env_id, e.seeds[:1], options=e.options, **settings).mean
+        if e.metric not in metrics:
+            raise ValueError(
+                f"evaluation.metric={e.metric!r}; allowed for {config.env_id}: {sorted(metrics)}"
+            )
+    except (ValueError, FileNotFoundError) as error:
+        raise TrainingConfigError(str(error)) from None
+
+
 def _algorithm(name: str) -> type[BaseAlgorithm]:
     from stable_baselines3 import PPO, SAC
 
@@ -252,6 +323,7 @@ def train(config: TrainConfig, folder: str | Path, resume: bool = False, progres
     from quad_wrench_env.envs.sb3_vec_env import SB3VecEnv
 
     folder = Path(folder)
+    check_training(config, folder, resume)
     torch.set_num_threads(config.threads)
     venv = gym.make_vec(
         config.env_id, num_envs=config.num_envs, vectorization_mode="vector_entry_point", **config.env
@@ -265,9 +337,6 @@ def train(config: TrainConfig, folder: str | Path, resume: bool = False, progres
         model = algorithm.load(last / "model.zip", env=env, device="cpu")
         start_steps = model.num_timesteps
     else:
-        if folder.exists() and any(folder.iterdir()):
-            raise FileExistsError(f"run folder {str(folder)!r} is not empty; pass resume or a new folder")
-        folder.mkdir(parents=True, exist_ok=True)
         env = VecNormalize(
             env,
             norm_obs=config.normalize_observations,
@@ -284,6 +353,7 @@ def train(config: TrainConfig, folder: str | Path, resume: bool = False, progres
             "MlpPolicy", env, seed=config.seed, device="cpu", verbose=0, policy_kwargs=policy_kwargs,
             tensorboard_log=str(folder / "tensorboard"), **config.hyperparameters,
         )  # fmt: skip
+        folder.mkdir(parents=True, exist_ok=True)
     (folder / "config.yaml").write_text(yaml.safe_dump(dataclasses.asdict(config), sort_keys=False))
     (folder / "commit.txt").write_text(_commit() + "\n")
     e = config.evaluation
@@ -353,11 +423,7 @@ def train(config: TrainConfig, folder: str | Path, resume: bool = False, progres
             self.next_eval = self.num_timesteps + e.every_steps
             policy = SB3Policy(model, scaling(), trained_on=config.env)
             result = evaluate(policy, config.env_id, e.seeds, options=e.options, **{**config.env, **e.env})
-            if e.metric not in result.mean:
-                raise ValueError(
-                    f"evaluation.metric={e.metric!r}; allowed for {config.env_id}: {sorted(result.mean)}"
-                )
-            value = result.mean[e.metric]
+            value = result.mean[e.metric]  # check_training made sure the harness scores it
             self.logger.record(f"eval/{e.metric}", value)
             returns = [info["r"] for info in model.ep_info_buffer]
             mean_return = sum(returns) / len(returns) if returns else math.nan
@@ -369,11 +435,15 @@ def train(config: TrainConfig, folder: str | Path, resume: bool = False, progres
             if (value < self.best) if e.lower_is_better else (value > self.best):
                 self.best = value
                 save("best")
+                kept = {"steps": self.num_timesteps, "metric": e.metric, "value": value, "seeds": e.seeds}
+                (folder / "best" / "evaluation.yaml").write_text(yaml.safe_dump(kept, sort_keys=False))
 
     loop = Loop()
-    model.learn(
-        config.total_steps - start_steps, callback=loop, progress_bar=progress, reset_num_timesteps=not resume
-    )
+    # SB3 collects whole rollouts (PPO: n_steps on every vehicle; SAC: one step of every vehicle), so
+    # it runs to the next whole rollout past total_steps: ask for that many, and the bar ends at 100 %.
+    rollout = config.num_envs * getattr(model, "n_steps", 1)
+    steps = math.ceil(max(config.total_steps - start_steps, 1) / rollout) * rollout
+    model.learn(steps, callback=loop, progress_bar=progress, reset_num_timesteps=not resume)
     loop.evaluate()
     save("final")
     env.close()

@@ -160,7 +160,10 @@ def sweep(
     started = not ray.is_initialized()
     if started:
         local = {} if address else {"num_cpus": os.cpu_count(), "include_dashboard": False}
-        ray.init(address=address, log_to_driver=False, logging_level=logging.WARNING, **local)
+        try:
+            ray.init(address=address, log_to_driver=False, logging_level=logging.WARNING, **local)
+        except ConnectionError as error:  # before any trial: nothing written
+            raise ConnectionError(f"address={address!r}: {str(error).splitlines()[0]}") from None
     try:
         trainable = tune.with_parameters(
             _run_trial, base=base, runs=str(folder / "runs"), metric=evaluation.metric, mode=mode

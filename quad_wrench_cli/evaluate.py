@@ -90,6 +90,7 @@ def run(args: argparse.Namespace) -> int:
         env = gym.make(args.env_id, **env_kwargs)  # bad settings and reset options, before any episode
         try:
             env.reset(seed=args.seeds[0], options=args.options)
+            policy.reset(env)  # the agent's own refusal of this env (its action type, its observation)
         finally:
             env.close()
     seeds = tqdm(args.seeds, desc=f"{args.agent} on {args.env_id}", unit="episode", disable=args.no_progress)

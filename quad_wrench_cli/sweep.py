@@ -42,7 +42,7 @@ def run(args: argparse.Namespace) -> int:
     folder = Path(args.folder or f"runs/{Path(args.config).stem}-{time.strftime('%Y%m%d-%H%M%S')}")
     try:
         result = sweep(config, folder, address=args.address, progress=not args.no_progress)
-    except FileExistsError as error:  # refused before any trial
+    except (FileExistsError, ConnectionError) as error:  # refused before any trial (no cluster there)
         raise UsageError(str(error)) from None
     except ImportError as error:  # the tune extra is missing: not a bad argument
         print(f"quad-wrench sweep: {error}", file=sys.stderr)

@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import argparse
 import csv
-import math
 import time
 from pathlib import Path
 
@@ -40,7 +39,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from agents.sb3 import TrainConfig, train  # torch: loaded only to train
+    from agents.sb3 import TrainConfig, TrainingConfigError, check_training, train  # torch: only to train
     from quad_wrench_env.config import apply_overrides
 
     if (args.config is None) == (args.resume is None):
@@ -52,17 +51,25 @@ def run(args: argparse.Namespace) -> int:
         folder = Path(args.resume)
     else:
         folder = Path(args.run_dir or f"runs/{source.stem}-{time.strftime('%Y%m%d-%H%M%S')}")
+    try:
+        check_training(config, folder, resume=bool(args.resume))
+    except TrainingConfigError as error:
+        raise UsageError(str(error)) from None
     started = time.perf_counter()
     train(config, folder, resume=bool(args.resume), progress=not args.no_progress)
-    with (folder / "curve.csv").open() as handle:
-        rows = list(csv.DictReader(handle))
-    e = config.evaluation
-    scored = [r for r in rows if math.isfinite(float(r["metric"]))]
-    summary = f"{folder}: {rows[-1]['steps']} steps in {time.perf_counter() - started:.0f} s"
-    if scored:
-        best = (min if e.lower_is_better else max)(scored, key=lambda r: float(r["metric"]))
-        summary += (
-            f"; best {e.metric} {float(best['metric']):.4g} at {best['steps']} steps on seeds {e.seeds}"
-        )
-    print(summary)
+    print(summary(folder, time.perf_counter() - started))
     return 0
+
+
+def summary(folder: Path, seconds: float) -> str:
+    """One line: the run's steps and time, and the model it kept as ``best/`` with the step and the
+    evaluation that chose it (``best/evaluation.yaml``)."""
+    with (folder / "curve.csv").open() as handle:
+        steps = list(csv.DictReader(handle))[-1]["steps"]
+    line = f"{folder}: {steps} steps in {seconds:.0f} s"
+    kept = folder / "best" / "evaluation.yaml"
+    if not kept.is_file():
+        return line + "; no trained model was evaluated, final/ only"
+    best = load_yaml(kept)
+    chosen = f"{best['metric']} {best['value']:.4g} at {best['steps']} steps on seeds {best['seeds']}"
+    return f"{line}; kept best/: {chosen}"

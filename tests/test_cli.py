@@ -152,3 +152,67 @@ def test_python_m_quad_wrench_env_runs_the_command_line():
     )
     assert done.returncode == 0, done.stderr
     assert done.stdout.startswith("usage: python -m quad_wrench_env") and "reproduce" in done.stdout
+
+
+TRAIN_CONFIG = str(Path(__file__).resolve().parent.parent / "configs" / "train_fan_tracking.yaml")
+
+
+@pytest.mark.parametrize(
+    ("argv", "files", "message"),
+    [
+        (["--set", "env.estimator=kalman"], {}, "unknown estimator 'kalman'"),
+        (["--set", "env.foo=1"], {}, "'foo'"),
+        (["--set", "evaluation.env.foo=2"], {}, "'foo'"),
+        (["--set", "hyperparameters.n_step=32"], {}, "hyperparameters ['n_step'] are not PPO's"),
+        (["--set", "hyperparameters.n_steps=abc"], {}, "'n_steps': 'abc'"),
+        (["--set", "env_id=QuadWrench/FanTracking-v9"], {}, "env_id='QuadWrench/FanTracking-v9'"),
+        (["--set", "evaluation.metric=nope"], {}, "evaluation.metric='nope'; allowed"),
+        (["v.yaml"], {"v.yaml": "env: {vehicle: ardrone3}\n"}, "unknown vehicle preset 'ardrone3'"),
+        (["bad.yaml"], {"bad.yaml": "env_id: [a\n  b: c\n"}, "is not valid YAML at line 2"),
+        ([], {"run/kept.txt": ""}, "run folder 'run' is not empty"),
+    ],
+)
+def test_train_refuses_bad_input_before_anything_runs(argv, files, message, capsys, tmp_path, monkeypatch):
+    """Exit code 2 and one line naming the value, no traceback, and no run folder left behind: the
+    env settings, the hyperparameters and the evaluation are checked before the run starts."""
+    monkeypatch.chdir(tmp_path)
+    for name, text in files.items():
+        Path(name).parent.mkdir(parents=True, exist_ok=True)
+        Path(name).write_text(text)
+    config = [] if argv and argv[0].endswith(".yaml") else [TRAIN_CONFIG]
+    with pytest.raises(SystemExit) as exit_:
+        main(["train", *config, *argv, "--run-dir", "run", "--no-progress"])
+    err = capsys.readouterr().err
+    assert exit_.value.code == 2
+    assert "error: " in err and message in err, err
+    assert "Traceback" not in err
+    expected = ["kept.txt"] if "run/kept.txt" in files else []  # a refused run writes nothing
+    assert sorted(p.name for p in Path("run").glob("*")) == expected
+
+
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (
+            ["evaluate", "admittance", "QuadWrench/DisturbanceRejection-v0", "--seeds", "0"],
+            "action_type='velocity'",
+        ),
+        (["evaluate", "ppo_fan_tracking", "QuadWrench/ForceExertion-v0", "--seeds", "0"], "shape (25,)"),
+        (["demo", "--config", "bad.yaml"], "is not valid YAML"),
+        (["sweep", "sweep.yaml", "--address", "auto", "--folder", "sweep"], "address='auto'"),
+    ],
+)
+def test_an_agent_the_env_refuses_and_a_missing_cluster_exit_with_code_2(
+    argv, message, capsys, tmp_path, monkeypatch
+):
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.delenv("RAY_ADDRESS", raising=False)
+    Path("bad.yaml").write_text("cases: [a\n  b: c\n")
+    Path("sweep.yaml").write_text(f"base: {TRAIN_CONFIG}\nspace: {{seed: {{grid: [0, 1]}}}}\nsearch: grid\n")
+    with pytest.raises(SystemExit) as exit_:
+        main(argv)
+    err = capsys.readouterr().err
+    assert exit_.value.code == 2
+    assert "error: " in err and message in err, err
+    assert "Traceback" not in err
+    assert not Path("sweep").exists()

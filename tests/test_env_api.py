@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import pickle
+import sys
 import warnings
 
 import gymnasium as gym
@@ -12,7 +13,8 @@ import pytest
 from gymnasium.utils.env_checker import check_env as gym_check_env
 from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
-from quad_wrench_env.envs.base import clip_actions
+from quad_wrench_env.envs.base import QuadWrenchEnv, clip_actions, declared_render_modes
+from quad_wrench_env.tasks import TASKS
 from tests.conftest import FAN_TRACKING
 
 
@@ -194,9 +196,14 @@ def test_env_pickles(make_env):
 
 
 def test_human_render_without_a_display_is_refused_clearly(monkeypatch):
+    """Headless, ``human`` is not declared (Gymnasium's ``make`` would then wrap ``rgb_array`` in its
+    own window); the env asked for it directly says why it cannot open one."""
     monkeypatch.delenv("DISPLAY", raising=False)
+    probe = gym.make(FAN_TRACKING)
+    env_class = type(probe.unwrapped)
+    probe.close()
     with pytest.raises(RuntimeError, match="DISPLAY is unset"):
-        gym.make(FAN_TRACKING, render_mode="human")
+        env_class(render_mode="human")
 
 
 def test_rgb_array_render_shows_a_scene(make_env):
@@ -233,3 +240,26 @@ def test_an_estimator_bank_swapped_in_mid_episode_is_the_one_stepped():
         assert fleet.estimator.calls == fleet.substeps
     finally:
         env.close()
+
+
+@pytest.mark.parametrize("env_id", [task.env_id for task in TASKS])
+def test_gymnasiums_own_checker_passes_on_a_headless_machine(env_id, monkeypatch):
+    """``check_env`` makes the env in every declared render mode: ``human`` is declared only where a
+    window can open, so the check passes with no display."""
+    monkeypatch.delenv("DISPLAY", raising=False)
+    assert "human" not in declared_render_modes() or not sys.platform.startswith("linux")
+    monkeypatch.setitem(QuadWrenchEnv.metadata, "render_modes", declared_render_modes())
+    env = gym.make(env_id)
+    try:
+        gym_check_env(env.unwrapped, skip_render_check=False)
+    finally:
+        env.close()
+
+
+def test_render_after_close_and_options_that_are_no_dict_are_refused_clearly(make_env):
+    env = make_env(render_mode="rgb_array")
+    with pytest.raises(ValueError, match=r"options=\['static'\] must be a dict of reset options"):
+        env.reset(seed=0, options=["static"])
+    env.close()
+    with pytest.raises(RuntimeError, match="is closed"):
+        env.render()

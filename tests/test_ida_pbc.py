@@ -7,6 +7,7 @@ import dataclasses
 import math
 from types import SimpleNamespace
 
+import gymnasium as gym
 import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
@@ -408,3 +409,23 @@ def test_target_force_block_drives_the_force_mode():
     policy.reset(env)
     policy.act(observation[: layout["last_action"].stop])
     np.testing.assert_allclose(policy.last["f_star"], (0.3, 0.0, 0.0))
+
+
+def test_with_no_set_named_it_flies_the_tasks_default_set(make_env):
+    """``configs/ida_pbc.yaml``'s ``task_defaults``: QC4 on ForceExertion (the default set crashes
+    under the ceiling there), the ``default`` set on other tasks; a named set is kept everywhere."""
+    pressing = gym.make("QuadWrench/ForceExertion-v0")
+    try:
+        pressing.reset(seed=0)
+        policy = IDAPBCPolicy()
+        policy.reset(pressing)
+        assert policy.params == load_param_set("QC4")
+        named = IDAPBCPolicy("QC2")
+        named.reset(pressing)
+        assert named.params == load_param_set("QC2")
+    finally:
+        pressing.close()
+    elsewhere = make_env(**_env_kwargs())
+    elsewhere.reset(seed=0)
+    policy.reset(elsewhere)
+    assert policy.params == load_param_set()

@@ -12,7 +12,8 @@ from stable_baselines3 import PPO
 
 from agents import SHIPPED, make_agent, shipped_agents
 from agents.evaluate import evaluate
-from agents.sb3 import SB3Policy, TrainConfig, load_policy, train
+from agents.sb3 import SB3Policy, TrainConfig, TrainingConfigError, load_policy, train
+from quad_wrench_cli.train import summary
 from quad_wrench_env.config import build, load_yaml
 from quad_wrench_env.envs.sb3_vec_env import SB3VecEnv
 from tests.conftest import FAN_TRACKING
@@ -72,7 +73,7 @@ def test_config_to_run_folder_to_reloaded_agent_to_evaluation(tmp_path, algorith
 def test_a_run_resumes_from_its_newest_model_and_keeps_its_best(tmp_path):
     values = {**SMALL, "total_steps": 1024, "hyperparameters": HYPERPARAMETERS["ppo"]}
     folder = train(build(TrainConfig, values), tmp_path / "run", progress=False)
-    with pytest.raises(FileExistsError, match="not empty"):
+    with pytest.raises(TrainingConfigError, match="not empty"):
         train(build(TrainConfig, values), folder, progress=False)
     before = _curve(folder)
     best_before = min(float(r["metric"]) for r in before if int(r["steps"]) > 4)
@@ -101,6 +102,11 @@ def test_an_untrained_policy_is_never_kept_and_unnormalised_runs_work(tmp_path):
     assert int(first["steps"]) == 4  # the evaluation of the untrained policy, at the first step ...
     best = PPO.load(folder / "best" / "model.zip")
     assert best.num_timesteps > 4  # ... is never the kept one, even where it scored best
+    kept = load_yaml(folder / "best" / "evaluation.yaml")  # what the summary names: the kept model
+    assert kept["steps"] == best.num_timesteps
+    assert f"kept best/: mean_abs_error_after_5s {kept['value']:.4g} at {kept['steps']} steps" in summary(
+        folder, 1.0
+    )
     policy = load_policy(folder)
     assert policy.scaling is None and not (folder / "best" / "scaling.npz").exists()
 

@@ -18,6 +18,8 @@ Lifecycle: ``step`` or ``reset`` after ``close()`` raise an error that says the 
 from __future__ import annotations
 
 import math
+import os
+import sys
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any, ClassVar
@@ -70,9 +72,23 @@ def build_fleet(task_class: type[Task], cfg: Any, count: int, gui: bool = False)
     return task, Fleet(cfg, vehicle, count, components, layout, gui=gui)
 
 
+RENDER_MODES = ("human", "rgb_array")
+"""What the single env draws: ``human`` opens a PyBullet window (it needs a display), ``rgb_array``
+returns frames."""
+
+
+def declared_render_modes() -> list[str]:
+    """The render modes ``metadata`` declares: ``human`` only where a window can open (on Linux, with
+    ``DISPLAY`` set when the package is imported), so that Gymnasium's ``check_env``, which makes the
+    env in every declared mode, passes on a headless machine. Asked for without a display, ``human``
+    is refused with a message saying why."""
+    headless = sys.platform.startswith("linux") and not os.environ.get("DISPLAY")
+    return ["rgb_array"] if headless else list(RENDER_MODES)
+
+
 def closed_error(env: object) -> RuntimeError:
     return RuntimeError(
-        f"{type(env).__name__} is closed: make a new env instead of reset() or step() after close()"
+        f"{type(env).__name__} is closed: make a new env instead of reset(), step() or render() after close()"
     )
 
 
@@ -84,6 +100,10 @@ def build_config(
 
 
 def check_options(options: Mapping[str, Any] | None, allowed: tuple[str, ...]) -> dict[str, Any]:
+    if options is not None and not isinstance(options, Mapping):
+        raise ValueError(
+            f"options={options!r} must be a dict of reset options; allowed keys: {list(allowed)}"
+        )
     options = dict(options or {})
     unknown = sorted(set(options) - set(allowed))
     if unknown:
@@ -131,7 +151,7 @@ class QuadWrenchEnv(gym.Env, EzPickle):
     """One vehicle flying the task :attr:`task_class` (its module docstring has the observation, action
     and reward tables)."""
 
-    metadata: ClassVar[dict[str, Any]] = {"render_modes": ["human", "rgb_array"], "render_fps": 50}
+    metadata: ClassVar[dict[str, Any]] = {"render_modes": declared_render_modes(), "render_fps": 50}
     task_class: ClassVar[type[Task]]
 
     def __init__(
@@ -141,8 +161,8 @@ class QuadWrenchEnv(gym.Env, EzPickle):
         **overrides: Any,
     ) -> None:
         EzPickle.__init__(self, config=config, render_mode=render_mode, **overrides)
-        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise ValueError(f"unknown render_mode {render_mode!r}; allowed: {self.metadata['render_modes']}")
+        if render_mode is not None and render_mode not in RENDER_MODES:
+            raise ValueError(f"unknown render_mode {render_mode!r}; allowed: {list(RENDER_MODES)}")
         self.render_mode = render_mode
         self.cfg = build_config(self.task_class.config_class, config, overrides)
         cfg = self.cfg
@@ -226,6 +246,8 @@ class QuadWrenchEnv(gym.Env, EzPickle):
         return observations(fleet, self.task, a)[0], float(sum(terms.values())), terminated, truncated, info
 
     def render(self) -> np.ndarray | None:
+        if self._closed:
+            raise closed_error(self)
         if self.render_mode is None:
             gym.logger.warn("render() called without a render_mode; pass render_mode= to gym.make")
             return None
