@@ -308,51 +308,66 @@ def _commit() -> str:
     return head + ("+dirty" if dirty else "")
 
 
+def training_env(config: TrainConfig) -> tuple[Any, VecNormalize]:
+    """The training path: the task's vector env of ``num_envs`` vehicles behind ``SB3VecEnv`` (its
+    step's numbers as arrays, no per-vehicle infos), ``VecMonitor`` and ``VecNormalize`` as the config
+    says, seeded with ``config.seed``; returns the adapter and the outermost env."""
+    from stable_baselines3.common.vec_env import VecMonitor
+
+    from quad_wrench_env.envs.sb3_vec_env import SB3VecEnv
+
+    venv = gym.make_vec(
+        config.env_id, num_envs=config.num_envs, vectorization_mode="vector_entry_point", **config.env
+    )
+    adapter = SB3VecEnv(venv, step_infos=False)
+    env = VecNormalize(
+        VecMonitor(adapter),
+        norm_obs=config.normalize_observations,
+        norm_reward=config.normalize_rewards,
+        clip_obs=config.clip_observations,
+        gamma=config.hyperparameters.get("gamma", 0.99),
+    )
+    env.seed(config.seed)
+    return adapter, env
+
+
+def new_model(config: TrainConfig, env: Any, tensorboard_log: str | None = None) -> BaseAlgorithm:
+    """The config's untrained SB3 model on ``env`` (CPU, its network, seed and hyperparameters)."""
+    import torch
+
+    activation = {"tanh": torch.nn.Tanh, "relu": torch.nn.ReLU}[config.activation]
+    policy_kwargs = {"net_arch": list(config.net_arch), "activation_fn": activation}
+    if config.algorithm == "ppo":
+        policy_kwargs["log_std_init"] = config.log_std_init
+    return _algorithm(config.algorithm)(
+        "MlpPolicy", env, seed=config.seed, device="cpu", verbose=0, policy_kwargs=policy_kwargs,
+        tensorboard_log=tensorboard_log, **config.hyperparameters,
+    )  # fmt: skip
+
+
 def train(config: TrainConfig, folder: str | Path, resume: bool = False, progress: bool = True) -> Path:
     """Train per ``config`` into the run ``folder``: ``config.yaml`` and ``commit.txt`` (what ran),
     ``checkpoints/``, ``best/`` and ``final/`` (each a ``model.zip`` with its ``scaling.npz`` and
     ``vecnormalize.pkl``), ``curve.csv`` (steps, wall seconds, evaluation metric, mean training
     return) and ``tensorboard/``. ``resume`` continues from the folder's last checkpoint."""
-    import gymnasium as gym
     import torch
     from stable_baselines3.common.callbacks import BaseCallback
-    from stable_baselines3.common.vec_env import VecMonitor
 
     import quad_wrench_env  # noqa: F401  (registers the env ids)
     from agents.evaluate import evaluate
-    from quad_wrench_env.envs.sb3_vec_env import SB3VecEnv
 
     folder = Path(folder)
     check_training(config, folder, resume)
     torch.set_num_threads(config.threads)
-    venv = gym.make_vec(
-        config.env_id, num_envs=config.num_envs, vectorization_mode="vector_entry_point", **config.env
-    )
-    env: Any = VecMonitor(SB3VecEnv(venv))
-    algorithm = _algorithm(config.algorithm)
+    adapter, env = training_env(config)  # the adapter's arrays are read by Loop below
     start_steps = 0
     if resume:
         last = _latest_snapshot(folder)
-        env = VecNormalize.load(str(last / "vecnormalize.pkl"), env)
-        model = algorithm.load(last / "model.zip", env=env, device="cpu")
+        env = VecNormalize.load(str(last / "vecnormalize.pkl"), env.venv)
+        model = _algorithm(config.algorithm).load(last / "model.zip", env=env, device="cpu")
         start_steps = model.num_timesteps
     else:
-        env = VecNormalize(
-            env,
-            norm_obs=config.normalize_observations,
-            norm_reward=config.normalize_rewards,
-            clip_obs=config.clip_observations,
-            gamma=config.hyperparameters.get("gamma", 0.99),
-        )
-        env.seed(config.seed)
-        activation = {"tanh": torch.nn.Tanh, "relu": torch.nn.ReLU}[config.activation]
-        policy_kwargs = {"net_arch": list(config.net_arch), "activation_fn": activation}
-        if config.algorithm == "ppo":
-            policy_kwargs["log_std_init"] = config.log_std_init
-        model = algorithm(
-            "MlpPolicy", env, seed=config.seed, device="cpu", verbose=0, policy_kwargs=policy_kwargs,
-            tensorboard_log=str(folder / "tensorboard"), **config.hyperparameters,
-        )  # fmt: skip
+        model = new_model(config, env, tensorboard_log=str(folder / "tensorboard"))
         folder.mkdir(parents=True, exist_ok=True)
     (folder / "config.yaml").write_text(yaml.safe_dump(dataclasses.asdict(config), sort_keys=False))
     (folder / "commit.txt").write_text(_commit() + "\n")
@@ -399,13 +414,13 @@ def train(config: TrainConfig, folder: str | Path, resume: bool = False, progres
             self.count = 0
 
         def _on_step(self) -> bool:
-            for info in self.locals["infos"]:
-                for key, value in info.items():
-                    if isinstance(value, float) and key != "TimeLimit.truncated":
-                        self.sums[f"task/{key}_abs"] = self.sums.get(f"task/{key}_abs", 0.0) + abs(value)
-                for key, value in info.get("reward_terms", {}).items():
-                    self.sums[f"reward/{key}"] = self.sums.get(f"reward/{key}", 0.0) + value
-            self.count += len(self.locals["infos"])
+            for key, values in adapter.task_entries.items():
+                self.sums[f"task/{key}_abs"] = self.sums.get(f"task/{key}_abs", 0.0) + float(
+                    np.abs(values).sum()
+                )
+            for key, values in adapter.reward_terms.items():
+                self.sums[f"reward/{key}"] = self.sums.get(f"reward/{key}", 0.0) + float(np.sum(values))
+            self.count += adapter.num_envs
             if self.num_timesteps >= self.next_eval:
                 self.evaluate()
             if self.num_timesteps >= self.next_checkpoint:

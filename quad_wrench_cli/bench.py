@@ -3,6 +3,7 @@
     quad-wrench bench [--steps 2000] [--repeats 3] [--soak-minutes 60]
                       [--peers [--gym-pybullet-drones PATH] [--peers-dir DIR]]
     quad-wrench bench --estimators [--steps 4000] [--repeats 5]
+    quad-wrench bench --training [--config configs/train_fan_tracking.yaml] [--steps N] [--repeats 5]
 
 
 Tables printed (all measured in this run, best of ``--repeats`` for timings):
@@ -29,7 +30,8 @@ Tables printed (all measured in this run, best of ``--repeats`` for timings):
    checkout of its source (it is not on the package index). A peer that cannot be installed or run is
    reported as skipped, with the reason.
 
-``--estimators`` times the wrench estimators instead (:mod:`quad_wrench_cli.bench_estimators`).
+``--estimators`` times the wrench estimators instead (:mod:`quad_wrench_cli.bench_estimators`),
+``--training`` the training path and a short learning run (:mod:`quad_wrench_cli.bench_training`).
 """
 
 from __future__ import annotations
@@ -43,8 +45,8 @@ import gymnasium as gym
 from rich.console import Console
 
 from agents import make_agent
-from quad_wrench_cli import bench_estimators
-from quad_wrench_cli.common import UsageError, markdown_table, show
+from quad_wrench_cli import bench_estimators, bench_training
+from quad_wrench_cli.common import UsageError, add_config_argument, load_config, markdown_table, show
 from quad_wrench_cli.peers import download_summary, jobs, missing, peers
 from quad_wrench_env.bench import (
     FLOORS,
@@ -55,6 +57,7 @@ from quad_wrench_env.bench import (
     paired_step_seconds,
     vector_step_seconds,
 )
+from quad_wrench_env.config import config_path
 from quad_wrench_env.estimators import ESTIMATORS
 from quad_wrench_env.kernels import NUMBA_AVAILABLE
 
@@ -201,6 +204,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--estimators", action="store_true", help="time the wrench estimators instead (µs per estimator step)"
     )
     parser.add_argument(
+        "--training",
+        action="store_true",
+        help="time the training path instead: its wrappers against the vector env and a short learning run",
+    )
+    add_config_argument(parser, "train_fan_tracking.yaml")
+    parser.add_argument(
         "--peers",
         action="store_true",
         help="also time the peer simulators, installing them on first use (the download size is said first)",
@@ -234,6 +243,14 @@ def run(args: argparse.Namespace) -> int:
         raise UsageError("--gym-pybullet-drones times a peer: add --peers")
     if args.gym_pybullet_drones and not Path(args.gym_pybullet_drones).is_dir():
         raise UsageError(f"--gym-pybullet-drones {args.gym_pybullet_drones!r} is not a folder")
+    if args.config and not args.training:
+        raise UsageError("--config names a training config: add --training")
+    if args.training:
+        load_config(args.config, "train_fan_tracking.yaml")  # a missing or invalid file: exit 2
+        bench_training.report(
+            args.config or config_path("train_fan_tracking.yaml"), args.steps, args.repeats or REPEATS
+        )
+        return 0
     if args.estimators:
         bench_estimators.report(
             args.steps or bench_estimators.STEPS, args.repeats or bench_estimators.REPEATS

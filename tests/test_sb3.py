@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import csv
 import math
+from functools import partial
 
 import gymnasium as gym
 import numpy as np
@@ -168,23 +169,52 @@ def test_a_bare_sb3_model_is_evaluated_like_any_agent():
     assert result.per_seed[0]["episode_seconds"] > 0
 
 
-def test_sb3_vec_env_forwards_reward_terms_and_task_entries_every_step():
-    venv = gym.make_vec(
-        FAN_TRACKING, num_envs=3, vectorization_mode="vector_entry_point", episode_seconds=0.1
+def _lockstep(step_infos: bool):
+    """An ``SB3VecEnv`` and the raw vector env of the same seeds, stepped alike (zero actions) across
+    an episode end: (SB3's step, the raw step) per step."""
+    make = partial(
+        gym.make_vec, FAN_TRACKING, num_envs=3, vectorization_mode="vector_entry_point", episode_seconds=0.1
     )
-    env = SB3VecEnv(venv)
+    env, raw = SB3VecEnv(make(), step_infos=step_infos), make()
     try:
+        env.seed(0)
         env.reset()
+        raw.reset(seed=0)
         for _ in range(6):  # an episode is 5 steps: the fifth ends all three and restarts them
-            _, rewards, dones, infos = env.step(np.zeros((3, 4)))
-            for i, info in enumerate(infos):
-                assert sum(info["reward_terms"].values()) == pytest.approx(rewards[i], rel=1e-6)
-                assert set(info["reward_terms"]) == {"tracking", "standoff", "effort", "crash"}
-                assert math.isfinite(info["axis_error"]) and math.isfinite(info["standoff_error"])
-                if dones[i]:  # the ended episode's numbers, not the new one's
-                    assert info["axis_error"] == info["final_info"]["axis_error"]
+            yield env, env.step(np.zeros((3, 4))), raw.step(np.zeros((3, 4)))
     finally:
         env.close()
+        raw.close()
+
+
+def test_sb3_vec_env_forwards_reward_terms_and_task_entries_every_step():
+    """Each ``infos[i]`` holds the step's reward terms and the task's numbers (an ended episode's own
+    numbers, from the vector env's ``final_info``), and SB3's terminal observation and time-out flag."""
+    for _, (obs, rewards, dones, infos), (raw_obs, raw_rewards, terminated, truncated, info) in _lockstep(
+        True
+    ):
+        np.testing.assert_array_equal(obs, raw_obs)
+        np.testing.assert_allclose(rewards, raw_rewards, rtol=1e-6)
+        np.testing.assert_array_equal(dones, terminated | truncated)
+        source = info["final_info"] if dones.any() else info
+        for i, entry in enumerate(infos):
+            assert sum(entry["reward_terms"].values()) == pytest.approx(rewards[i], rel=1e-6)
+            assert set(entry["reward_terms"]) == {"tracking", "standoff", "effort", "crash"}
+            assert entry["axis_error"] == source["axis_error"][i]
+            if dones[i]:
+                np.testing.assert_array_equal(entry["terminal_observation"], info["final_obs"][i])
+                assert entry["TimeLimit.truncated"] == (truncated[i] and not terminated[i])
+
+
+def test_sb3_vec_env_without_step_infos_keeps_the_numbers_as_arrays():
+    """``step_infos=False`` (training): ``infos[i]`` holds only what SB3 reads, the same numbers are
+    arrays over vehicles."""
+    for env, (_, rewards, dones, infos), (_, _, _, _, info) in _lockstep(False):
+        source = info["final_info"] if dones.any() else info
+        np.testing.assert_allclose(sum(env.reward_terms.values()), rewards, rtol=1e-6)
+        np.testing.assert_array_equal(env.task_entries["axis_error"], source["axis_error"])
+        for i, entry in enumerate(infos):
+            assert set(entry) == ({"terminal_observation", "TimeLimit.truncated"} if dones[i] else set())
 
 
 def test_the_train_command_refuses_an_unknown_key_with_exit_code_2():

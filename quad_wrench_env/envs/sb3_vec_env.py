@@ -28,9 +28,16 @@ from quad_wrench_env.envs.vector import QuadWrenchVectorEnv
 
 
 class SB3VecEnv(VecEnv):
-    """A :class:`QuadWrenchVectorEnv` seen through stable-baselines3's ``VecEnv`` interface."""
+    """A :class:`QuadWrenchVectorEnv` seen through stable-baselines3's ``VecEnv`` interface.
 
-    def __init__(self, venv: gym.vector.VectorEnv) -> None:
+    ``step_infos=True`` (default) puts each step's ``reward_terms`` and the task's scalar entries
+    (e.g. ``axis_error``; for a vehicle whose episode ended, the ended episode's) into every
+    ``infos[i]``, for a callback of the user's. ``False`` leaves ``infos[i]`` empty but for what SB3
+    reads (``terminal_observation`` and ``TimeLimit.truncated`` where an episode ended) and keeps the
+    same numbers as arrays over vehicles in :attr:`reward_terms` and :attr:`task_entries`: what
+    ``quad-wrench train`` logs, with no per-vehicle Python objects on the training path."""
+
+    def __init__(self, venv: gym.vector.VectorEnv, step_infos: bool = True) -> None:
         unwrapped = venv.unwrapped
         if not isinstance(unwrapped, QuadWrenchVectorEnv):
             raise ValueError(
@@ -41,10 +48,12 @@ class SB3VecEnv(VecEnv):
         super().__init__(
             unwrapped.num_envs, unwrapped.single_observation_space, unwrapped.single_action_space
         )
+        self.step_infos = step_infos
         self._actions: np.ndarray | None = None
-        self._scalar_keys: tuple[str, ...] | None = None
-        """The task's ``info`` entries that are one number per vehicle, forwarded every step (found
-        at the first step)."""
+        self.reward_terms: dict[str, np.ndarray] = {}
+        """The last step's reward terms, (N,) each."""
+        self.task_entries: dict[str, np.ndarray] = {}
+        """The last step's task entries that are one number per vehicle, (N,) each (before restarts)."""
 
     def reset(self) -> np.ndarray:
         options = [opts or None for opts in self._options]
@@ -58,35 +67,26 @@ class SB3VecEnv(VecEnv):
         self._actions = np.asarray(actions)
 
     def step_wait(self) -> VecEnvStepReturn:
-        obs, rewards, terminated, truncated, info = self.venv.step(self._actions)
-        dones = terminated | truncated
-        infos = self._step_infos(info, dones)
-        for i in range(self.num_envs):
-            infos[i]["TimeLimit.truncated"] = bool(truncated[i] and not terminated[i])
-        if np.any(dones):
-            final = self._split(info["final_info"], dones)
-            for i in np.flatnonzero(dones).tolist():
-                infos[i]["terminal_observation"] = info["final_obs"][i]
-                infos[i]["final_info"] = final[i]
-        return obs, rewards.astype(np.float32), dones, infos
+        step = self.venv.step_arrays(self._actions)
+        self.reward_terms = step.reward_terms
+        self.task_entries = {k: v for k, v in step.task_entries.items() if np.ndim(v) == 1}
+        dones = step.terminated | step.truncated
+        infos = self._step_infos() if self.step_infos else [{} for _ in range(self.num_envs)]
+        for i in np.flatnonzero(dones).tolist():
+            infos[i]["terminal_observation"] = step.final_observations[i]
+            infos[i]["TimeLimit.truncated"] = bool(step.truncated[i] and not step.terminated[i])
+        return step.observations, step.rewards.astype(np.float32), dones, infos
 
-    def _step_infos(self, info: dict[str, Any], dones: np.ndarray) -> list[dict[str, Any]]:
-        """Per vehicle: this step's reward terms and the task's scalar entries. The vector env's
-        ``final_info`` holds every vehicle's entries from before the restarts (the ended episodes'
-        last step, the others' now), and its reward-term arrays cover every vehicle."""
-        source = info["final_info"] if np.any(dones) else info
-        if self._scalar_keys is None:
-            task_keys = self.venv.task.info(self.venv.fleet)
-            self._scalar_keys = tuple(k for k, v in task_keys.items() if np.ndim(v) == 1)
-        terms = info["reward_terms"]
-        names = [name for name in terms if not name.startswith("_")]
-        columns = [np.asarray(source[k], dtype=float) for k in self._scalar_keys]
-        columns += [np.asarray(terms[name], dtype=float) for name in names]
-        split = len(self._scalar_keys)
+    def _step_infos(self) -> list[dict[str, Any]]:
+        """Per vehicle: this step's reward terms and the task's scalar entries."""
+        names = list(self.reward_terms)
+        keys = list(self.task_entries)
+        columns = [np.asarray(self.task_entries[k], dtype=float) for k in keys]
+        columns += [np.asarray(self.reward_terms[name], dtype=float) for name in names]
         out = []
         for row in np.column_stack(columns).tolist():
-            entry: dict[str, Any] = dict(zip(self._scalar_keys, row[:split], strict=True))
-            entry["reward_terms"] = dict(zip(names, row[split:], strict=True))
+            entry: dict[str, Any] = dict(zip(keys, row[: len(keys)], strict=True))
+            entry["reward_terms"] = dict(zip(names, row[len(keys) :], strict=True))
             out.append(entry)
         return out
 

@@ -18,6 +18,7 @@ in ``final_info``. The vector env does not render: make a single env to watch a 
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, ClassVar
 
@@ -48,6 +49,22 @@ def _masked(entries: Mapping[str, Any], mask: np.ndarray) -> dict[str, Any]:
         info[key] = _masked(value, mask) if isinstance(value, Mapping) else value
         info[f"_{key}"] = mask.copy()
     return info
+
+
+@dataclass(frozen=True)
+class Transition:
+    """One step of every vehicle as arrays over vehicles (:meth:`QuadWrenchVectorEnv.step_arrays`)."""
+
+    observations: np.ndarray
+    """(N, width): where an episode ended, the next one's first observation."""
+    final_observations: np.ndarray
+    """(N, width): every vehicle's observation after the step, before any restart."""
+    rewards: np.ndarray
+    terminated: np.ndarray
+    truncated: np.ndarray
+    reward_terms: dict[str, np.ndarray]
+    task_entries: dict[str, Any]
+    """The task's ``info`` entries of the step, before the restarts."""
 
 
 class QuadWrenchVectorEnv(VectorEnv):
@@ -129,21 +146,7 @@ class QuadWrenchVectorEnv(VectorEnv):
     def step(
         self, actions: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
-        if self._closed:
-            raise closed_error(self)
-        if not self._started:
-            raise RuntimeError("call reset() before step()")
-        a = clip_actions(actions, (self.num_envs, 4))
-        fleet = self.fleet
-        fleet.step(a)
-        self._steps += 1
-        self._last_actions = a
-        codes = termination_codes(fleet, self.task)
-        terminated = codes > 0
-        terms = self.task.reward_terms(fleet, a, terminated)
-        rewards = np.sum(list(terms.values()), axis=0)
-        truncated = ~terminated & (self._steps >= self.max_steps)
-        step_observations = observations(fleet, self.task, a)
+        step_observations, rewards, terminated, truncated, terms, codes = self._advance(actions)
         reasons = self.termination_reasons
         step_entries = {
             **self._infos(),
@@ -160,14 +163,25 @@ class QuadWrenchVectorEnv(VectorEnv):
         final_obs = np.full(self.num_envs, None, dtype=object)
         for i in np.flatnonzero(done).tolist():
             final_obs[i] = step_observations[i]
-            self._start(i, {})
-        fleet.refresh(np.flatnonzero(done))
+        next_observations = self._restart_ended(done)
         info = _masked(self._infos(), np.ones(self.num_envs, bool))
         info.update({k: v for k, v in _masked(step_entries, ~done).items() if "reward_terms" in k})
         info["termination_reason"] = step_entries["termination_reason"]
         info["_termination_reason"] = np.zeros(self.num_envs, bool)
         info.update(final_obs=final_obs, _final_obs=done, final_info=final_info, _final_info=done)
-        return observations(fleet, self.task, self._last_actions), rewards, terminated, truncated, info
+        return next_observations, rewards, terminated, truncated, info
+
+    def step_arrays(self, actions: np.ndarray) -> Transition:
+        """:meth:`step` without Gymnasium's ``info``: the same episodes, numbers and restarts, as
+        arrays over vehicles (what training reads: ``SB3VecEnv``), with no per-vehicle objects and no
+        copies of the fleet's state."""
+        step_observations, rewards, terminated, truncated, terms, _ = self._advance(actions)
+        entries = self.task.info(self.fleet)  # the ended episodes' numbers: before the restarts
+        done = terminated | truncated
+        next_observations = self._restart_ended(done) if np.any(done) else step_observations
+        return Transition(
+            next_observations, step_observations, rewards, terminated, truncated, terms, entries
+        )
 
     def close_extras(self, **kwargs: Any) -> None:
         """Release the PyBullet client; safe to call more than once."""
@@ -175,6 +189,34 @@ class QuadWrenchVectorEnv(VectorEnv):
         self.fleet.close()
 
     # -- helpers -----------------------------------------------------------------------------------
+    def _advance(
+        self, actions: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, np.ndarray], np.ndarray]:
+        """One policy step of every vehicle: observations, rewards, terminated, truncated, the reward
+        terms and the termination codes, before any restart."""
+        if self._closed:
+            raise closed_error(self)
+        if not self._started:
+            raise RuntimeError("call reset() before step()")
+        a = clip_actions(actions, (self.num_envs, 4))
+        fleet = self.fleet
+        fleet.step(a)
+        self._steps += 1
+        self._last_actions = a
+        codes = termination_codes(fleet, self.task)
+        terminated = codes > 0
+        terms = self.task.reward_terms(fleet, a, terminated)
+        rewards = np.sum(list(terms.values()), axis=0)
+        truncated = ~terminated & (self._steps >= self.max_steps)
+        return observations(fleet, self.task, a), rewards, terminated, truncated, terms, codes
+
+    def _restart_ended(self, done: np.ndarray) -> np.ndarray:
+        """Start the next episode of the vehicles ``done`` (without options); every observation."""
+        for i in np.flatnonzero(done).tolist():
+            self._start(i, {})
+        self.fleet.refresh(np.flatnonzero(done))
+        return observations(self.fleet, self.task, self._last_actions)
+
     def _start(self, index: int, options: Mapping[str, Any]) -> None:
         rng = self._rngs[index]
         position, yaw = self.task.reset_vehicle(index, rng, options)

@@ -1,0 +1,160 @@
+"""Training speed: env steps per second end to end, where the time goes, and the env's own floors.
+
+    quad-wrench bench --training [--config configs/train_fan_tracking.yaml] [--steps N] [--repeats N]
+
+All measured in this run, wall and CPU time (machines are shared: CPU seconds count only this
+process), for the training config's task, vehicles and settings:
+
+1. the training path's wrappers, stepped in alternating blocks on the same random actions, µs per
+   vehicle and policy step: the vector env's Gymnasium ``step`` (with its info), its ``step_arrays``
+   (what training steps), ``SB3VecEnv``, ``+ VecMonitor``, ``+ VecNormalize`` (the training path
+   whole), each with its ratio to ``step_arrays``; and the bare PyBullet floor of as many bodies
+   with the loads of one physics step, times the physics steps of a policy step;
+2. ``--steps`` env steps of the config's algorithm learning on that path: env steps per second (wall
+   and CPU) and the shares of wall time in env stepping (the whole wrapper stack), policy inference
+   and the rest of the rollout (collection minus env stepping), and the updates.
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from quad_wrench_cli.common import markdown_table, show
+from quad_wrench_env.bench import FLOORS, bare_pybullet_step_seconds
+
+BLOCK = 50
+"""Policy steps per timing block of the wrapper comparison."""
+
+
+class _Clock:
+    """Wall and CPU seconds spent inside ``with clock:`` blocks."""
+
+    def __init__(self) -> None:
+        self.wall = self.cpu = 0.0
+
+    def __enter__(self) -> _Clock:
+        self._wall, self._cpu = time.perf_counter(), time.process_time()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.wall += time.perf_counter() - self._wall
+        self.cpu += time.process_time() - self._cpu
+
+
+def wrapper_rows(config: Any, blocks: int) -> list[list[str]]:
+    """Table 1: µs (CPU) per vehicle and policy step of each layer of the training path."""
+    import gymnasium as gym
+    from stable_baselines3.common.vec_env import VecMonitor
+
+    from agents.sb3 import training_env
+    from quad_wrench_env.envs.sb3_vec_env import SB3VecEnv
+
+    def vector() -> Any:
+        return gym.make_vec(
+            config.env_id, num_envs=config.num_envs, vectorization_mode="vector_entry_point", **config.env
+        )
+
+    raw, arrays = vector(), vector()
+    adapter = SB3VecEnv(vector(), step_infos=False)
+    monitored = VecMonitor(SB3VecEnv(vector(), step_infos=False))
+    whole = training_env(config)[1]
+    layers: dict[str, Any] = {
+        "vector env `step` (Gymnasium info)": raw.step,
+        "vector env `step_arrays`": arrays.unwrapped.step_arrays,
+        "+ SB3VecEnv": adapter.step,
+        "+ VecMonitor": monitored.step,
+        "+ VecNormalize (the training path)": whole.step,
+    }
+    raw.reset(seed=config.seed)
+    arrays.reset(seed=config.seed)
+    for env in (adapter, monitored, whole):
+        env.seed(config.seed)
+        env.reset()
+    actions = np.random.default_rng(0).uniform(-0.3, 0.3, (BLOCK, config.num_envs, 4)).astype(np.float32)
+    best = dict.fromkeys(layers, np.inf)
+    for _ in range(blocks):
+        for name, step in layers.items():
+            started = time.process_time()
+            for action in actions:
+                step(action)
+            best[name] = min(best[name], (time.process_time() - started) / (BLOCK * config.num_envs))
+    for env in (raw, arrays, adapter, monitored, whole):
+        env.close()
+    substeps = raw.unwrapped.fleet.substeps
+    world_step = min(
+        bare_pybullet_step_seconds(BLOCK * substeps, bodies=config.num_envs, floor=FLOORS[1])
+        for _ in range(blocks)
+    )
+    floor = world_step * substeps / config.num_envs  # per vehicle and policy step
+    base = best["vector env `step_arrays`"]
+    rows = [[name, f"{seconds * 1e6:.1f}", f"{seconds / base:.3f}"] for name, seconds in best.items()]
+    label = f"bare PyBullet floor: {config.num_envs} bodies, {substeps} physics steps"
+    return [*rows, [label, f"{floor * 1e6:.1f}", f"{floor / base:.3f}"]]
+
+
+def learning_rows(config: Any, steps: int) -> list[list[str]]:
+    """Table 2: the config's algorithm learning ``steps`` env steps on the training path."""
+    import torch
+    from stable_baselines3.common.vec_env import VecEnvWrapper
+
+    from agents.sb3 import new_model, training_env
+
+    class TimedEnv(VecEnvWrapper):
+        """The env the learner sees, timing every step (the whole wrapper stack below it)."""
+
+        def reset(self) -> np.ndarray:
+            return self.venv.reset()
+
+        def step_async(self, actions: np.ndarray) -> None:
+            with env_clock:
+                self.venv.step_async(actions)
+
+        def step_wait(self) -> Any:
+            with env_clock:
+                return self.venv.step_wait()
+
+    torch.set_num_threads(config.threads)
+    env_clock, update_clock, total = _Clock(), _Clock(), _Clock()
+    _, env = training_env(config)
+    model = new_model(config, TimedEnv(env))
+    update = model.train
+
+    def timed_update() -> None:
+        with update_clock:
+            update()
+
+    model.train = timed_update
+    with total:
+        model.learn(steps)
+    env.close()
+    done = model.num_timesteps
+    wall = total.wall
+    inference = wall - update_clock.wall - env_clock.wall
+    return [
+        ["env steps", f"{done}", ""],
+        ["env steps / s", f"{done / total.wall:,.0f} (wall)", f"{done / total.cpu:,.0f} (per CPU-s)"],
+        ["env stepping (the whole wrapper stack)", f"{env_clock.wall:.1f} s", f"{env_clock.wall / wall:.0%}"],
+        ["policy inference, rollout bookkeeping", f"{inference:.1f} s", f"{inference / wall:.0%}"],
+        ["updates", f"{update_clock.wall:.1f} s", f"{update_clock.wall / wall:.0%}"],
+    ]  # fmt: skip
+
+
+def report(config_file: str | Path, steps: int | None, repeats: int) -> None:
+    """Print both tables for the training config ``config_file``."""
+    from agents.sb3 import TrainConfig
+    from quad_wrench_env.config import build, load_yaml
+
+    config = build(TrainConfig, load_yaml(config_file))
+    steps = steps or 4 * config.num_envs * config.hyperparameters.get("n_steps", 64)
+    title = (
+        f"training path of {config_file} ({config.env_id}, {config.num_envs} vehicles, env {config.env}), "
+        f"best of {repeats} blocks of {BLOCK} policy steps, CPU time"
+    )
+    table = markdown_table(["layer", "µs / vehicle step", "x step_arrays"], wrapper_rows(config, repeats))
+    show(f"{title}\n\n{table}\n")
+    title = f"{config.algorithm.upper()} learning {steps} env steps ({config.hyperparameters}), wall time"
+    show(f"{title}\n\n{markdown_table(['what', 'value', 'share'], learning_rows(config, steps))}")
