@@ -441,11 +441,16 @@ MUTATIONS = (
         (
             (
                 "quad_wrench_env/envs/vector.py",
-                "return observations(fleet, self.task, self._last_actions), rewards,",
-                "return step_observations, rewards,",
+                "return next_observations, rewards, terminated, truncated, info",
+                "return step_observations, rewards, terminated, truncated, info",
+            ),
+            (
+                "quad_wrench_env/envs/vector.py",
+                "next_observations, step_observations, rewards, terminated, truncated, terms, entries",
+                "step_observations, step_observations, rewards, terminated, truncated, terms, entries",
             ),
         ),
-        ("tests/test_vector_env.py", "tests/test_reference_task.py"),
+        ("tests/test_vector_env.py", "tests/test_reference_task.py", "tests/test_sb3.py"),
     ),
     Mutation(
         "ground effect measured to z = 0 only",
@@ -475,8 +480,8 @@ MUTATIONS = (
             ),
             (
                 "quad_wrench_env/disturbances/dryden.py",
-                "params[3 + i] * math.sqrt(1.0 - decay * decay) * normals[n, i]",
-                "params[3 + i] * normals[n, i]",
+                "params[i] * math.sqrt(1.0 - decay * decay) * normals[n, i]",
+                "params[i] * normals[n, i]",
             ),
         ),
         ("tests/test_disturbances.py",),
@@ -510,6 +515,165 @@ MUTATIONS = (
             ),
         ),
         ("tests/test_reference_estimators.py", "tests/test_backends.py", "tests/test_fan.py"),
+    ),
+    # -- issue 33: the controllers, the newer tasks' rewards and metrics, the training pipeline ------
+    # (ForceExertion's and DisturbanceRejection's rewards and metrics, the PID, the MPC and the
+    # policy loading have a numpy form only: one edit each)
+    Mutation(
+        "ForceExertion reward's exerted force sign flipped",
+        "rewards",
+        (
+            (
+                "quad_wrench_env/tasks/force_exertion.py",
+                "        return -fleet.contact_force",
+                "        return fleet.contact_force",
+            ),
+        ),
+        ("tests/test_reward_terms_by_hand.py",),
+    ),
+    Mutation(
+        "ForceExertion approach shaping without the discount",
+        "rewards",
+        (
+            (
+                "quad_wrench_env/tasks/force_exertion.py",
+                "approach = r.discount * potential - self.potential",
+                "approach = potential - self.potential",
+            ),
+        ),
+        ("tests/test_reward_terms_by_hand.py",),
+    ),
+    Mutation(
+        "DisturbanceRejection tracking on the horizontal error only",
+        "rewards",
+        (
+            (
+                "quad_wrench_env/tasks/disturbance_rejection.py",
+                "error = np.linalg.norm(fleet.state.position - position, axis=1)",
+                "error = np.linalg.norm((fleet.state.position - position)[:, :2], axis=1)",
+            ),
+        ),
+        ("tests/test_reward_terms_by_hand.py",),
+    ),
+    Mutation(
+        "DisturbanceRejection effort summed, not averaged",
+        "rewards",
+        (
+            (
+                "quad_wrench_env/tasks/disturbance_rejection.py",
+                '"effort": -r.effort_weight * np.mean(actions * actions, axis=1),',
+                '"effort": -r.effort_weight * np.sum(actions * actions, axis=1),',
+            ),
+        ),
+        ("tests/test_reward_terms_by_hand.py",),
+    ),
+    Mutation(
+        "ForceExertion metrics' exerted force sign flipped",
+        "metrics",
+        (
+            (
+                "quad_wrench_env/tasks/force_exertion.py",
+                'exerted = -np.asarray(trace["contact_force"])',
+                'exerted = np.asarray(trace["contact_force"])',
+            ),
+        ),
+        ("tests/test_contacts.py",),
+    ),
+    Mutation(
+        "DisturbanceRejection horizontal deviation measured in 3-D",
+        "metrics",
+        (
+            (
+                "quad_wrench_env/tasks/disturbance_rejection.py",
+                '"max_horizontal_deviation": float(np.max(np.hypot(error[:, 0], error[:, 1]))),',
+                '"max_horizontal_deviation": float(np.max(np.linalg.norm(error, axis=1))),',
+            ),
+        ),
+        ("tests/test_disturbance_rejection.py",),
+    ),
+    Mutation(
+        "PID integral clamps the increment, not the integral",
+        "pid",
+        (
+            (
+                "agents/pid.py",
+                "self._integral = np.clip(self._k_i * error * self._dt + self._integral, -limit, limit)",
+                "self._integral = self._integral + np.clip(self._k_i * error * self._dt, -limit, limit)",
+            ),
+        ),
+        ("tests/test_pid_integral.py",),
+    ),
+    Mutation(
+        "PID reference feed-forward subtracted",
+        "pid",
+        (("agents/pid.py", "            desired += acceleration", "            desired -= acceleration"),),
+        ("tests/test_pid_integral.py",),
+    ),
+    Mutation(
+        "PID bandwidth's integral gain λ³/5",
+        "pid",
+        (
+            (
+                "agents/pid.py",
+                "return bandwidth**2, 2.0 * bandwidth, 0.02 * bandwidth**3",
+                "return bandwidth**2, 2.0 * bandwidth, 0.2 * bandwidth**3",
+            ),
+        ),
+        ("tests/test_pid_integral.py",),
+    ),
+    Mutation(
+        "PID bandwidth not capped by the attitude loop",
+        "pid",
+        (
+            (
+                "agents/pid.py",
+                "self.bandwidth = min(self.gains.bandwidth, attitude_p / 3.0)",
+                "self.bandwidth = self.gains.bandwidth",
+            ),
+        ),
+        ("tests/test_pid_integral.py",),
+    ),
+    Mutation(
+        "MPC derived slack weight 10x smaller",
+        "mpc",
+        (
+            (
+                "agents/mpc.py",
+                "linear = 2.0 * max(g.position_weight[:2]) * g.cross_track_limit * g.terminal_weight",
+                "linear = 0.2 * max(g.position_weight[:2]) * g.cross_track_limit * g.terminal_weight",
+            ),
+        ),
+        ("tests/test_mpc_exact_penalty.py",),
+    ),
+    Mutation(
+        "observation scaling loaded with mean and variance swapped",
+        "training",
+        (
+            (
+                "agents/sb3.py",
+                'return cls(data["mean"], data["var"], float(data["clip"]), float(data["epsilon"]))',
+                'return cls(data["var"], data["mean"], float(data["clip"]), float(data["epsilon"]))',
+            ),
+        ),
+        ("tests/test_observation_scaling.py",),
+    ),
+    Mutation(
+        "a run folder loads its final model before its kept best",
+        "training",
+        (("agents/sb3.py", '    for name in ("best", "final"):', '    for name in ("final", "best"):'),),
+        ("tests/test_observation_scaling.py",),
+    ),
+    Mutation(
+        "the kept model is the worst evaluated, not the best",
+        "training",
+        (
+            (
+                "agents/sb3.py",
+                "if (value < self.best) if e.lower_is_better else (value > self.best):",
+                "if (value > self.best) if e.lower_is_better else (value < self.best):",
+            ),
+        ),
+        ("tests/test_sb3.py",),
     ),
 )
 

@@ -1,0 +1,208 @@
+"""ForceExertion's and DisturbanceRejection's reward terms against hand computations (issue 33), as
+``tests/test_reference_task.py`` does for FanTracking: every expected number is written here from the
+reward tables of ``docs/tasks.md`` (the tasks' docstrings) and the physics, from the ``info`` of real
+env steps (and the vehicle's pose), never by calling the task's own reward code. Each flight runs on
+both backends, ForceExertion on both surfaces and DisturbanceRejection in every scenario, through an
+episode's early end (the crash term) and, for DisturbanceRejection, its truncation (no crash term)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from agents import make_agent
+from quad_wrench_env.kernels import NUMBA_AVAILABLE
+
+FORCE_EXERTION = "QuadWrench/ForceExertion-v0"
+DISTURBANCE_REJECTION = "QuadWrench/DisturbanceRejection-v0"
+BACKENDS = [
+    "numpy",
+    pytest.param("numba", marks=pytest.mark.skipif(not NUMBA_AVAILABLE, reason="numba is not installed")),
+]
+EFFORT_WEIGHT, CRASH_PENALTY = 0.01, 10.0  # both tasks' reward tables
+APPROACH_WEIGHT, DISCOUNT = 10.0, 0.99  # ForceExertion's shaping: Φ = -10·gap, γ = 0.99
+WALL_X, CEILING_HEIGHT, TIP_RADIUS, START_GAP = 4.5, 2.2, 0.015, 0.05  # ForceExertion's room (m)
+NORMALS = {"wall": np.array((1.0, 0.0, 0.0)), "ceiling": np.array((0.0, 0.0, 1.0))}
+"""The normal into each surface: ``f*`` points along it, ``+x`` on the wall, ``+z`` on the ceiling."""
+TARGET = 0.8  # |f*| (N)
+EXACT = {"rel": 1e-9, "abs": 1e-12}  # the same formulas on the same float64 numbers: rounding only
+
+
+def _effort(action: np.ndarray) -> float:
+    """``-effort_weight·mean(a²)`` of the action as clipped to [-1, 1]."""
+    a = np.clip(np.asarray(action, dtype=float), -1.0, 1.0)
+    return -EFFORT_WEIGHT * float(np.mean(a * a))
+
+
+def _check(info: dict, reward: float, expected: dict[str, float]) -> None:
+    assert info["reward_terms"].keys() == expected.keys()
+    for name, value in expected.items():
+        assert info["reward_terms"][name] == pytest.approx(value, **EXACT), name
+    assert reward == pytest.approx(sum(expected.values()), rel=1e-9, abs=1e-12)
+
+
+# -- ForceExertion ------------------------------------------------------------------------------------
+def _gap(env, surface: str) -> float:
+    """The tip's distance (m) to the surface's face, from the vehicle's pose: the tip's centre is
+    ``(arm + rotor_radius + 0.1, 0, hull_height/2 + 0.1)`` in the body frame (0.1 m beyond the hull,
+    ahead and above), its sphere ``TIP_RADIUS``; 0 when touching (a distance is never negative)."""
+    base = env.unwrapped
+    v = base.vehicle
+    offset = np.array((v.arm + v.rotor_radius + 0.1, 0.0, 0.5 * v.hull_height + 0.1))
+    state = base.fleet.state
+    tip = state.position[0] + state.rotation[0] @ offset
+    face = WALL_X if surface == "wall" else CEILING_HEIGHT
+    return max(face - float(tip @ NORMALS[surface]) - TIP_RADIUS, 0.0)
+
+
+def _force_exertion_terms(
+    info: dict, action: np.ndarray, potential_before: float, potential: float, terminated: bool
+) -> dict[str, float]:
+    """The reward table: the tip exerts on the surface minus the surface's force on the tip
+    (Newton's third law), compared with ``f*``; Φ = -approach_weight·gap, shaping γ·Φ(s') - Φ(s)."""
+    exerted = -np.asarray(info["contact_force"], dtype=float)
+    return {
+        "contact": -float(np.linalg.norm(exerted - np.asarray(info["target_force"]))),
+        "effort": _effort(action),
+        "crash": -CRASH_PENALTY if terminated else 0.0,
+        "approach": DISCOUNT * potential - potential_before,
+    }
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+@pytest.mark.parametrize("surface", ["wall", "ceiling"])
+def test_force_exertion_reward_terms_by_hand(make_env, surface, backend):
+    """The tip flown into the surface by the autopilot's velocity cascade (0.5 m/s at the wall, 0.3
+    m/s up at the ceiling) and pressing on it (at the ceiling until the pivoting hull touches it: a
+    crash), then a descent at full speed (an action beyond [-1, 1], clipped) below a crash height set
+    just under the start, so that the episode ends early: at every step the four terms
+    and the reward equal the table's, with the force the tip exerts *on* the surface the opposite of
+    ``info["contact_force"]`` (the surface's force on the tip, which points out of the surface while
+    touching: checked here) and ``f*`` = 0.8 N along the normal into the surface. Catches the exerted
+    force's sign flipped (the contact term then adds the two forces), a contact term against another
+    target, the shaping without the discount or with the potentials swapped, an effort on the
+    unclipped action or summed, a crash penalty outside an early end."""
+    crash_height = 1.0 if surface == "wall" else 1.7  # the wall's start is at 1.2 m, the ceiling's ~1.9 m
+    env = make_env(
+        FORCE_EXERTION, backend=backend, estimator="oracle", kf_spread=0.0, action_type="velocity",
+        crash_height=crash_height,
+    )  # fmt: skip
+    _, info = env.reset(seed=0, options={"surface": surface, "target_force": TARGET})
+    normal = NORMALS[surface]
+    np.testing.assert_array_equal(info["target_force"], TARGET * normal)
+    gap = _gap(env, surface)
+    assert gap == pytest.approx(START_GAP, abs=1e-9)
+    potential = -APPROACH_WEIGHT * gap
+    press = np.array((0.5, 0.0, 0.0, 0.0)) if surface == "wall" else np.array((0.0, 0.0, 0.6, 0.0))
+    descend = np.array((0.0, 0.1, -1.7, 0.0))  # down at max_speed_z: clipped to -1
+    touching, approach_seen, terminated = 0, 0, False
+    for step in range(200):
+        action = press if step < 60 else descend
+        _, reward, terminated, truncated, info = env.step(action)
+        assert not truncated
+        before, potential = potential, -APPROACH_WEIGHT * _gap(env, surface)
+        _check(info, reward, _force_exertion_terms(info, action, before, potential, terminated))
+        contact = np.asarray(info["contact_force"])
+        if np.linalg.norm(contact) > 0.05:
+            touching += 1
+            assert contact @ normal < 0.0  # the surface pushes the tip back out: f_exerted along +n
+            assert abs(info["reward_terms"]["contact"]) > 0.05  # the contact term is not trivial
+        approach_seen += abs(info["reward_terms"]["approach"]) > 1e-3
+        if terminated:
+            break
+    assert terminated and info["termination_reason"] == "crash", info.get("termination_reason")
+    assert info["reward_terms"]["crash"] == -CRASH_PENALTY
+    assert touching >= 5, touching  # pressed for a while (the case is not the approach alone)
+    assert approach_seen >= 5, approach_seen
+
+
+# -- DisturbanceRejection ------------------------------------------------------------------------------
+EASE = 1.0
+"""s: each straight move's speed eases up as (1 - cos(π t/EASE))/2 (the task's ``_glide`` docstring)."""
+OPTIONS = {
+    "jet_crossing": {"scenario": "jet_crossing", "jet_speed": 10.0},
+    "table_pass": {"scenario": "table_pass"},
+    "gusts": {"scenario": "gusts"},
+    "figure8": {"scenario": "figure8", "wind_speed": 8.5},
+}
+
+
+def _eased(t: float, speed: float) -> float:
+    """Distance along a straight move started at rest ``t`` s ago, during its ease-in (t <= EASE)."""
+    assert t <= EASE  # the flights here end before the cruise
+    t = max(t, 0.0)
+    return speed * (0.5 * t - EASE / (2.0 * math.pi) * math.sin(math.pi * t / EASE))
+
+
+def _reference(scenario: str, t: float, hull_height: float) -> np.ndarray:
+    """Each scenario's path from the task's table (docs/tasks.md), at time ``t`` (s)."""
+    if scenario == "jet_crossing":  # hover at (2, 0, 2.2) for 1 s, then down at 0.5 m/s
+        return np.array((2.0, 0.0, 2.2 - _eased(t - 1.0, 0.5)))
+    if scenario == "table_pass":  # hover at x = 2.5 over y = 2, the hull's bottom 8 cm over the top
+        return np.array((2.5 + _eased(t - 1.0, 0.3), 2.0, 0.7 + 0.08 + 0.5 * hull_height))
+    if scenario == "gusts":
+        return np.array((2.5, 0.0, 1.5))
+    # figure8: φ̇ = (1 - cos(π t/2))/2 rad/s over the first 2 s
+    assert t <= 2.0
+    phase = 0.5 * (t - 2.0 / math.pi * math.sin(math.pi * t / 2.0))
+    return np.array((2.5 + 1.25 * math.sin(phase), 0.0, 1.5 + 0.75 * math.sin(2.0 * phase)))
+
+
+def _disturbance_rejection_terms(
+    info: dict, action: np.ndarray, reference: np.ndarray, terminated: bool
+) -> dict[str, float]:
+    return {
+        "tracking": -float(np.linalg.norm(np.asarray(info["position"]) - reference)),
+        "effort": _effort(action),
+        "crash": -CRASH_PENALTY if terminated else 0.0,
+    }
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+@pytest.mark.parametrize("scenario", list(OPTIONS))
+def test_disturbance_rejection_reward_terms_by_hand(make_env, scenario, backend):
+    """Two episodes of 1.5 s: the PID flying the path (every fourth step with its yaw rate beyond
+    [-1, 1], clipped) to the truncation, then the thrust cut to a crash. At every step the path is the
+    table's (worked out here from its numbers, time from ``info``), the three terms and the reward
+    equal the table's with ``p`` the true position, the crash penalty on the early end and not on the
+    truncation. Catches a tracking term on the horizontal error alone or against another reference, a
+    sign error, an effort on the unclipped action or summed, a crash penalty on a truncation or
+    missing on an early end."""
+    env = make_env(
+        DISTURBANCE_REJECTION, backend=backend, estimator="oracle", kf_spread=0.0, episode_seconds=1.5
+    )
+    hull = env.unwrapped.vehicle.hull_height
+    policy = make_agent("pid")
+    obs, info = env.reset(seed=4, options=OPTIONS[scenario])
+    policy.reset(env)
+    start = _reference(scenario, 0.0, hull)
+    np.testing.assert_allclose(info["reference_position"], start, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(info["position"], start, rtol=0, atol=1e-12)  # starts on the path
+    largest = 0.0
+    for step in range(100):
+        action = policy.act(obs).astype(float)
+        if step % 4 == 1:
+            action[2] = 1.6 if step % 8 == 1 else -1.6
+        obs, reward, terminated, truncated, info = env.step(action)
+        reference = _reference(scenario, info["time"], hull)
+        np.testing.assert_allclose(info["reference_position"], reference, rtol=0, atol=1e-12)
+        _check(info, reward, _disturbance_rejection_terms(info, action, reference, terminated))
+        largest = max(largest, -info["reward_terms"]["tracking"])
+        if terminated or truncated:
+            break
+    assert truncated and not terminated, info.get("termination_reason")
+    assert step + 1 == 75 and info["reward_terms"]["crash"] == 0.0
+    assert largest > 1e-3  # off the path by more than rounding
+
+    env.reset(seed=4, options=OPTIONS[scenario])
+    cut = np.array((0.0, 0.0, 0.0, -1.4))  # collective thrust (1 + a3)·m·g, clipped to 0
+    for _ in range(60):
+        _, reward, terminated, truncated, info = env.step(cut)
+        reference = _reference(scenario, info["time"], hull)
+        _check(info, reward, _disturbance_rejection_terms(info, cut, reference, terminated))
+        if terminated or truncated:
+            break
+    assert terminated and info["termination_reason"] == "crash"
+    assert info["reward_terms"]["crash"] == -CRASH_PENALTY
