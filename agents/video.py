@@ -2,8 +2,12 @@
 of :mod:`quad_wrench_env.envs.render`), through the one harness loop (:func:`agents.evaluate.run_episode`).
 
 :func:`record_video` writes one episode as ``.mp4`` (H.264 through imageio's ffmpeg binary, no system
-ffmpeg needed) or ``.gif``, at the env's ``render_fps``; :func:`save_stills` writes one PNG per task
-(:data:`STILLS`: a classical agent flown a few seconds, the frame of the last step). From the shell::
+ffmpeg needed; every step's frame by default) or ``.gif`` (every 4th at 50 Hz by default,
+:data:`GIF_FPS`, all on one palette of the first frame's colours and the overlay's, no dithering: a
+15 s episode in about 2 MB), with a progress bar of the frames; a frame takes about 0.05 s to draw, so
+recording costs about 2.5 s per second of episode at 50 Hz (``every=2`` halves it).
+:func:`save_stills` writes one PNG per task (:data:`STILLS`: a classical agent flown a few seconds,
+the frame of the last step). From the shell::
 
     python -m agents.video stills docs/frames
     python -m agents.video video out.mp4 --env quad_wrench_env:QuadWrench/FanTracking-v1 --agent admittance \\
@@ -24,10 +28,27 @@ import gymnasium as gym
 import imageio.v2 as imageio
 import yaml
 from PIL import Image
+from tqdm import tqdm
 
 from agents import make_agent
 from agents.base import Policy
 from agents.evaluate import Episode, run_episode
+from quad_wrench_env.envs.overlay import JET_COLOUR
+from quad_wrench_env.envs.render import ESTIMATE, EXERTED, REFERENCE, TARGET, TRUE, WIND
+
+GIF_FPS = 12.5
+"""A GIF's frame rate when ``every`` is not given: every ``round(render_fps / GIF_FPS)``-th step."""
+GIF_COLOURS = (TRUE, ESTIMATE, EXERTED, TARGET, REFERENCE, WIND, JET_COLOUR, (245, 245, 245), (25, 25, 30))
+"""Colours every GIF's palette holds exactly (arrows, reference, jet, text, outlines), besides those of
+its first frame."""
+
+
+def default_every(path: str | Path, render_fps: float) -> int:
+    """Steps per frame when ``every`` is not given: 1 for ``.mp4``, about :data:`GIF_FPS` frames per
+    second for ``.gif``."""
+    if Path(path).suffix.lower() == ".gif":
+        return max(1, round(render_fps / GIF_FPS))
+    return 1
 
 
 def record_video(
@@ -36,37 +57,83 @@ def record_video(
     path: str | Path,
     seed: int = 0,
     options: Mapping[str, Any] | None = None,
-    every: int = 1,
+    every: int | None = None,
+    progress: bool = True,
     **env_kwargs: Any,
 ) -> Episode:
     """Run ``policy`` on ``gym.make(env_id, render_mode="rgb_array", **env_kwargs)`` for one episode
     from ``reset(seed=seed, options=options)`` and write its frames (the reset's and every ``every``-th
-    step's) to ``path`` (``.mp4`` or ``.gif``) at ``render_fps / every`` frames per second; returns the
-    episode as :func:`~agents.evaluate.run_episode` does."""
+    step's; by default :func:`default_every`) to ``path`` (``.mp4`` or ``.gif``) at ``render_fps /
+    every`` frames per second, with a progress bar of the frames on stderr unless ``progress`` is
+    false; returns the episode as :func:`~agents.evaluate.run_episode` does."""
     path = Path(path)
     if path.suffix.lower() not in (".mp4", ".gif"):
         raise ValueError(f"video path {str(path)!r} must end in .mp4 or .gif")
-    if not (isinstance(every, int) and every >= 1):
+    if every is not None and not (isinstance(every, int) and not isinstance(every, bool) and every >= 1):
         raise ValueError(f"every={every!r} must be an integer >= 1 (steps per frame)")
     env = gym.make(env_id, render_mode="rgb_array", **env_kwargs)
-    with contextlib.closing(env), _writer(path, env.metadata["render_fps"] / every) as writer:
-        steps = itertools.count()
+    fps = env.metadata["render_fps"]
+    every = default_every(path, fps) if every is None else every
+    steps = getattr(env.unwrapped, "max_steps", None)
+    bar = tqdm(
+        total=None if steps is None else steps // every + 1, desc=f"recording {path.name}", unit="frame",
+        disable=not progress,
+    )  # fmt: skip
+    with contextlib.closing(env), _writer(path, fps / every) as writer, bar:
+        count = itertools.count()
 
         def frame(env: gym.Env, info: dict[str, Any]) -> None:
-            if next(steps) % every == 0:
+            if next(count) % every == 0:
                 writer.append_data(env.render())
+                bar.update()
 
-        return run_episode(policy, env, seed, options, on_step=frame)
+        episode = run_episode(policy, env, seed, options, on_step=frame)
+        bar.total = bar.n  # an episode that ended early has fewer frames
+        return episode
 
 
 def _writer(path: Path, fps: float) -> Any:
-    """An imageio writer for ``path``: H.264 (yuv420p, plays everywhere) or an endless GIF."""
+    """A writer of frames to ``path``: H.264 (yuv420p, plays everywhere) or an endless GIF."""
     path.parent.mkdir(parents=True, exist_ok=True)
     if path.suffix.lower() == ".gif":
-        return imageio.get_writer(path, duration=1000.0 / fps, loop=0)
+        return _GifWriter(path, fps)
     return imageio.get_writer(
         path, fps=fps, codec="libx264", quality=7, macro_block_size=16, ffmpeg_log_level="error"
     )
+
+
+class _GifWriter:
+    """An endless GIF at ``fps``, every frame on the one palette of the first frame's colours (Pillow's
+    fast octree) and :data:`GIF_COLOURS`, without dithering: what stands still between frames stays
+    the same bytes, and Pillow writes only the rectangle that changed. The frames are kept, one byte a
+    pixel, and written at :meth:`close`."""
+
+    def __init__(self, path: Path, fps: float) -> None:
+        self.path = path
+        self.duration = 1000.0 / fps
+        self.frames: list[Image.Image] = []
+        self.palette: Image.Image | None = None
+
+    def __enter__(self) -> _GifWriter:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def append_data(self, frame: Any) -> None:
+        image = Image.fromarray(frame)
+        if self.palette is None:
+            first = image.quantize(256 - len(GIF_COLOURS), method=Image.Quantize.FASTOCTREE)
+            self.palette = Image.new("P", (1, 1))
+            colours = first.getpalette()[: 3 * (256 - len(GIF_COLOURS))]
+            self.palette.putpalette(colours + [c for colour in GIF_COLOURS for c in colour])
+        self.frames.append(image.quantize(palette=self.palette, dither=Image.Dither.NONE))
+
+    def close(self) -> None:
+        if self.frames:
+            first, *rest = self.frames
+            first.save(self.path, save_all=True, append_images=rest, duration=self.duration, loop=0)
+            self.frames = []
 
 
 @dataclass(frozen=True)
@@ -139,7 +206,7 @@ def main(argv: Sequence[str] | None = None) -> None:
     video.add_argument("--env", required=True, help="env id, e.g. quad_wrench_env:QuadWrench/FanTracking-v1")
     video.add_argument("--agent", required=True, help="agent name (agents.make_agent) or a run folder")
     video.add_argument("--seed", type=int, default=0)
-    video.add_argument("--every", type=int, default=1, help="record every n-th step")
+    video.add_argument("--every", type=int, help="record every n-th step (default: 1; .gif: 12.5 frames/s)")
     video.add_argument("--option", action="append", default=[], help="reset option key=value")
     video.add_argument("--param", action="append", default=[], help="agent parameter key=value")
     video.add_argument("--env-arg", action="append", default=[], help="gym.make argument key=value")

@@ -16,12 +16,12 @@ from __future__ import annotations
 import argparse
 
 import gymnasium as gym
-from rich.console import Console
 from tqdm import tqdm
 
 from agents import make_agent
 from agents.evaluate import Evaluation, evaluate, metrics_table
 from quad_wrench_cli.common import (
+    UsageError,
     add_key_value_argument,
     env_id,
     json_object,
@@ -71,7 +71,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--video",
         metavar="PATH",
         type=_video_path,
-        help="record the first seed's episode to PATH (.mp4 or .gif)",
+        help="record the first seed's episode to PATH (.mp4 or .gif), with a progress bar; a frame takes "
+        "about 0.05 s (a 15 s episode at 50 Hz: about 40 s as .mp4)",
+    )
+    parser.add_argument(
+        "--video-every",
+        metavar="N",
+        type=_video_every,
+        help="with --video: record every N-th policy step (N >= 1; default: every step for .mp4, "
+        "12.5 frames per second for .gif); N = 2 records about twice as fast",
     )
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
 
@@ -83,7 +91,16 @@ def _video_path(text: str) -> str:
     return text
 
 
+def _video_every(text: str) -> int:
+    """argparse type: steps per video frame, an integer >= 1."""
+    if not text.isdigit() or int(text) < 1:
+        raise argparse.ArgumentTypeError(f"{text!r} must be an integer >= 1 (record every N-th policy step)")
+    return int(text)
+
+
 def run(args: argparse.Namespace) -> int:
+    if args.video_every is not None and not args.video:
+        raise UsageError(f"--video-every {args.video_every} applies to a video: add --video PATH")
     with usage_errors():
         env_kwargs, agent_params = apply_overrides({}, args.env), apply_overrides({}, args.agent_param)
         policy = make_agent(args.agent, **agent_params)
@@ -113,8 +130,10 @@ def run(args: argparse.Namespace) -> int:
     if args.video:
         from agents.video import record_video  # imageio and the renderer: loaded only to record
 
-        with Console(stderr=True).status(f"recording seed {args.seeds[0]}'s episode to {args.video} ..."):
-            record_video(policy, args.env_id, args.video, args.seeds[0], args.options, **env_kwargs)
+        record_video(
+            policy, args.env_id, args.video, args.seeds[0], args.options, args.video_every,
+            progress=not args.no_progress, **env_kwargs,
+        )  # fmt: skip
     written = [path for path in (args.json, args.csv, args.video) if path]
     if written:
         print("wrote " + ", ".join(written))

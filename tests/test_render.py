@@ -1,5 +1,6 @@
 """Pictures and videos: rgb_array frames of every task, the vehicle's size in them, force arrows, the
-video and still writers, and no rendering cost without a render mode."""
+air's arrow, the reference and a task's own marks (DisturbanceRejection's scenario and path), the video
+and still writers, and no rendering cost without a render mode."""
 
 from __future__ import annotations
 
@@ -11,7 +12,9 @@ from PIL import Image
 
 from agents import make_agent
 from agents.video import Still, record_video, save_stills
-from quad_wrench_env.envs.render import FRAME_SIZE, TRUE
+from quad_wrench_env.envs import render
+from quad_wrench_env.envs.overlay import Camera, draw_panel, draw_reference
+from quad_wrench_env.envs.render import FRAME_SIZE, REFERENCE, TRUE, WIND
 
 TASKS = ("QuadWrench/FanTracking-v1", "QuadWrench/DisturbanceRejection-v0", "QuadWrench/ForceExertion-v0")
 WIDTH, HEIGHT = FRAME_SIZE
@@ -105,3 +108,105 @@ def test_without_a_render_mode_nothing_is_drawn(make_env, env_id):
     assert bodies(plain) == bodies(drawn)
     drawn.render()
     assert bodies(drawn) > bodies(plain)
+
+
+DISTURBANCE_REJECTION = "QuadWrench/DisturbanceRejection-v0"
+
+
+def colour_pixels(image: np.ndarray, colour, centre=None, radius: float = 14.0) -> int:
+    """How many pixels of ``image`` are exactly ``colour`` (within ``radius`` of ``centre`` if given)."""
+    hits = np.all(image == colour, axis=2)
+    if centre is not None:
+        rows, columns = np.ogrid[: image.shape[0], : image.shape[1]]
+        hits &= (columns - centre[0]) ** 2 + (rows - centre[1]) ** 2 <= radius**2
+    return int(hits.sum())
+
+
+def panels(monkeypatch) -> list[list[str]]:
+    """Each draw_panel call's lines, recorded (and still drawn)."""
+    calls = []
+
+    def record(image, lines, legend, top=True):
+        calls.append(list(lines) + [label for label, _ in legend])
+        draw_panel(image, lines, legend, top)
+
+    monkeypatch.setattr(render, "draw_panel", record)
+    return calls
+
+
+@pytest.mark.parametrize(
+    ("options", "words"),
+    [
+        ({"scenario": "figure8", "wind_speed": 8.5}, "scenario figure8: steady wind 8.5 m/s"),
+        ({"scenario": "jet_crossing", "jet_speed": 10.0}, "scenario jet_crossing: jet 10.0 m/s"),
+    ],
+)
+def test_disturbance_rejection_frames_name_the_scenario(make_env, monkeypatch, options, words):
+    env = make_env(DISTURBANCE_REJECTION, render_mode="rgb_array")
+    env.reset(seed=0, options=options)
+    calls = panels(monkeypatch)
+    env.render()
+    assert any(line.startswith(words) for line in calls[0]), calls[0]
+
+
+def test_the_reference_point_is_drawn_where_it_projects(make_env):
+    """Zero action in figure8's wind: after 0.8 s the vehicle has drifted 0.65 m from its reference;
+    the reference's ring is at the reference's pixel, not at the vehicle's."""
+    env = make_env(DISTURBANCE_REJECTION, render_mode="rgb_array")
+    env.reset(seed=0, options={"scenario": "figure8", "wind_speed": 8.5})
+    for _ in range(40):
+        *_, info = env.step(np.zeros(4, dtype=np.float32))
+    image = env.render()
+    camera = env.unwrapped._renderer.camera
+    (reference, vehicle), _ = camera.project(np.array((info["reference_position"], info["position"])))
+    assert np.hypot(*(reference - vehicle)) > 50.0  # apart in the image
+    assert colour_pixels(image, REFERENCE, reference) > 40
+    assert colour_pixels(image, REFERENCE, vehicle) == 0
+
+
+def test_a_reference_out_of_view_shows_as_a_pointer_on_the_edge():
+    camera = Camera(np.array((0.0, -3.0, 1.0)), np.array((0.0, 0.0, 1.0)), WIDTH, HEIGHT)
+    image = Image.new("RGB", (WIDTH, HEIGHT), (255, 255, 255))
+    clear = np.zeros((HEIGHT, WIDTH), dtype=bool)
+    draw_reference(image, camera, np.array((30.0, 0.0, 1.0)), None, np.zeros(3), REFERENCE, clear)
+    pixels = np.asarray(image)
+    assert colour_pixels(pixels[:, -40:], REFERENCE) > 30  # on the right edge, towards +x
+    assert colour_pixels(pixels[:, :-80], REFERENCE) == 0
+
+
+def test_the_air_at_the_vehicle_shows_as_an_arrow_pointing_at_it(make_env):
+    """figure8's steady 8.5 m/s wind along +y: one arrow upwind of the vehicle, ending short of it; the
+    calm table pass has none (the legend's swatch alone)."""
+    windy = make_env(DISTURBANCE_REJECTION, render_mode="rgb_array")
+    _, info = windy.reset(seed=0, options={"scenario": "figure8", "wind_speed": 8.5})
+    windy.render()
+    renderer = windy.unwrapped._renderer
+    (arrow,) = renderer.wind_arrows(info)
+    wind = np.asarray(info["wind_velocity"])
+    assert arrow.colour == WIND and np.linalg.norm(wind) > 5.0
+    assert np.allclose(arrow.vector, renderer.wind_scale * wind)
+    gap = np.asarray(info["position"]) - (arrow.origin + arrow.vector)
+    assert np.allclose(gap, 0.6 * renderer.span * wind / np.linalg.norm(wind))
+    calm = make_env(DISTURBANCE_REJECTION, render_mode="rgb_array")
+    _, calm_info = calm.reset(seed=0, options={"scenario": "table_pass"})
+    counts = [colour_pixels(env.render(), WIND) for env in (windy, calm)]
+    assert calm.unwrapped._renderer.wind_arrows(calm_info) == []
+    assert counts[0] > counts[1] + 100, counts
+
+
+def test_a_task_says_what_its_frames_show_through_render_marks(make_env, monkeypatch):
+    """The hook: a task's ``render_marks(fleet, vehicle)`` gives the panel's label and the reference."""
+    env = make_env(render_mode="rgb_array", fan={"enabled": False})
+    _, info = env.reset(seed=0)
+    point = np.add(info["position"], (0.0, 0.0, 0.25))
+    monkeypatch.setattr(
+        env.unwrapped.task,
+        "render_marks",
+        lambda fleet, vehicle: {"label": "the task's own line", "reference": point},
+        raising=False,
+    )
+    calls = panels(monkeypatch)
+    image = env.render()
+    (pixel,), _ = env.unwrapped._renderer.camera.project(point[None])
+    assert "the task's own line" in calls[0]
+    assert colour_pixels(image, REFERENCE, pixel) > 40

@@ -7,8 +7,9 @@ transparency, and fills its huge ground plane slowly; so the renderer hides the 
 vehicle's shadow on it) and a sky where PyBullet drew nothing, and tints the pixels whose rays pass
 through a jet by how much air of the jet's Gaussian profile they cross in front of the first opaque
 surface (in closed form); both at half resolution, scaled up (they are smooth, and numpy's full-size
-temporaries would cost more than the painting). Then :func:`draw_arrows` draws force arrows over the
-scene and :func:`draw_panel` text panels.
+temporaries would cost more than the painting). Then :func:`draw_reference` draws a reference path
+and point (kept off the vehicle's pixels, so the vehicle stays in front), :func:`draw_arrows` arrows
+over the scene and :func:`draw_panel` text panels.
 """
 
 from __future__ import annotations
@@ -248,6 +249,79 @@ def draw_arrows(image: Image.Image, camera: Camera, arrows: list[Arrow]) -> None
         draw.polygon(
             [tuple(end), tuple(base + side), tuple(base - side)], fill=arrow.colour, outline=_OUTLINE
         )
+
+
+def draw_reference(
+    image: Image.Image,
+    camera: Camera,
+    point: np.ndarray,
+    path: np.ndarray | None,
+    vehicle: np.ndarray,
+    colour: tuple[int, int, int],
+    clear: np.ndarray,
+) -> None:
+    """Draw where the vehicle should be: ``path`` (K, 3, world; may be None) as a thin line, ``point``
+    (3,) as a ring with a cross and a thin line from the vehicle's position ``vehicle`` (3,) to it; not
+    over the pixels of ``clear`` (H, W bool: the vehicle's). A ``point`` outside the image or behind
+    the camera shows as a pointer on the image's edge towards it, labelled with its distance from the
+    vehicle."""
+    scale = image.height / 480.0
+    shade = Image.new("L", image.size, 0)  # how much of ``colour`` each pixel takes
+    draw = ImageDraw.Draw(shade)
+    if path is not None and len(path) > 1:
+        pixels, depth = camera.project(path)
+        front = depth > camera.near
+        width = max(1, round(3 * scale))
+        for run in np.split(np.arange(len(path)), np.flatnonzero(np.diff(front)) + 1):
+            if front[run[0]] and len(run) > 1:  # the pieces in front of the camera
+                draw.line([tuple(xy) for xy in pixels[run]], fill=170, width=width, joint="curve")
+    (centre, start), depth = camera.project(np.array((point, vehicle)))
+    margin = 12.0 * scale
+    inside = depth[0] > camera.near and bool(
+        np.all((centre >= margin) & (centre <= np.array(image.size) - margin))
+    )
+    if inside and depth[1] > camera.near:
+        draw.line((tuple(start), tuple(centre)), fill=230, width=max(1, round(2 * scale)))
+    alpha = np.array(shade)
+    alpha[clear] = 0
+    image.paste(colour, (0, 0, *image.size), Image.fromarray(alpha))
+    if not inside:
+        _pointer(image, camera, point, float(np.linalg.norm(np.subtract(point, vehicle))), colour, margin)
+        return
+    draw, r = ImageDraw.Draw(image), 8.0 * scale  # the point itself over everything: never hidden
+    draw.ellipse((*(centre - r), *(centre + r)), outline=_OUTLINE, width=max(1, round(5 * scale)))
+    ring = (*(centre - r + scale), *(centre + r - scale))
+    draw.ellipse(ring, outline=colour, width=max(1, round(3 * scale)))
+    draw.ellipse((*(centre - 1.5 * scale), *(centre + 1.5 * scale)), fill=colour)
+
+
+def _pointer(
+    image: Image.Image, camera: Camera, point: np.ndarray, distance: float, colour: tuple, margin: float
+) -> None:
+    """A triangle on the edge of ``image`` pointing towards ``point`` (outside it or behind the camera:
+    the way to turn towards it), with ``reference <distance> m``."""
+    right, up, _ = camera.axes @ (np.asarray(point, dtype=float) - camera.eye)
+    direction = np.array((right, -up))
+    if np.hypot(*direction) < 1e-9:
+        direction = np.array((0.0, 1.0))  # straight behind: point down
+    direction /= np.hypot(*direction)
+    half = 0.5 * np.array(image.size, dtype=float) - margin
+    reach = min(h / abs(d) if abs(d) > 1e-9 else math.inf for h, d in zip(half, direction, strict=True))
+    tip = 0.5 * np.array(image.size, dtype=float) + reach * direction
+    scale = image.height / 480.0
+    size = 18.0 * scale
+    side = np.array((-direction[1], direction[0])) * 0.6 * size
+    base = tip - size * direction
+    draw = ImageDraw.Draw(image)
+    draw.polygon([tuple(tip), tuple(base + side), tuple(base - side)], fill=colour, outline=_OUTLINE, width=2)
+    font = _font(max(10, round(image.height / 34)))
+    text = f"reference {distance:.1f} m"
+    pad = round(0.3 * font.size)
+    box = np.array((font.getlength(text) + 2 * pad, 1.3 * font.size + 2 * pad))
+    corner = base - 0.5 * box - 0.6 * box * direction  # beside the triangle, inwards
+    corner = np.clip(corner, 2.0, np.array(image.size) - box - 2.0)
+    draw.rounded_rectangle((*corner, *(corner + box)), radius=pad, fill=(20, 22, 28))
+    draw.text(tuple(corner + pad), text, fill=(245, 245, 245), font=font)
 
 
 @cache

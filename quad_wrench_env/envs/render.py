@@ -19,8 +19,16 @@ view: along a fan's jet towards the fan, across a fixed jet, along a wall, or un
 (:mod:`~quad_wrench_env.envs.overlay`: TinyRenderer draws no lines, text or transparency), the ground
 with the vehicle's shadow, arrows for the true and the estimated external force at the centre of mass
 and, with a tool, the force the tip exerts and the target force at the tip (all ``force_scale`` m per
-N, stated on the frame), the time and the key numbers, and a legend. ``human`` (the GUI) shows the
-bodies and follows the vehicle.
+N, stated on the frame), an arrow of the air's velocity at the vehicle (upwind of it, pointing at
+it; ``wind_scale`` m per m/s) where the env has winds, the time and the key numbers, and a legend.
+``human`` (the GUI) shows the bodies and follows the vehicle.
+
+What a task adds to its frames (:meth:`SceneRenderer.marks`): its ``render_marks(fleet, vehicle)``
+(the ``Task`` protocol; ``TaskDefaults`` adds nothing) with any of ``label`` (a line for the panel,
+e.g. the scenario flown), ``reference`` ((3,) where the vehicle should be now) and ``path`` ((K, 3) the
+reference path over the episode), and ``info["reference_position"]`` as the reference where ``info``
+has one. The reference shows as a ring on the path (or, out of view, a
+pointer at the frame's edge with its distance).
 """
 
 from __future__ import annotations
@@ -41,6 +49,7 @@ from quad_wrench_env.envs.overlay import (
     JetShape,
     draw_arrows,
     draw_panel,
+    draw_reference,
     paint_scene,
 )
 from quad_wrench_env.rotations import to_pybullet
@@ -54,6 +63,10 @@ SPREAD = 28.0
 """Largest angle (degrees) between the vehicle and the context (a fan, a surface) seen from the camera."""
 TRUE, ESTIMATE, EXERTED, TARGET = (40, 170, 70), (250, 140, 20), (215, 50, 215), (150, 150, 150)
 """Arrow colours: true and estimated external force, tip force on the surface, target force."""
+REFERENCE, WIND = (150, 70, 230), (0, 195, 210)
+"""Colours of the reference (path and point) and of the air's velocity arrow."""
+WIND_SHOWN = 0.5
+"""Slowest air (m/s) drawn as an arrow."""
 SURFACE = (0.8, 0.76, 0.7, 1.0)
 """The colour of the scene's tables, walls and ceilings."""
 _HIDDEN = (0.0, 0.0, 0.0, 0.0)
@@ -151,9 +164,13 @@ class SceneRenderer:
         """The vehicle's size (m), rotor tip to rotor tip across the X."""
         self.force_scale = nice_scale(4.0 * self.span / (v.mass * GRAVITY))
         """Arrow length (m) per newton: a force of a quarter of the weight is about one span long."""
+        self.wind_scale = nice_scale(self.span / 10.0)
+        """Air arrow length (m) per m/s: 10 m/s is about one span long."""
         self.distance = max(3.0 * self.span, 0.35)
         """The camera's distance from the vehicle (m)."""
         winds = env.fleet.components.winds
+        self.windy = bool(winds)
+        """Whether the env has winds (whose air at the vehicle is drawn)."""
         self.fans = [w for w in winds if isinstance(w, FanJet) and w.config.enabled]
         self.jets = [w for w in winds if isinstance(w, Jet)]
         self._outward = [np.array((1.0, 0.0, 0.0))] * len(self.fans) + [j.direction for j in self.jets]
@@ -162,6 +179,8 @@ class SceneRenderer:
         self._drawn: list[tuple[int, int, list[tuple]]] = []
         """Each jet's outlet body, axis body and the outlet's shape colours."""
         self._direction: np.ndarray | None = None
+        self.camera: Camera | None = None
+        """The camera of the last frame."""
         boxes = [box for part in env.fleet.components.scene for box in part.boxes()]
         self._boxes = np.array([(np.subtract(c, h), np.add(c, h)) for c, h in boxes]).reshape(-1, 2, 3)
         """(K, 2, 3) lowest and highest corners of the scene's boxes."""
@@ -315,7 +334,7 @@ class SceneRenderer:
         jets = self._jet_shapes()
         for index in range(len(self.fans)):
             self._place(index, jets[index])
-        camera = self._camera(position, jets)
+        camera = self.camera = self._camera(position, jets)
         if env.render_mode == "human":
             offset = camera.eye - camera.target
             distance = float(np.linalg.norm(offset))
@@ -339,12 +358,36 @@ class SceneRenderer:
         shadow = (position[:2], 0.5 * self.span)
         image = paint_scene(rgb, depth, segments, camera, shadow, active, self._vehicle)
         info = info_entries(env.fleet, env.task, vehicle=0)
-        draw_arrows(image, camera, self.arrows(info))
-        draw_panel(image, self._numbers(info), [])
-        draw_panel(
-            image, [f"arrows {self.force_scale:g} m per N; red rotors: front"], self._legend(info), top=False
+        marks = self.marks(info)
+        if marks.get("reference") is not None:
+            draw_reference(
+                image, camera, marks["reference"], marks.get("path"), position, REFERENCE,
+                segments == self._vehicle,
+            )  # fmt: skip
+        draw_arrows(image, camera, [*self.wind_arrows(info), *self.arrows(info)])
+        draw_panel(image, self._numbers(info, marks), [])
+        scales = f"arrows {self.force_scale:g} m per N" + (
+            f", {self.wind_scale:g} m per m/s" if self.windy else ""
         )
+        draw_panel(image, [f"{scales}; red rotors: front"], self._legend(info, marks), top=False)
         return np.asarray(image)
+
+    def marks(self, info: dict[str, Any]) -> dict[str, Any]:
+        """What the task adds to this frame (module docstring): ``label``, ``reference``, ``path``."""
+        marks = dict(self.env.task.render_marks(self.env.fleet, 0))
+        if marks.get("reference") is None and "reference_position" in info:
+            marks["reference"] = np.asarray(info["reference_position"], dtype=float)
+        return marks
+
+    def wind_arrows(self, info: dict[str, Any]) -> list[Arrow]:
+        """The air's velocity at the vehicle (none below :data:`WIND_SHOWN`), drawn upwind of the
+        vehicle and pointing at it, clear of its rotors."""
+        wind = np.asarray(info["wind_velocity"], dtype=float)
+        speed = float(np.linalg.norm(wind))
+        if not self.windy or speed < WIND_SHOWN:
+            return []
+        end = np.asarray(info["position"], dtype=float) - 0.6 * self.span * wind / speed
+        return [Arrow(end - self.wind_scale * wind, self.wind_scale * wind, WIND, 0.8)]
 
     def arrows(self, info: dict[str, Any]) -> list[Arrow]:
         """This frame's force arrows (none for a force below 1 µN): the true and the estimated external
@@ -367,12 +410,13 @@ class SceneRenderer:
             if np.linalg.norm(force) > 1e-6
         ]
 
-    def _numbers(self, info: dict[str, Any]) -> list[str]:
-        """The top panel: env, vehicle, time, the forces and the task's numbers."""
+    def _numbers(self, info: dict[str, Any], marks: dict[str, Any]) -> list[str]:
+        """The top panel: env, vehicle, time, the task's label, the forces and the task's numbers."""
         env = self.env
         true, estimate = (float(np.linalg.norm(info[k][:3])) for k in ("wrench_true", "wrench_est"))
         lines = [
             f"{env.task.env_id.split('/')[-1]}  {env.cfg.vehicle}  t = {info['time']:.2f} s",
+            *([marks["label"]] if marks.get("label") else []),
             f"|f| true {newtons(true)}, estimated {newtons(estimate)} ({env.cfg.estimator})",
             f"air at the vehicle {np.linalg.norm(info['wind_velocity']):.1f} m/s",
         ]
@@ -384,8 +428,12 @@ class SceneRenderer:
             lines.append(line)
         return lines
 
-    def _legend(self, info: dict[str, Any]) -> list[tuple[str, tuple[int, int, int]]]:
+    def _legend(self, info: dict[str, Any], marks: dict[str, Any]) -> list[tuple[str, tuple[int, int, int]]]:
         legend = [("true external force", TRUE), ("estimated external force", ESTIMATE)]
+        if self.windy:
+            legend.append(("air at the vehicle (upwind)", WIND))
+        if marks.get("reference") is not None:
+            legend.append(("reference: now, path", REFERENCE))
         if self.env.world.tool is not None:
             legend.append(("tip force on the surface", EXERTED))
             if "target_force" in info:

@@ -67,6 +67,11 @@ class Task(Protocol):
     def metrics(trace: Mapping[str, np.ndarray]) -> dict[str, float]:
         """The task's scores of one episode's trace (arrays over steps, keyed as in ``info``)."""
 
+    def render_marks(self, fleet: Fleet, vehicle: int) -> dict[str, Any]:
+        """What a frame of ``vehicle`` shows besides the scene (:mod:`quad_wrench_env.envs.render`): any
+        of ``label`` (a line of the panel), ``reference`` ((3,) where the vehicle should be now) and
+        ``path`` ((K, 3) the reference path over the episode)."""
+
 
 class TaskDefaults:
     """What a task without its own terminations, observation blocks or metrics inherits."""
@@ -84,4 +89,8 @@ class TaskDefaults:
 
     @staticmethod
     def metrics(trace: Mapping[str, np.ndarray]) -> dict[str, float]:
+        return {}
+
+    def render_marks(self, fleet: Fleet, vehicle: int) -> dict[str, Any]:
+        """Nothing but the scene."""
         return {}

@@ -76,6 +76,8 @@ if TYPE_CHECKING:
     from quad_wrench_env.engine.fleet import Fleet
 
 SCENARIOS = ("jet_crossing", "table_pass", "gusts", "figure8")
+PATH_SAMPLES = 301
+"""Points of the reference path a frame draws (:meth:`DisturbanceRejection.render_marks`)."""
 RANDOM = "random"
 EASE = 1.0
 """Seconds over which the reference's speed eases up and down at each end of a straight move."""
@@ -433,6 +435,22 @@ class DisturbanceRejection(TaskDefaults):
 
     def info(self, fleet: Fleet) -> dict[str, np.ndarray]:
         return dict(self._numbers(fleet))
+
+    def render_marks(self, fleet: Fleet, vehicle: int) -> dict[str, Any]:
+        """The scenario (with the jet's or the wind's speed, or the gust) and its reference path over
+        the whole episode; the reference point comes from ``info["reference_position"]``."""
+        index = int(self.scenario[vehicle])
+        name, speed = SCENARIOS[index], float(self.disturbance_speed[vehicle])
+        gust, start = math.hypot(*self.bump.shape[vehicle, :2]), float(self.bump.shape[vehicle, 3])
+        detail = {
+            "jet_crossing": f"jet {speed:.1f} m/s across the path",
+            "table_pass": "ground effect over the table",
+            "gusts": f"turbulence, a gust of {gust:.1f} m/s at t = {start:.1f} s",
+            "figure8": f"steady wind {speed:.1f} m/s",
+        }[name]
+        times = np.linspace(0.0, self.cfg.episode_seconds, PATH_SAMPLES)
+        path, _ = self.reference(times, np.full(times.size, index))
+        return {"label": f"scenario {name}: {detail}", "path": path}
 
     @staticmethod
     def metrics(trace: Mapping[str, np.ndarray]) -> dict[str, float]:
