@@ -35,5 +35,5 @@ clean:
 	rm -rf $(VENV) results
 
 clean-cache:  ## numba's disk caches and the composed steps (after editing a kernel that others call)
-	find quad_wrench_env agents tests -name '*.nbi' -delete -o -name '*.nbc' -delete
+	find quad_wrench_env tests -name '*.nbi' -delete -o -name '*.nbc' -delete
 	rm -rf "$${QUAD_WRENCH_CACHE_DIR:-$${XDG_CACHE_HOME:-$$HOME/.cache}/quad_wrench_env}"

@@ -44,10 +44,10 @@ from pathlib import Path
 import gymnasium as gym
 from rich.console import Console
 
-from agents import make_agent
 from quad_wrench_cli import bench_estimators, bench_training
 from quad_wrench_cli.common import UsageError, add_config_argument, load_config, markdown_table, show
 from quad_wrench_cli.peers import download_summary, jobs, missing, peers
+from quad_wrench_env.agents import make_agent
 from quad_wrench_env.bench import (
     FLOORS,
     bare_pybullet_step_seconds,

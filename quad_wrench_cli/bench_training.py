@@ -50,7 +50,7 @@ def wrapper_rows(config: Any, blocks: int) -> list[list[str]]:
     import gymnasium as gym
     from stable_baselines3.common.vec_env import VecMonitor
 
-    from agents.sb3 import training_env
+    from quad_wrench_env.agents.sb3 import training_env
     from quad_wrench_env.envs.sb3_vec_env import SB3VecEnv
 
     def vector() -> Any:
@@ -101,7 +101,7 @@ def learning_rows(config: Any, steps: int) -> list[list[str]]:
     import torch
     from stable_baselines3.common.vec_env import VecEnvWrapper
 
-    from agents.sb3 import new_model, training_env
+    from quad_wrench_env.agents.sb3 import new_model, training_env
 
     class TimedEnv(VecEnvWrapper):
         """The env the learner sees, timing every step (the whole wrapper stack below it)."""
@@ -145,7 +145,7 @@ def learning_rows(config: Any, steps: int) -> list[list[str]]:
 
 def report(config_file: str | Path, steps: int | None, repeats: int) -> None:
     """Print both tables for the training config ``config_file``."""
-    from agents.sb3 import TrainConfig
+    from quad_wrench_env.agents.sb3 import TrainConfig
     from quad_wrench_env.config import build, load_yaml
 
     config = build(TrainConfig, load_yaml(config_file))

@@ -3,8 +3,8 @@
     quad-wrench compare agents [--config configs/compare_agents.yaml]
 
 Each agent flies each case (reset options and env overrides on top of the config's ``env`` and the
-agent's own ``env``) through ``agents.evaluate``; writes ``table.md`` (mean ± sd over the seeds),
-``errors.png`` (the task's first metric per case and agent) and ``training.png`` (the learned agents'
+agent's own ``env``) through ``quad_wrench_env.agents.evaluate``; writes ``table.md`` (mean ± sd over the
+seeds), ``errors.png`` (the task's first metric per case and agent) and ``training.png`` (the learned agents'
 evaluation curves during training) under the config's ``output``.
 """
 
@@ -21,9 +21,9 @@ import matplotlib.pyplot as plt
 import numpy as np
 from tqdm import tqdm
 
-from agents import SHIPPED, make_agent, shipped_agents
-from agents.evaluate import Evaluation, evaluate, metrics_table, table_columns
 from quad_wrench_cli.common import add_config_argument, load_config, save_figure, show, usage_errors
+from quad_wrench_env.agents import SHIPPED, make_agent, shipped_agents
+from quad_wrench_env.agents.evaluate import Evaluation, evaluate, metrics_table, table_columns
 from quad_wrench_env.config import load_yaml, merged
 
 CONFIG = "compare_agents.yaml"

@@ -21,9 +21,9 @@ from tqdm import tqdm
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 
-from agents import make_agent
-from agents.evaluate import run_episode, write_report
 from quad_wrench_cli.common import add_config_argument, load_config, save_figure, show, usage_errors
+from quad_wrench_env.agents import make_agent
+from quad_wrench_env.agents.evaluate import run_episode, write_report
 from quad_wrench_env.bench import bare_pybullet_step_seconds, estimator_step_seconds
 from quad_wrench_env.estimators import OracleBank, make_estimator
 from quad_wrench_env.kernels import NUMBA_AVAILABLE

@@ -18,9 +18,9 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 from tqdm import tqdm
 
-from agents import make_agent
-from agents.evaluate import Evaluation, evaluate, metrics_table, table_columns
 from quad_wrench_cli.common import add_config_argument, load_config, save_figure, seed, show, usage_errors
+from quad_wrench_env.agents import make_agent
+from quad_wrench_env.agents.evaluate import Evaluation, evaluate, metrics_table, table_columns
 
 CONFIG = "fan_tracking.yaml"
 

@@ -6,9 +6,9 @@
     quad-wrench evaluate runs/NAME QuadWrench/FanTracking-v1 --seeds 100 101 --csv out.csv --video out.mp4
 
 AGENT is a classical agent, a shipped learned policy (``quad-wrench list`` names both) or a training run
-folder. The episodes run through the one harness (:func:`agents.evaluate.evaluate`); the table shows
-each seed's metrics and their mean ± standard deviation; ``--json`` and ``--csv`` write them for tools
-(JSON: null where a metric is undefined or never reached).
+folder. The episodes run through the one harness (:func:`quad_wrench_env.agents.evaluate.evaluate`); the
+table shows each seed's metrics and their mean ± standard deviation; ``--json`` and ``--csv`` write them for
+tools (JSON: null where a metric is undefined or never reached).
 """
 
 from __future__ import annotations
@@ -18,8 +18,6 @@ import argparse
 import gymnasium as gym
 from tqdm import tqdm
 
-from agents import make_agent
-from agents.evaluate import Evaluation, evaluate, metrics_table
 from quad_wrench_cli.common import (
     UsageError,
     add_key_value_argument,
@@ -31,6 +29,8 @@ from quad_wrench_cli.common import (
     write_csv,
     write_json,
 )
+from quad_wrench_env.agents import make_agent
+from quad_wrench_env.agents.evaluate import Evaluation, evaluate, metrics_table
 from quad_wrench_env.config import apply_overrides
 
 
@@ -85,7 +85,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def _video_path(text: str) -> str:
-    """argparse type: a video file name that :func:`agents.video.record_video` writes."""
+    """argparse type: a video file name that :func:`quad_wrench_env.agents.video.record_video` writes."""
     if not text.lower().endswith((".mp4", ".gif")):
         raise argparse.ArgumentTypeError(f"{text!r} must end in .mp4 or .gif")
     return text
@@ -128,7 +128,9 @@ def run(args: argparse.Namespace) -> int:
     if args.csv:
         write_csv(args.csv, [*per_seed, {"seed": "mean", **result.mean}])
     if args.video:
-        from agents.video import record_video  # imageio and the renderer: loaded only to record
+        from quad_wrench_env.agents.video import (
+            record_video,  # imageio and the renderer: loaded only to record
+        )
 
         record_video(
             policy, args.env_id, args.video, args.seeds[0], args.options, args.video_every,

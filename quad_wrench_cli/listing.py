@@ -17,9 +17,9 @@ import argparse
 import inspect
 from typing import Any
 
-from agents import AGENTS, SHIPPED, shipped_agents
-from agents.ida_pbc import CONFIG_NAME as IDA_PBC_CONFIG
 from quad_wrench_cli.common import env_ids, markdown_table, show, to_json
+from quad_wrench_env.agents import AGENTS, SHIPPED, shipped_agents
+from quad_wrench_env.agents.ida_pbc import CONFIG_NAME as IDA_PBC_CONFIG
 from quad_wrench_env.config import config_path, load_yaml, shipped_configs
 from quad_wrench_env.disturbances.fan import MOTIONS
 from quad_wrench_env.estimators import ESTIMATORS

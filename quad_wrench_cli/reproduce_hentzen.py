@@ -24,10 +24,10 @@ from tqdm import tqdm
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 
-from agents import make_agent
-from agents.evaluate import Episode, episode_metrics, run_episode
 from quad_wrench_cli import reproduction
 from quad_wrench_cli.common import save_figure
+from quad_wrench_env.agents import make_agent
+from quad_wrench_env.agents.evaluate import Episode, episode_metrics, run_episode
 
 
 class TimedPolicy:

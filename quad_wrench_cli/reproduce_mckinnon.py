@@ -20,10 +20,10 @@ from tqdm import tqdm
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 
-from agents import make_agent
-from agents.evaluate import Episode, episode_metrics, run_episode, write_report
 from quad_wrench_cli import reproduction
 from quad_wrench_cli.common import save_figure, show
+from quad_wrench_env.agents import make_agent
+from quad_wrench_env.agents.evaluate import Episode, episode_metrics, run_episode, write_report
 
 LABELS = ("f_x", "f_y", "f_z", "tau_x", "tau_y", "tau_z")
 

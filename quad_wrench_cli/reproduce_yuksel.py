@@ -1,5 +1,5 @@
-"""Reproduce paper 001's Figs. 4-6 with IDA-PBC (agents/ida_pbc.py) on the observer's estimate, and the
-wall-pressing check of ForceExertion-v0: PNG figures and a markdown report.
+"""Reproduce paper 001's Figs. 4-6 with IDA-PBC (quad_wrench_env/agents/ida_pbc.py) on the observer's
+estimate, and the wall-pressing check of ForceExertion-v0: PNG figures and a markdown report.
 
     quad-wrench reproduce yuksel [--config configs/reproduce_yuksel.yaml] [--only fig4 fig5 fig6 wall]
 
@@ -25,10 +25,10 @@ from tqdm import tqdm
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 
-from agents.evaluate import episode_metrics, run_episode
-from agents.ida_pbc import IDAPBCPolicy, euler_zyx, load_param_set
 from quad_wrench_cli import reproduction
 from quad_wrench_cli.common import save_figure
+from quad_wrench_env.agents.evaluate import episode_metrics, run_episode
+from quad_wrench_env.agents.ida_pbc import IDAPBCPolicy, euler_zyx, load_param_set
 from quad_wrench_env.tasks.force_exertion import ForceExertion
 from quad_wrench_env.vehicle import GRAVITY
 

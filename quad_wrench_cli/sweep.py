@@ -35,7 +35,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from agents.sweep import load_sweep_config, sweep  # with torch: loaded only to sweep
+    from quad_wrench_env.agents.sweep import load_sweep_config, sweep  # with torch: loaded only to sweep
 
     with usage_errors():
         config = load_sweep_config(args.config, args.set)

@@ -39,7 +39,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from agents.sb3 import TrainConfig, TrainingConfigError, check_training, train  # torch: only to train
+    from quad_wrench_env.agents.sb3 import (  # torch: only to train
+        TrainConfig,
+        TrainingConfigError,
+        check_training,
+        train,
+    )
     from quad_wrench_env.config import apply_overrides
 
     if (args.config is None) == (args.resume is None):

@@ -24,18 +24,18 @@ import gymnasium as gym
 import numpy as np
 import yaml
 
-from agents import make_agent
-from agents.evaluate import run_episode
-from agents.mpc import MPCGains
 from quad_wrench_cli.common import add_config_argument, load_config, show, usage_errors
 from quad_wrench_cli.reproduce_mckinnon import rise_time
+from quad_wrench_env.agents import make_agent
+from quad_wrench_env.agents.evaluate import run_episode
+from quad_wrench_env.agents.mpc import MPCGains
 from quad_wrench_env.vehicle import GRAVITY
 
 ENV_ID = "QuadWrench/DisturbanceRejection-v0"
 
 
 def pid_gains(bandwidth: float) -> dict[str, float]:
-    """The PID's own bandwidth parametrisation (:mod:`agents.pid`)."""
+    """The PID's own bandwidth parametrisation (:mod:`quad_wrench_env.agents.pid`)."""
     return {"bandwidth": bandwidth}
 
 

@@ -1,5 +1,4 @@
-"""``python -m quad_wrench_env``: the ``quad-wrench`` command line (:mod:`quad_wrench_cli`), the one place
-under ``quad_wrench_env/`` that reaches the agents (through the command line's modules)."""
+"""``python -m quad_wrench_env``: the ``quad-wrench`` command line (:mod:`quad_wrench_cli`)."""
 
 import sys
 

@@ -596,7 +596,7 @@ MUTATIONS = (
         "pid",
         (
             (
-                "agents/pid.py",
+                "quad_wrench_env/agents/pid.py",
                 "self._integral = np.clip(self._k_i * error * self._dt + self._integral, -limit, limit)",
                 "self._integral = self._integral + np.clip(self._k_i * error * self._dt, -limit, limit)",
             ),
@@ -606,7 +606,13 @@ MUTATIONS = (
     Mutation(
         "PID reference feed-forward subtracted",
         "pid",
-        (("agents/pid.py", "            desired += acceleration", "            desired -= acceleration"),),
+        (
+            (
+                "quad_wrench_env/agents/pid.py",
+                "            desired += acceleration",
+                "            desired -= acceleration",
+            ),
+        ),
         ("tests/test_pid_integral.py",),
     ),
     Mutation(
@@ -614,7 +620,7 @@ MUTATIONS = (
         "pid",
         (
             (
-                "agents/pid.py",
+                "quad_wrench_env/agents/pid.py",
                 "return bandwidth**2, 2.0 * bandwidth, 0.02 * bandwidth**3",
                 "return bandwidth**2, 2.0 * bandwidth, 0.2 * bandwidth**3",
             ),
@@ -626,7 +632,7 @@ MUTATIONS = (
         "pid",
         (
             (
-                "agents/pid.py",
+                "quad_wrench_env/agents/pid.py",
                 "self.bandwidth = min(self.gains.bandwidth, attitude_p / 3.0)",
                 "self.bandwidth = self.gains.bandwidth",
             ),
@@ -638,7 +644,7 @@ MUTATIONS = (
         "mpc",
         (
             (
-                "agents/mpc.py",
+                "quad_wrench_env/agents/mpc.py",
                 "linear = 2.0 * max(g.position_weight[:2]) * g.cross_track_limit * g.terminal_weight",
                 "linear = 0.2 * max(g.position_weight[:2]) * g.cross_track_limit * g.terminal_weight",
             ),
@@ -650,7 +656,7 @@ MUTATIONS = (
         "training",
         (
             (
-                "agents/sb3.py",
+                "quad_wrench_env/agents/sb3.py",
                 'return cls(data["mean"], data["var"], float(data["clip"]), float(data["epsilon"]))',
                 'return cls(data["var"], data["mean"], float(data["clip"]), float(data["epsilon"]))',
             ),
@@ -660,7 +666,13 @@ MUTATIONS = (
     Mutation(
         "a run folder loads its final model before its kept best",
         "training",
-        (("agents/sb3.py", '    for name in ("best", "final"):', '    for name in ("final", "best"):'),),
+        (
+            (
+                "quad_wrench_env/agents/sb3.py",
+                '    for name in ("best", "final"):',
+                '    for name in ("final", "best"):',
+            ),
+        ),
         ("tests/test_observation_scaling.py",),
     ),
     Mutation(
@@ -668,7 +680,7 @@ MUTATIONS = (
         "training",
         (
             (
-                "agents/sb3.py",
+                "quad_wrench_env/agents/sb3.py",
                 "if (value < self.best) if e.lower_is_better else (value > self.best):",
                 "if (value > self.best) if e.lower_is_better else (value < self.best):",
             ),

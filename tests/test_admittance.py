@@ -7,10 +7,10 @@ import math
 import numpy as np
 import pytest
 
-from agents import make_agent
-from agents.admittance import TORQUE_SLOPES, AdmittancePolicy
-from agents.base import Policy
-from agents.evaluate import evaluate
+from quad_wrench_env.agents import make_agent
+from quad_wrench_env.agents.admittance import TORQUE_SLOPES, AdmittancePolicy
+from quad_wrench_env.agents.base import Policy
+from quad_wrench_env.agents.evaluate import evaluate
 from quad_wrench_env.engine.world import RigidBodyState
 from quad_wrench_env.rotations import quat_from_euler_zyx
 from quad_wrench_env.vehicle import PRESETS

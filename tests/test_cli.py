@@ -14,11 +14,11 @@ from pathlib import Path
 
 import pytest
 
-from agents import make_agent
-from agents.evaluate import evaluate
 from quad_wrench_cli import peers
 from quad_wrench_cli.common import load_config
 from quad_wrench_cli.main import build_parser, main
+from quad_wrench_env.agents import make_agent
+from quad_wrench_env.agents.evaluate import evaluate
 from quad_wrench_env.tasks import TASKS
 from tests.conftest import FAN_TRACKING
 
@@ -216,3 +216,18 @@ def test_an_agent_the_env_refuses_and_a_missing_cluster_exit_with_code_2(
     assert "error: " in err and message in err, err
     assert "Traceback" not in err
     assert not Path("sweep").exists()
+
+
+def test_everything_the_package_installs_lives_under_the_projects_names():
+    """No top-level module named ``agents`` (it would shadow other packages of that name): the agents
+    are ``quad_wrench_env.agents``, with their shipped policies as package data."""
+    import importlib.util
+
+    tomllib = pytest.importorskip("tomllib")  # Python 3.11+
+    root = Path(__file__).resolve().parent.parent
+    packages = tomllib.loads((root / "pyproject.toml").read_text())["tool"]["setuptools"]["packages"]
+    assert {name.split(".")[0] for name in packages} == {"quad_wrench_env", "quad_wrench_cli"}
+    assert "quad_wrench_env.agents" in packages and not (root / "agents").exists()
+    spec = importlib.util.find_spec("agents")
+    assert spec is None or root not in Path(spec.origin or "/").parents
+    assert make_agent("ppo_fan_tracking") is not None  # a shipped policy, found in the package

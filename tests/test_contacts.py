@@ -9,7 +9,7 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-from agents.evaluate import run_episode
+from quad_wrench_env.agents.evaluate import run_episode
 from quad_wrench_env.engine.world import Tool, World
 from quad_wrench_env.kernels import NUMBA_AVAILABLE
 from quad_wrench_env.scene import Ceiling, Wall
@@ -249,7 +249,7 @@ def test_ida_pbc_presses_the_wall_with_the_target_force(make_env, vehicle, param
     hull into the wall; its own set (configs/ida_pbc.yaml) and the scaled gains hold it, though the
     tilt creeps to its set-point over ~12 s against the tip's friction (the force reaches 0.64 N at
     5-10 s, 0.75 N at 14 s). The target 0.75 N is 1 N scaled by the thrust margins (7.4 N of 9.8 N)."""
-    from agents import make_agent
+    from quad_wrench_env.agents import make_agent
 
     env = make_env(ENV_ID, backend="numpy", vehicle=vehicle)
     episode = run_episode(
@@ -270,7 +270,7 @@ def test_the_stiff_set_keeps_the_tip_on_a_rough_ceiling_longer():
     in contact a larger fraction of the time than QC1 (compliant), over 3 seeds."""
     from dataclasses import replace
 
-    from agents.ida_pbc import IDAPBCPolicy, load_param_set
+    from quad_wrench_env.agents.ida_pbc import IDAPBCPolicy, load_param_set
 
     fractions = {}
     for name in ("QC1", "QC2"):

@@ -10,8 +10,8 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-from agents import make_agent
-from agents.evaluate import run_episode
+from quad_wrench_env.agents import make_agent
+from quad_wrench_env.agents.evaluate import run_episode
 from quad_wrench_env.kernels import NUMBA_AVAILABLE
 from quad_wrench_env.tasks.disturbance_rejection import SCENARIOS, DisturbanceRejection
 from quad_wrench_env.vehicle import GRAVITY

@@ -7,8 +7,8 @@ import math
 import numpy as np
 import pytest
 
-from agents.evaluate import Episode, episode_metrics, evaluate
 from quad_wrench_cli.compare_estimators import record
+from quad_wrench_env.agents.evaluate import Episode, episode_metrics, evaluate
 from quad_wrench_env.config import config_path, load_yaml
 from tests.conftest import FAN_TRACKING
 

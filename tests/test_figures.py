@@ -29,7 +29,6 @@ from matplotlib.container import Container
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 
-from agents.evaluate import Episode, Evaluation, table_columns
 from quad_wrench_cli import (
     compare_agents,
     compare_estimators,
@@ -38,6 +37,7 @@ from quad_wrench_cli import (
     reproduce_mckinnon,
     reproduce_yuksel,
 )
+from quad_wrench_env.agents.evaluate import Episode, Evaluation, table_columns
 from quad_wrench_env.config import config_path, load_yaml
 
 UNIT = re.compile(r"[\[(][^\])]+[\])]|fraction|ratio")

@@ -1,5 +1,5 @@
-"""Paper 001's IDA-PBC controller (agents/ida_pbc.py): the wrench action it drives, its reading of
-eqs. (39)-(47), its closed loop against the target dynamics (32), and its plumbing."""
+"""Paper 001's IDA-PBC controller (quad_wrench_env/agents/ida_pbc.py): the wrench action it drives, its
+reading of eqs. (39)-(47), its closed loop against the target dynamics (32), and its plumbing."""
 
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from agents.ida_pbc import (
+from quad_wrench_env.agents.ida_pbc import (
     IDAPBCParams,
     IDAPBCPolicy,
     attitude_shift,

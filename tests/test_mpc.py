@@ -17,9 +17,9 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from agents.base import Policy
-from agents.guidance import ReferenceExtrapolator, attitude_from_acceleration
-from agents.mpc import NU, NX, MPCGains, MPCPolicy, PositionMPC, linearize
+from quad_wrench_env.agents.base import Policy
+from quad_wrench_env.agents.guidance import ReferenceExtrapolator, attitude_from_acceleration
+from quad_wrench_env.agents.mpc import NU, NX, MPCGains, MPCPolicy, PositionMPC, linearize
 from quad_wrench_env.autopilot import AutopilotGains
 from quad_wrench_env.engine.actions import ActionLimits
 from quad_wrench_env.rotations import quat_from_euler_zyx, rotation_matrix
@@ -32,8 +32,8 @@ ROLLOUT_TOL = 1e-4  # 20 chained dynamics rows of ~2e-6 each, carried on by A_d 
 
 
 def nonlinear_rhs(x: np.ndarray, u: np.ndarray, yaw: float, force: np.ndarray) -> np.ndarray:
-    """Eqs. (1)-(2) and the first-order attitude, written independently of agents.mpc: the thrust
-    direction comes from the project's rotations (``R = Rz(ψ)·Ry(θ)·Rx(φ)``)."""
+    """Eqs. (1)-(2) and the first-order attitude, written independently of quad_wrench_env.agents.mpc: the
+    thrust direction comes from the project's rotations (``R = Rz(ψ)·Ry(θ)·Rx(φ)``)."""
     body_z = rotation_matrix(quat_from_euler_zyx(x[6], x[7], yaw))[:, 2]
     accel = u[0] / MASS * body_z + force / MASS + np.array((0.0, 0.0, -GRAVITY))
     return np.concatenate((x[3:6], accel, (u[1:3] - x[6:8]) / TAU))

@@ -1,5 +1,5 @@
-"""The soft-constrained MPC's slack weights (``agents/mpc.py``, paper 003 Sec. IV-D c)) against the
-property they are derived for (issue 33): the cost ``w_1·ε + w_2·ε²`` is an exact penalty when
+"""The soft-constrained MPC's slack weights (``quad_wrench_env/agents/mpc.py``, paper 003 Sec. IV-D c))
+against the property they are derived for (issue 33): the cost ``w_1·ε + w_2·ε²`` is an exact penalty when
 ``w_1`` exceeds the multiplier the hard constraint ``|p_xy - p_r,xy| <= e_max`` would have, so with
 the derived ``w_1 = 2·q_p·e_max·terminal_weight`` the soft problem behaves as the hard one where the
 hard one is feasible (no slack, the cross-track error within its limit, the hard problem's inputs),
@@ -18,8 +18,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from agents.guidance import ReferenceExtrapolator
-from agents.mpc import NU, MPCGains, PositionMPC
+from quad_wrench_env.agents.guidance import ReferenceExtrapolator
+from quad_wrench_env.agents.mpc import NU, MPCGains, PositionMPC
 
 MASS = 0.716  # hummingbird
 TAU = 1.0 / 14.933  # 1/attitude_p of its autopilot

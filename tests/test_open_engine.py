@@ -226,7 +226,7 @@ def test_stepping_past_the_end_of_an_episode_warns_once(caplog):
 
 
 def test_a_metric_of_the_task_reaches_the_harness():
-    from agents.evaluate import Episode, episode_metrics
+    from quad_wrench_env.agents.evaluate import Episode, episode_metrics
 
     trace = {"time": np.arange(3) * 0.02, "distance": np.array((0.0, 0.2, 0.1))}
     scores = Hold.metrics(trace)

@@ -10,8 +10,8 @@ import pybullet as p
 import pytest
 from PIL import Image
 
-from agents import make_agent
-from agents.video import Still, record_video, save_stills
+from quad_wrench_env.agents import make_agent
+from quad_wrench_env.agents.video import Still, record_video, save_stills
 from quad_wrench_env.envs import render
 from quad_wrench_env.envs.overlay import Camera, draw_panel, draw_reference
 from quad_wrench_env.envs.render import FRAME_SIZE, REFERENCE, TRUE, WIND

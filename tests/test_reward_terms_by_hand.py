@@ -12,7 +12,7 @@ import math
 import numpy as np
 import pytest
 
-from agents import make_agent
+from quad_wrench_env.agents import make_agent
 from quad_wrench_env.kernels import NUMBA_AVAILABLE
 
 FORCE_EXERTION = "QuadWrench/ForceExertion-v0"

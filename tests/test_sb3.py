@@ -11,10 +11,10 @@ import numpy as np
 import pytest
 from stable_baselines3 import PPO
 
-from agents import SHIPPED, make_agent, shipped_agents
-from agents.evaluate import evaluate
-from agents.sb3 import SB3Policy, TrainConfig, TrainingConfigError, load_policy, train
 from quad_wrench_cli.train import summary
+from quad_wrench_env.agents import SHIPPED, make_agent, shipped_agents
+from quad_wrench_env.agents.evaluate import evaluate
+from quad_wrench_env.agents.sb3 import SB3Policy, TrainConfig, TrainingConfigError, load_policy, train
 from quad_wrench_env.config import build, load_yaml
 from quad_wrench_env.envs.sb3_vec_env import SB3VecEnv
 from tests.conftest import FAN_TRACKING

@@ -9,8 +9,8 @@ import sys
 
 import pytest
 
-from agents.sb3 import TrainConfig
-from agents.sweep import SweepConfig, load_sweep_config, sweep
+from quad_wrench_env.agents.sb3 import TrainConfig
+from quad_wrench_env.agents.sweep import SweepConfig, load_sweep_config, sweep
 from quad_wrench_env.config import build, config_path, load_yaml
 
 TINY = {  # two vehicles, two PPO updates, one 6 s evaluation episode

@@ -6,10 +6,10 @@ import imageio.v2 as imageio
 import numpy as np
 import pytest
 
-from agents import make_agent
-from agents import video as video_module
-from agents.video import record_video
 from quad_wrench_cli.main import main
+from quad_wrench_env.agents import make_agent
+from quad_wrench_env.agents import video as video_module
+from quad_wrench_env.agents.video import record_video
 from tests.conftest import FAN_TRACKING
 
 FAN = f"quad_wrench_env:{FAN_TRACKING}"
@@ -31,7 +31,8 @@ class Zero:
 
 @pytest.fixture
 def bars(monkeypatch) -> list:
-    """Each progress bar of agents.video, with the total it expected at the start (``expected``)."""
+    """Each progress bar of quad_wrench_env.agents.video, with the total it expected at the start
+    (``expected``)."""
     made = []
 
     class Bar(video_module.tqdm):

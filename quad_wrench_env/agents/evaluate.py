@@ -14,7 +14,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from agents.base import Policy
+from quad_wrench_env.agents.base import Policy
 from quad_wrench_env.tasks import TASKS
 
 TRACE_KEYS = ("time", "position", "wrench_true", "wrench_est", "wind_velocity")
@@ -76,7 +76,7 @@ def run_episode(
 ) -> Episode:
     """Run ``policy`` on ``env`` for one episode from ``reset(seed=seed, options=options)``;
     ``on_step(env, info)``, if given, is called after the reset and after every step (e.g. to record a
-    frame, :mod:`agents.video`)."""
+    frame, :mod:`quad_wrench_env.agents.video`)."""
     observation, info = env.reset(seed=seed, options=dict(options or {}))
     policy.reset(env)
     if on_step is not None:
@@ -111,12 +111,13 @@ def evaluate(
 ) -> Evaluation:
     """Run ``policy`` on ``gym.make(env_id, **env_kwargs)`` once per seed and score every episode.
     ``policy`` is an agent, or a stable-baselines3 model (run deterministically on raw observations;
-    wrap a model trained behind ``VecNormalize`` in ``agents.sb3.SB3Policy`` with its scaling).
+    wrap a model trained behind ``VecNormalize`` in ``quad_wrench_env.agents.sb3.SB3Policy`` with its
+    scaling).
 
     ``options`` go to every ``reset`` (e.g. ``{"offset_y": 0.8, "fan_motion": "static"}``).
     """
     if not isinstance(policy, Policy) and hasattr(policy, "predict"):  # a bare SB3 model
-        from agents.sb3 import SB3Policy
+        from quad_wrench_env.agents.sb3 import SB3Policy
 
         policy = SB3Policy(policy)
     seeds = [int(s) for s in seeds]

@@ -7,10 +7,10 @@ Eq. (3), per world axis ``i``::
 with ``e_p = p_ref - p̂`` and ``e_v = v_ref - v̂`` from the observation's estimated state and reference
 blocks, and ``f̂_ext`` the observation's estimated external force, used only with ``compensation``.
 ``a_ref`` is the reference acceleration, estimated from the observed reference velocity
-(:class:`~agents.guidance.ReferenceExtrapolator`), as the guidance module of paper 003 provides it.
-``a_des`` becomes a collective thrust and a roll and pitch
-(:func:`~agents.guidance.attitude_from_acceleration`), flown by the autopilot through the ``attitude``
-action; the heading is held at ``yaw_reference``.
+(:class:`~quad_wrench_env.agents.guidance.ReferenceExtrapolator`), as the guidance module of paper 003
+provides it. ``a_des`` becomes a collective thrust and a roll and pitch
+(:func:`~quad_wrench_env.agents.guidance.attitude_from_acceleration`), flown by the autopilot through the
+``attitude`` action; the heading is held at ``yaw_reference``.
 
 The gains are either given per axis (``k_p_xy`` ...) or by one ``bandwidth`` λ (1/s): a critically
 damped PD, ``k_p = λ²``, ``k_d = 2λ``, with a slow integrator, ``k_i = λ³/50`` (its pole ~50x slower:
@@ -32,7 +32,7 @@ from dataclasses import dataclass
 import gymnasium as gym
 import numpy as np
 
-from agents.guidance import ReferenceExtrapolator, attitude_from_acceleration
+from quad_wrench_env.agents.guidance import ReferenceExtrapolator, attitude_from_acceleration
 from quad_wrench_env.autopilot import AutopilotGains
 from quad_wrench_env.config import build, check_numbers
 from quad_wrench_env.rotations import wrap_angle

@@ -1,5 +1,6 @@
 """Videos and pictures of episodes: a policy flown on an env with ``render_mode="rgb_array"`` (the frames
-of :mod:`quad_wrench_env.envs.render`), through the one harness loop (:func:`agents.evaluate.run_episode`).
+of :mod:`quad_wrench_env.envs.render`), through the one harness loop
+(:func:`quad_wrench_env.agents.evaluate.run_episode`).
 
 :func:`record_video` writes one episode as ``.mp4`` (H.264 through imageio's ffmpeg binary, no system
 ffmpeg needed; every step's frame by default) or ``.gif`` (every 4th at 50 Hz by default,
@@ -9,9 +10,9 @@ recording costs about 2.5 s per second of episode at 50 Hz (``every=2`` halves i
 :func:`save_stills` writes one PNG per task (:data:`STILLS`: a classical agent flown a few seconds,
 the frame of the last step). From the shell::
 
-    python -m agents.video stills docs/frames
-    python -m agents.video video out.mp4 --env quad_wrench_env:QuadWrench/FanTracking-v1 --agent admittance \\
-        --option fan_motion=sine --seed 0
+    python -m quad_wrench_env.agents.video stills docs/frames
+    python -m quad_wrench_env.agents.video video out.mp4 --env quad_wrench_env:QuadWrench/FanTracking-v1 \\
+        --agent admittance --option fan_motion=sine --seed 0
 """
 
 from __future__ import annotations
@@ -30,9 +31,9 @@ import yaml
 from PIL import Image
 from tqdm import tqdm
 
-from agents import make_agent
-from agents.base import Policy
-from agents.evaluate import Episode, run_episode
+from quad_wrench_env.agents import make_agent
+from quad_wrench_env.agents.base import Policy
+from quad_wrench_env.agents.evaluate import Episode, run_episode
 from quad_wrench_env.envs.overlay import JET_COLOUR
 from quad_wrench_env.envs.render import ESTIMATE, EXERTED, REFERENCE, TARGET, TRUE, WIND
 
@@ -65,7 +66,7 @@ def record_video(
     from ``reset(seed=seed, options=options)`` and write its frames (the reset's and every ``every``-th
     step's; by default :func:`default_every`) to ``path`` (``.mp4`` or ``.gif``) at ``render_fps /
     every`` frames per second, with a progress bar of the frames on stderr unless ``progress`` is
-    false; returns the episode as :func:`~agents.evaluate.run_episode` does."""
+    false; returns the episode as :func:`~quad_wrench_env.agents.evaluate.run_episode` does."""
     path = Path(path)
     if path.suffix.lower() not in (".mp4", ".gif"):
         raise ValueError(f"video path {str(path)!r} must end in .mp4 or .gif")
@@ -138,8 +139,8 @@ class _GifWriter:
 
 @dataclass(frozen=True)
 class Still:
-    """One task's picture: ``agent`` (a name of :func:`agents.make_agent`, with ``agent_params``) flown
-    from ``reset(seed, options)`` for ``seconds``; the frame of the last step."""
+    """One task's picture: ``agent`` (a name of :func:`quad_wrench_env.agents.make_agent`, with
+    ``agent_params``) flown from ``reset(seed, options)`` for ``seconds``; the frame of the last step."""
 
     name: str
     env_id: str
@@ -196,7 +197,8 @@ def _pairs(items: list[str]) -> dict[str, Any]:
 
 def main(argv: Sequence[str] | None = None) -> None:
     parser = argparse.ArgumentParser(
-        prog="python -m agents.video", description="Record an episode as .mp4 or .gif, or one PNG per task."
+        prog="python -m quad_wrench_env.agents.video",
+        description="Record an episode as .mp4 or .gif, or one PNG per task.",
     )
     commands = parser.add_subparsers(dest="command", required=True)
     stills = commands.add_parser("stills", help="one PNG per task into a folder")
@@ -204,7 +206,9 @@ def main(argv: Sequence[str] | None = None) -> None:
     video = commands.add_parser("video", help="one episode as .mp4 or .gif")
     video.add_argument("path", type=Path)
     video.add_argument("--env", required=True, help="env id, e.g. quad_wrench_env:QuadWrench/FanTracking-v1")
-    video.add_argument("--agent", required=True, help="agent name (agents.make_agent) or a run folder")
+    video.add_argument(
+        "--agent", required=True, help="agent name (quad_wrench_env.agents.make_agent) or a run folder"
+    )
     video.add_argument("--seed", type=int, default=0)
     video.add_argument("--every", type=int, help="record every n-th step (default: 1; .gif: 12.5 frames/s)")
     video.add_argument("--option", action="append", default=[], help="reset option key=value")

@@ -612,4 +612,4 @@ def _config_file() -> Path:
     try:
         return config_path(CONFIG_NAME)
     except ValueError:  # not installed with the package: the repository's folder
-        return Path(__file__).resolve().parent.parent / "configs" / CONFIG_NAME
+        return Path(__file__).resolve().parents[2] / "configs" / CONFIG_NAME

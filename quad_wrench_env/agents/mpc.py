@@ -23,8 +23,8 @@ linearisation per step is the same first-order step about the current state.
 
 The input reference (where the input cost pulls) is the equilibrium input: the thrust and tilt that
 give the reference acceleration against gravity and, with ``compensation``, against ``f̂``
-(:func:`agents.guidance.attitude_from_acceleration`); the attitude states are pulled towards its
-tilt. Soft constraint (Sec. IV-D c)): ``|p_x - p_r,x|, |p_y - p_r,y| <= e_max + ε_k``, ``ε_k >= 0`` on
+(:func:`quad_wrench_env.agents.guidance.attitude_from_acceleration`); the attitude states are pulled towards
+its tilt. Soft constraint (Sec. IV-D c)): ``|p_x - p_r,x|, |p_y - p_r,y| <= e_max + ε_k``, ``ε_k >= 0`` on
 every predicted state, with the cost ``w_1·ε + w_2·ε²`` (the linear term makes the penalty exact: no
 slack is used while the constraint can be met).
 """
@@ -43,7 +43,7 @@ import osqp
 import scipy.linalg
 from scipy import sparse
 
-from agents.guidance import ReferenceExtrapolator, attitude_from_acceleration
+from quad_wrench_env.agents.guidance import ReferenceExtrapolator, attitude_from_acceleration
 from quad_wrench_env.autopilot import AutopilotGains
 from quad_wrench_env.config import build
 from quad_wrench_env.rotations import wrap_angle
@@ -404,7 +404,7 @@ class MPCPolicy:
     and collective thrust from :class:`PositionMPC`, yaw held at ``gains.yaw`` by a proportional
     yaw-rate command. The observation must carry ``reference_position`` and ``reference_velocity``;
     the reference acceleration is their difference between policy steps
-    (:class:`agents.guidance.ReferenceExtrapolator`).
+    (:class:`quad_wrench_env.agents.guidance.ReferenceExtrapolator`).
 
     The first-order attitude model ignores the autopilot's attitude-loop resonance (attitude P on a PI
     rate loop with motor lag: damping ratio ≈ 0.35 on ``ardrone2``, ``crazyflie2`` and

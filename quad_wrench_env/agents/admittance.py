@@ -2,8 +2,8 @@
 
 ``ẏ_cmd = k_p·τ̂_z^e`` moves the vehicle sideways towards the jet's centre, since the yaw torque of the
 jet's drag is anti-symmetric about the axis (Fig. 6). x, z and yaw are held by proportional position
-feedback on the estimated pose (:class:`~agents.hover.PositionHoldPolicy`). Everything goes through
-the ``velocity`` action.
+feedback on the estimated pose (:class:`~quad_wrench_env.agents.hover.PositionHoldPolicy`). Everything goes
+through the ``velocity`` action.
 
 Sign: with the world z up, a vehicle on the +y side of the jet feels ``τ_z > 0`` (the air is faster
 on its -y side, pushing that side downstream harder), so ``k_p < 0`` moves it back.
@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import gymnasium as gym
 import numpy as np
 
-from agents.hover import HoldGains, PositionHoldPolicy
+from quad_wrench_env.agents.hover import HoldGains, PositionHoldPolicy
 
 TORQUE_SLOPES: dict[str, float] = {
     "ardrone2": 7.53e-2,

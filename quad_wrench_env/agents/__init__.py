@@ -2,7 +2,8 @@
 
 :func:`make_agent` builds an agent by the name used in ``configs/`` files: a classical controller of
 :data:`AGENTS`, a learned policy shipped with the package (:func:`shipped_agents`, under
-``agents/policies/``), or the path of a user's own training run folder (``quad-wrench train``).
+``quad_wrench_env/agents/policies/``), or the path of a user's own training run folder (``quad-wrench
+train``).
 """
 
 from __future__ import annotations
@@ -10,12 +11,12 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from agents.admittance import AdmittancePolicy
-from agents.base import Policy
-from agents.hover import PositionHoldPolicy
-from agents.ida_pbc import IDAPBCPolicy
-from agents.mpc import MPCPolicy
-from agents.pid import PIDPolicy
+from quad_wrench_env.agents.admittance import AdmittancePolicy
+from quad_wrench_env.agents.base import Policy
+from quad_wrench_env.agents.hover import PositionHoldPolicy
+from quad_wrench_env.agents.ida_pbc import IDAPBCPolicy
+from quad_wrench_env.agents.mpc import MPCPolicy
+from quad_wrench_env.agents.pid import PIDPolicy
 
 AGENTS: dict[str, type] = {
     "admittance": AdmittancePolicy, "hold": PositionHoldPolicy, "pid": PIDPolicy, "mpc": MPCPolicy,
@@ -42,7 +43,7 @@ def make_agent(name: str, **params: Any) -> Policy:
     if (folder / "config.yaml").is_file():
         if params:
             raise ValueError(f"the learned policy {name!r} takes no parameters, got {sorted(params)}")
-        from agents.sb3 import load_policy
+        from quad_wrench_env.agents.sb3 import load_policy
 
         return load_policy(folder)
     raise ValueError(

@@ -4,8 +4,8 @@ machine or an existing Ray cluster (the optional extra: ``pip install "quad-wren
 A :class:`SweepConfig` names a base training config (``configs/train_*.yaml``, or one inline) and a
 search ``space`` over its dotted keys (``hyperparameters.learning_rate``, ``seed``,
 ``env.observe_wrench``, ...). :func:`sweep` runs each trial as an ordinary training run
-(``agents.sb3.train``) into ``<folder>/runs/<trial id>/``, scores it by the best evaluation of its
-``curve.csv`` under the base config's ``evaluation.metric``, and writes one table of all trials
+(``quad_wrench_env.agents.sb3.train``) into ``<folder>/runs/<trial id>/``, scores it by the best evaluation
+of its ``curve.csv`` under the base config's ``evaluation.metric``, and writes one table of all trials
 (``results.csv``, ``results.md``) and the best trial's full training config (``best_config.yaml``,
 which ``quad-wrench train`` takes as it is).
 """
@@ -24,7 +24,7 @@ from typing import Any
 
 import yaml
 
-from agents.sb3 import TrainConfig, train, train_config
+from quad_wrench_env.agents.sb3 import TrainConfig, train, train_config
 from quad_wrench_env.config import apply_overrides, build, check_numbers, load_yaml
 
 SEARCHES = ("grid", "random", "optuna")

@@ -4,9 +4,9 @@
 :class:`TrainConfig`, into a run folder that holds what ran (config and commit), checkpoints, the
 best model by the harness's own metric on fixed evaluation seeds, the curve and TensorBoard logs.
 :class:`SB3Policy` wraps a trained model and the observation statistics of the ``VecNormalize`` it
-trained behind, so that ``agents.evaluate.evaluate`` runs it like any classical agent: ``reset(env)``,
-``act(obs)`` on the raw observation, deterministic actions. :func:`load_policy` reads a run folder
-(or a shipped agent, which is a run folder's ``config.yaml`` and ``best/`` kept in the package).
+trained behind, so that ``quad_wrench_env.agents.evaluate.evaluate`` runs it like any classical agent:
+``reset(env)``, ``act(obs)`` on the raw observation, deterministic actions. :func:`load_policy` reads a run
+folder (or a shipped agent, which is a run folder's ``config.yaml`` and ``best/`` kept in the package).
 """
 
 from __future__ import annotations
@@ -115,8 +115,8 @@ class EvaluationConfig:
     """Env keyword arguments that replace the training env's in evaluation, e.g. to score a policy
     trained on an easier variant (a curriculum) on the task's own episodes."""
     metric: str = "return"
-    """A metric of the harness's scores (``agents.evaluate.episode_metrics``); the best checkpoint is
-    the one with the best mean over the seeds."""
+    """A metric of the harness's scores (``quad_wrench_env.agents.evaluate.episode_metrics``); the best
+    checkpoint is the one with the best mean over the seeds."""
     lower_is_better: bool = False
 
     def __post_init__(self) -> None:
@@ -223,7 +223,7 @@ def check_training(config: TrainConfig, folder: str | Path, resume: bool = False
     from stable_baselines3.common.vec_env import VecMonitor
 
     import quad_wrench_env  # noqa: F401  (registers the env ids)
-    from agents.evaluate import evaluate
+    from quad_wrench_env.agents.evaluate import evaluate
     from quad_wrench_env.envs.sb3_vec_env import SB3VecEnv
 
     folder = Path(folder)
@@ -295,7 +295,7 @@ def _commit() -> str:
     """The project's commit (with ``+dirty`` when the tree has changes), or ``unknown``."""
     import subprocess
 
-    root = Path(__file__).resolve().parent.parent
+    root = Path(__file__).resolve().parents[2]  # the repository: quad_wrench_env/agents/sb3.py
     try:
         head = subprocess.run(
             ["git", "rev-parse", "HEAD"], cwd=root, capture_output=True, text=True, check=True
@@ -354,7 +354,7 @@ def train(config: TrainConfig, folder: str | Path, resume: bool = False, progres
     from stable_baselines3.common.callbacks import BaseCallback
 
     import quad_wrench_env  # noqa: F401  (registers the env ids)
-    from agents.evaluate import evaluate
+    from quad_wrench_env.agents.evaluate import evaluate
 
     folder = Path(folder)
     check_training(config, folder, resume)
