@@ -92,6 +92,10 @@ class EnvConfig:
     observe_wrench: bool = True
     """False zeroes the force and torque blocks of the observation (the ablation that asks whether
     the estimated wrench is what makes a task solvable); ``info`` keeps them."""
+    history: int = 0
+    """Observation frames of the ``history`` previous steps after the current one (each frame the
+    observation without its history: the estimated state and wrench, the action before it, the task's
+    blocks), ``history_1`` the last; zeros before the episode's first step. 0: none."""
     crash_height: float = 0.1
     flip_tilt_deg: float = 90.0
     backend: str = "auto"
@@ -117,5 +121,7 @@ class EnvConfig:
         resolve_backend(self.backend)
         if not isinstance(self.observe_wrench, bool):
             raise ValueError(f"observe_wrench={self.observe_wrench!r} must be true or false")
+        if not (isinstance(self.history, int) and not isinstance(self.history, bool) and self.history >= 0):
+            raise ValueError(f"history={self.history!r} must be an integer >= 0 (previous steps observed)")
         if not (0.0 < self.flip_tilt_deg <= 180.0):
             raise ValueError(f"flip_tilt_deg={self.flip_tilt_deg!r} must be in (0, 180]")

@@ -28,9 +28,11 @@ representation without the jumps of a quaternion kept to one hemisphere."""
 
 
 class ObservationLayout:
-    """The engine's blocks followed by a task's ``(name, width, bound)`` blocks."""
+    """The engine's blocks followed by a task's ``(name, width, bound)`` blocks: one frame; then, with
+    ``history`` K > 0, the frames of the K previous steps (``history``, and ``history_1`` ...
+    ``history_K`` each one frame, ``history_1`` the last)."""
 
-    def __init__(self, task_blocks: tuple[tuple[str, int, float], ...] = ()) -> None:
+    def __init__(self, task_blocks: tuple[tuple[str, int, float], ...] = (), history: int = 0) -> None:
         names = [name for name, _ in ENGINE_BLOCKS]
         clashes = sorted({name for name, _, _ in task_blocks} & {*names, "wrench"})
         if clashes:
@@ -42,10 +44,17 @@ class ObservationLayout:
         for name, width in self.fields:
             self.slices[name] = slice(start, start + width)
             start += width
-        self.size = start
+        self.frame = start
+        """Width of one frame (the observation without its history)."""
+        self.history = history
+        for k in range(1, history + 1):
+            self.slices[f"history_{k}"] = slice(k * start, (k + 1) * start)
+        if history:
+            self.slices["history"] = slice(start, (history + 1) * start)
+        self.size = (history + 1) * start
         self.slices["wrench"] = slice(self.slices["force"].start, self.slices["torque"].stop)
         self.kernel_starts = np.array([self.slices[name].start for name in names], dtype=np.int64)
-        self.task_columns = slice(self.slices[ENGINE_BLOCKS[-1][0]].stop, self.size)
+        self.task_columns = slice(self.slices[ENGINE_BLOCKS[-1][0]].stop, self.frame)
 
     def space(self, vehicle: VehicleParams) -> spaces.Box:
         """Finite bounds far outside anything a flight that has not ended can reach (SI units)."""
@@ -55,7 +64,8 @@ class ObservationLayout:
             "force": 100.0 * weight, "torque": 100.0 * weight * vehicle.hull_radius, "last_action": 1.0,
             **self.task_bounds,
         }  # fmt: skip
-        high = np.concatenate([np.full(n, bound[name]) for name, n in self.fields]).astype(np.float32)
+        frame = np.concatenate([np.full(n, bound[name]) for name, n in self.fields])
+        high = np.tile(frame, self.history + 1).astype(np.float32)
         return spaces.Box(-high, high, dtype=np.float32)
 
     def fill_engine_blocks(
@@ -71,3 +81,31 @@ class ObservationLayout:
         out[:, s["body_rates"]] = states[:, 10:13]
         out[:, s["wrench"]] = wrenches * observe_wrench
         out[:, s["last_action"]] = last_actions
+
+
+class ObservationHistory:
+    """Each vehicle's last ``layout.history`` frames, written into the history columns of its
+    observations (:class:`ObservationLayout`): an env records every observation it returns, once."""
+
+    def __init__(self, layout: ObservationLayout, count: int) -> None:
+        self.layout = layout
+        self.frames = np.zeros((count, layout.history, layout.frame), dtype=np.float32)
+        """(N, K, frame): ``frames[:, 0]`` the last step's frame."""
+
+    def restart(self, index: np.ndarray | slice) -> None:
+        """Vehicles ``index`` start an episode: nothing before it."""
+        self.frames[index] = 0.0
+
+    def record(self, observations: np.ndarray, index: np.ndarray | slice) -> None:
+        """Fill the history columns of rows ``index`` of ``observations`` (whose frames are new) with
+        those vehicles' earlier frames, then keep their new frames."""
+        if not self.layout.history:
+            return
+        if not isinstance(index, slice):
+            index = np.atleast_1d(index)
+        frame = self.layout.frame
+        rows = self.frames[index]
+        observations[index, frame:] = rows.reshape(len(rows), -1)
+        rows[:, 1:] = rows[:, :-1].copy()
+        rows[:, 0] = observations[index, :frame]
+        self.frames[index] = rows

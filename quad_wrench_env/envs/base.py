@@ -33,7 +33,7 @@ from quad_wrench_env.config import build, merged, section
 from quad_wrench_env.engine.components import assemble
 from quad_wrench_env.engine.config import EnvConfig
 from quad_wrench_env.engine.fleet import ENGINE_TERMINATIONS, Fleet
-from quad_wrench_env.engine.observation import ObservationLayout
+from quad_wrench_env.engine.observation import ObservationHistory, ObservationLayout
 from quad_wrench_env.tasks.base import Task
 from quad_wrench_env.vehicle import make_vehicle
 
@@ -68,7 +68,7 @@ def build_fleet(task_class: type[Task], cfg: Any, count: int, gui: bool = False)
     vehicle = make_vehicle(cfg.vehicle, **cfg.vehicle_params)
     task = task_class(cfg, vehicle, count)
     components = assemble(cfg, vehicle, count, task.components())
-    layout = ObservationLayout(task.observation_blocks)
+    layout = ObservationLayout(task.observation_blocks, cfg.history)
     return task, Fleet(cfg, vehicle, count, components, layout, gui=gui)
 
 
@@ -174,6 +174,7 @@ class QuadWrenchEnv(gym.Env, EzPickle):
         self.metadata = {**self.metadata, "render_fps": cfg.policy_hz}
         self.obs_layout = self.fleet.layout.slices
         self.observation_space = self.fleet.layout.space(self.vehicle)
+        self._history = ObservationHistory(self.fleet.layout, 1)
         self.action_space = spaces.Box(-1.0, 1.0, shape=(4,), dtype=np.float32)
         self.dt = self.fleet.dt
         self._renderer = None
@@ -214,7 +215,8 @@ class QuadWrenchEnv(gym.Env, EzPickle):
         self._last_action = np.zeros((1, 4))
         if self._renderer is not None:
             self._renderer.build()
-        return observations(self.fleet, self.task, self._last_action)[0], self._info()
+        self._history.restart(slice(None))
+        return self._observe(), self._info()
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
         if self._closed:
@@ -243,7 +245,7 @@ class QuadWrenchEnv(gym.Env, EzPickle):
             info["termination_reason"] = self.termination_reasons[code]
         if self.render_mode == "human":
             self.render()
-        return observations(fleet, self.task, a)[0], float(sum(terms.values())), terminated, truncated, info
+        return self._observe(), float(sum(terms.values())), terminated, truncated, info
 
     def render(self) -> np.ndarray | None:
         if self._closed:
@@ -268,3 +270,9 @@ class QuadWrenchEnv(gym.Env, EzPickle):
 
     def _info(self) -> dict[str, Any]:
         return info_entries(self.fleet, self.task, vehicle=0)
+
+    def _observe(self) -> np.ndarray:
+        """The observation now, its history filled and recorded."""
+        out = observations(self.fleet, self.task, self._last_action)
+        self._history.record(out, slice(None))
+        return out[0]

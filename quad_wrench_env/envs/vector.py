@@ -28,6 +28,7 @@ from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
+from quad_wrench_env.engine.observation import ObservationHistory
 from quad_wrench_env.envs.base import (
     QuadWrenchEnv,
     build_config,
@@ -106,6 +107,9 @@ class QuadWrenchVectorEnv(VectorEnv):
         self._rngs: list[np.random.Generator | None] = [None] * num_envs
         self._steps = np.zeros(num_envs, dtype=int)
         self._last_actions = np.zeros((num_envs, 4))
+        self._history = ObservationHistory(self.fleet.layout, num_envs)
+        self._observations = np.zeros((num_envs, self.fleet.layout.size), dtype=np.float32)
+        """Each vehicle's last observation (what a restart of others leaves it)."""
         self._started = False
         self._closed = False
 
@@ -137,9 +141,11 @@ class QuadWrenchVectorEnv(VectorEnv):
             if seed is not None or self._rngs[i] is None:
                 self._rngs[i], _ = seeding.np_random(seed)
             self._start(i, check_options(vehicle_options, self.reset_options))
-        self.fleet.refresh(np.asarray(list(indices), dtype=int))
+        restarted = np.asarray(list(indices), dtype=int)
+        self.fleet.refresh(restarted)
+        self._history.restart(restarted)
         self._started = True
-        return observations(self.fleet, self.task, self._last_actions), _masked(
+        return self._observe(restarted), _masked(
             self._infos(), np.ones(self.num_envs, bool)
         )
 
@@ -208,14 +214,24 @@ class QuadWrenchVectorEnv(VectorEnv):
         terms = self.task.reward_terms(fleet, a, terminated)
         rewards = np.sum(list(terms.values()), axis=0)
         truncated = ~terminated & (self._steps >= self.max_steps)
-        return observations(fleet, self.task, a), rewards, terminated, truncated, terms, codes
+        return self._observe(slice(None)), rewards, terminated, truncated, terms, codes
 
     def _restart_ended(self, done: np.ndarray) -> np.ndarray:
         """Start the next episode of the vehicles ``done`` (without options); every observation."""
-        for i in np.flatnonzero(done).tolist():
+        restarted = np.flatnonzero(done)
+        for i in restarted.tolist():
             self._start(i, {})
-        self.fleet.refresh(np.flatnonzero(done))
-        return observations(self.fleet, self.task, self._last_actions)
+        self.fleet.refresh(restarted)
+        self._history.restart(restarted)
+        return self._observe(restarted)
+
+    def _observe(self, index: np.ndarray | slice) -> np.ndarray:
+        """Every vehicle's observation: new for the vehicles ``index`` (their history filled and
+        recorded), as it was for the others."""
+        fresh = observations(self.fleet, self.task, self._last_actions)
+        self._history.record(fresh, index)
+        self._observations[index] = fresh[index]
+        return self._observations.copy()
 
     def _start(self, index: int, options: Mapping[str, Any]) -> None:
         rng = self._rngs[index]
