@@ -145,9 +145,7 @@ class QuadWrenchVectorEnv(VectorEnv):
         self.fleet.refresh(restarted)
         self._history.restart(restarted)
         self._started = True
-        return self._observe(restarted), _masked(
-            self._infos(), np.ones(self.num_envs, bool)
-        )
+        return self._observe(restarted), _masked(self._infos(), np.ones(self.num_envs, bool))
 
     def step(
         self, actions: np.ndarray
