@@ -62,7 +62,9 @@ MEANING_KEYS = ("action_type", "observe_wrench")
 
 
 class SB3Policy:
-    """A trained SB3 model, behind its observation scaling if it had one, as a Policy."""
+    """A trained SB3 model, behind its observation scaling if it had one, as a Policy. A recurrent
+    model (sb3-contrib's ``RecurrentPPO``) carries its hidden state from step to step; :meth:`reset`
+    (each episode's start) clears it."""
 
     def __init__(
         self,
@@ -76,8 +78,12 @@ class SB3Policy:
         self.model = model
         self.scaling = scaling
         self.trained_on = None if trained_on is None else dict(trained_on)
+        self._memory: Any = None
+        """A recurrent model's hidden state (None: a new episode; always None for the others)."""
+        self._start = np.ones(1, dtype=bool)
 
     def reset(self, env: gym.Env) -> None:
+        self._memory, self._start = None, np.ones(1, dtype=bool)
         expected = self.model.observation_space.shape
         got = env.observation_space.shape
         if got != expected:
@@ -96,7 +102,10 @@ class SB3Policy:
 
     def act(self, observation: np.ndarray) -> np.ndarray:
         obs = observation if self.scaling is None else self.scaling(observation)
-        action, _ = self.model.predict(obs, deterministic=True)
+        action, self._memory = self.model.predict(
+            obs, state=self._memory, episode_start=self._start, deterministic=True
+        )
+        self._start = np.zeros(1, dtype=bool)
         return np.asarray(action, dtype=np.float32)
 
 
@@ -179,14 +188,17 @@ class TrainConfig:
         check_numbers("train", self, ("clip_observations",))
         if not (isinstance(self.log_std_init, (int, float)) and math.isfinite(self.log_std_init)):
             raise ValueError(f"log_std_init={self.log_std_init!r} must be a finite number")
-        if self.log_std_init != 0.0 and self.algorithm != "ppo":
+        if self.log_std_init != 0.0 and self.algorithm == "sac":
             raise ValueError(f"log_std_init={self.log_std_init!r} is PPO's; {self.algorithm} learns its own")
         for name in ("normalize_observations", "normalize_rewards"):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"{name}={getattr(self, name)!r} must be true or false")
 
 
-ALGORITHMS = ("ppo", "sac")
+ALGORITHMS = ("ppo", "sac", "recurrent_ppo")
+"""The learners: stable-baselines3's PPO and SAC, and sb3-contrib's ``RecurrentPPO`` (an LSTM policy:
+memory of its own, reset at each episode start)."""
+POLICY_CLASSES = {"ppo": "MlpPolicy", "sac": "MlpPolicy", "recurrent_ppo": "MlpLstmPolicy"}
 ACTIVATIONS = ("tanh", "relu")
 
 
@@ -249,7 +261,8 @@ def check_training(config: TrainConfig, folder: str | Path, resume: bool = False
             config.env_id, num_envs=config.num_envs, vectorization_mode="vector_entry_point", **config.env
         )
         try:
-            algorithm("MlpPolicy", VecMonitor(SB3VecEnv(venv)), device="cpu", **config.hyperparameters)
+            policy = POLICY_CLASSES[config.algorithm]
+            algorithm(policy, VecMonitor(SB3VecEnv(venv)), device="cpu", **config.hyperparameters)
         except (TypeError, ValueError, AssertionError) as error:
             raise ValueError(f"hyperparameters={config.hyperparameters!r}: {error}") from None
         finally:
@@ -266,9 +279,10 @@ def check_training(config: TrainConfig, folder: str | Path, resume: bool = False
 
 
 def _algorithm(name: str) -> type[BaseAlgorithm]:
+    from sb3_contrib import RecurrentPPO
     from stable_baselines3 import PPO, SAC
 
-    return {"ppo": PPO, "sac": SAC}[name]
+    return {"ppo": PPO, "sac": SAC, "recurrent_ppo": RecurrentPPO}[name]
 
 
 def load_policy(folder: str | Path) -> SB3Policy:
@@ -337,10 +351,11 @@ def new_model(config: TrainConfig, env: Any, tensorboard_log: str | None = None)
 
     activation = {"tanh": torch.nn.Tanh, "relu": torch.nn.ReLU}[config.activation]
     policy_kwargs = {"net_arch": list(config.net_arch), "activation_fn": activation}
-    if config.algorithm == "ppo":
+    if config.algorithm != "sac":
         policy_kwargs["log_std_init"] = config.log_std_init
     return _algorithm(config.algorithm)(
-        "MlpPolicy", env, seed=config.seed, device="cpu", verbose=0, policy_kwargs=policy_kwargs,
+        POLICY_CLASSES[config.algorithm], env, seed=config.seed, device="cpu", verbose=0,
+        policy_kwargs=policy_kwargs,
         tensorboard_log=tensorboard_log, **config.hyperparameters,
     )  # fmt: skip
 
