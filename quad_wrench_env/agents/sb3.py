@@ -57,8 +57,8 @@ class ObservationScaling:
             return cls(data["mean"], data["var"], float(data["clip"]), float(data["epsilon"]))
 
 
-MEANING_KEYS = ("action_type", "observe_wrench")
-"""Env settings that change what an action or an observation means without changing its shape."""
+MEANING_KEYS = ("action_type", "observe_wrench", "history")
+"""Env settings that change what an action or an observation means (``history`` its size too)."""
 
 
 class SB3Policy:
@@ -84,21 +84,20 @@ class SB3Policy:
 
     def reset(self, env: gym.Env) -> None:
         self._memory, self._start = None, np.ones(1, dtype=bool)
+        if self.trained_on is not None:
+            cfg = env.unwrapped.cfg
+            defaults = {f.name: f.default for f in dataclasses.fields(cfg)}
+            for key in MEANING_KEYS:
+                trained = self.trained_on.get(key, defaults[key])  # not given: the task's default
+                if trained != getattr(cfg, key):
+                    raise ValueError(
+                        f"the policy was trained with {key}={trained!r}, the env has "
+                        f"{key}={getattr(cfg, key)!r}; make the env with {key}={trained!r}"
+                    )
         expected = self.model.observation_space.shape
         got = env.observation_space.shape
         if got != expected:
             raise ValueError(f"the model was trained on observations of shape {expected}, the env has {got}")
-        if self.trained_on is None:
-            return
-        cfg = env.unwrapped.cfg
-        defaults = {f.name: f.default for f in dataclasses.fields(cfg)}
-        for key in MEANING_KEYS:
-            trained = self.trained_on.get(key, defaults[key])  # not given: the task's default
-            if trained != getattr(cfg, key):
-                raise ValueError(
-                    f"the policy was trained with {key}={trained!r}, the env has "
-                    f"{key}={getattr(cfg, key)!r}; make the env with {key}={trained!r}"
-                )
 
     def act(self, observation: np.ndarray) -> np.ndarray:
         obs = observation if self.scaling is None else self.scaling(observation)
