@@ -210,8 +210,13 @@ def test_an_agent_the_env_refuses_and_a_missing_cluster_exit_with_code_2(
 ):
     monkeypatch.chdir(tmp_path)
     monkeypatch.delenv("RAY_ADDRESS", raising=False)
-    services = pytest.importorskip("ray._private.services")  # no Ray of another process to find
-    monkeypatch.setattr(services, "find_gcs_addresses", list)
+    services = pytest.importorskip("ray._private.services")
+
+    def no_ray_running() -> list[str]:  # what Ray finds of other processes' clusters: none
+        return []
+
+    no_ray_running.cache_clear = lambda: None  # Ray's own is cached
+    monkeypatch.setattr(services, "find_gcs_addresses", no_ray_running)
     Path("bad.yaml").write_text("cases: [a\n  b: c\n")
     Path("sweep.yaml").write_text(f"base: {TRAIN_CONFIG}\nspace: {{seed: {{grid: [0, 1]}}}}\nsearch: grid\n")
     with pytest.raises(SystemExit) as exit_:
