@@ -23,3 +23,15 @@ def make_env():
     yield factory
     for env in envs:
         env.close()
+
+
+def assert_usage_error(argv: list[str], message: str, capsys: pytest.CaptureFixture[str]) -> None:
+    """``quad-wrench argv`` exits with code 2 and one line with ``message``, no traceback."""
+    from quad_wrench_cli.main import main
+
+    with pytest.raises(SystemExit) as exit_:
+        main(argv)
+    err = capsys.readouterr().err
+    assert exit_.value.code == 2
+    assert "error: " in err and message in err, err
+    assert "Traceback" not in err

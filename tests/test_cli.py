@@ -20,7 +20,7 @@ from quad_wrench_cli.main import build_parser, main
 from quad_wrench_env.agents import make_agent
 from quad_wrench_env.agents.evaluate import evaluate
 from quad_wrench_env.tasks import TASKS
-from tests.conftest import FAN_TRACKING
+from tests.conftest import FAN_TRACKING, assert_usage_error
 
 
 def _commands(parser: argparse.ArgumentParser, path: tuple[str, ...] = ()) -> Iterator[tuple]:
@@ -87,12 +87,7 @@ def test_the_help_of_every_command_names_each_option_and_explains_it(path, capsy
 )
 def test_bad_arguments_exit_with_code_2_and_a_message(argv, message, capsys, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)  # missing.yaml is missing; nothing is written where the tests run
-    with pytest.raises(SystemExit) as exit_:
-        main(argv)
-    err = capsys.readouterr().err
-    assert exit_.value.code == 2
-    assert "error: " in err and message in err, err
-    assert "Traceback" not in err
+    assert_usage_error(argv, message, capsys)
 
 
 def test_list_json_holds_the_vehicle_presets_and_the_env_ids(capsys):
@@ -180,12 +175,7 @@ def test_train_refuses_bad_input_before_anything_runs(argv, files, message, caps
         Path(name).parent.mkdir(parents=True, exist_ok=True)
         Path(name).write_text(text)
     config = [] if argv and argv[0].endswith(".yaml") else [TRAIN_CONFIG]
-    with pytest.raises(SystemExit) as exit_:
-        main(["train", *config, *argv, "--run-dir", "run", "--no-progress"])
-    err = capsys.readouterr().err
-    assert exit_.value.code == 2
-    assert "error: " in err and message in err, err
-    assert "Traceback" not in err
+    assert_usage_error(["train", *config, *argv, "--run-dir", "run", "--no-progress"], message, capsys)
     expected = ["kept.txt"] if "run/kept.txt" in files else []  # a refused run writes nothing
     assert sorted(p.name for p in Path("run").glob("*")) == expected
 
@@ -219,12 +209,7 @@ def test_an_agent_the_env_refuses_and_a_missing_cluster_exit_with_code_2(
     monkeypatch.setattr(services, "find_gcs_addresses", no_ray_running)
     Path("bad.yaml").write_text("cases: [a\n  b: c\n")
     Path("sweep.yaml").write_text(f"base: {TRAIN_CONFIG}\nspace: {{seed: {{grid: [0, 1]}}}}\nsearch: grid\n")
-    with pytest.raises(SystemExit) as exit_:
-        main(argv)
-    err = capsys.readouterr().err
-    assert exit_.value.code == 2
-    assert "error: " in err and message in err, err
-    assert "Traceback" not in err
+    assert_usage_error(argv, message, capsys)
     assert not Path("sweep").exists()
 
 
