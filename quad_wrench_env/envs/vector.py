@@ -178,9 +178,10 @@ class QuadWrenchVectorEnv(VectorEnv):
     def step_arrays(self, actions: np.ndarray) -> Transition:
         """:meth:`step` without Gymnasium's ``info``: the same episodes, numbers and restarts, as
         arrays over vehicles (what training reads: ``SB3VecEnv``), with no per-vehicle objects and no
-        copies of the fleet's state."""
+        copies of the fleet's state (the engine's ``info`` entries are not gathered)."""
         step_observations, rewards, terminated, truncated, terms, _ = self._advance(actions)
-        entries = self.task.info(self.fleet)  # the ended episodes' numbers: before the restarts
+        # the ended episodes' numbers: copied before the restarts, which may recompute the task's arrays
+        entries = {key: np.copy(value) for key, value in self.task.info(self.fleet).items()}
         done = terminated | truncated
         next_observations = self._restart_ended(done) if np.any(done) else step_observations
         return Transition(
