@@ -354,8 +354,7 @@ def new_model(config: TrainConfig, env: Any, tensorboard_log: str | None = None)
         policy_kwargs["log_std_init"] = config.log_std_init
     return _algorithm(config.algorithm)(
         POLICY_CLASSES[config.algorithm], env, seed=config.seed, device="cpu", verbose=0,
-        policy_kwargs=policy_kwargs,
-        tensorboard_log=tensorboard_log, **config.hyperparameters,
+        policy_kwargs=policy_kwargs, tensorboard_log=tensorboard_log, **config.hyperparameters,
     )  # fmt: skip
 
 
