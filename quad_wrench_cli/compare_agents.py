@@ -19,30 +19,13 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
-from tqdm import tqdm
 
 from quad_wrench_cli.common import add_config_argument, load_config, save_figure, show, usage_errors
 from quad_wrench_env.agents import SHIPPED, make_agent, shipped_agents
-from quad_wrench_env.agents.evaluate import Evaluation, evaluate, metrics_table, table_columns
-from quad_wrench_env.config import load_yaml, merged
+from quad_wrench_env.agents.evaluate import Evaluation, compare, metrics_table, table_columns
+from quad_wrench_env.config import load_yaml
 
 CONFIG = "compare_agents.yaml"
-
-
-def run_all(config: dict) -> dict[tuple[str, str], Evaluation]:
-    results = {}
-    jobs = [(label, case) for label in config["agents"] for case in config["cases"]]
-    for label, case in tqdm(jobs, desc="agents x cases", unit="evaluation"):
-        spec, setup = config["agents"][label], config["cases"][case]
-        env = merged(merged(config.get("env", {}), spec.get("env", {})), setup.get("env", {}))
-        results[label, case] = evaluate(
-            make_agent(spec["agent"], **spec.get("params", {})),
-            config["env_id"],
-            config["seeds"],
-            options=setup.get("options", {}),
-            **env,
-        )
-    return results
 
 
 def plot(results: dict[tuple[str, str], Evaluation], metric: str, title: str, path: Path) -> None:
@@ -102,7 +85,7 @@ def run(args: argparse.Namespace) -> int:
         for spec in config["agents"].values():  # unknown agents and gains, before any flight
             make_agent(spec["agent"], **spec.get("params", {}))
     out.mkdir(parents=True, exist_ok=True)
-    results = run_all(config)
+    results = compare(config)
     title = f"{config['env_id']}, config {label}, env {config.get('env', {})}, seeds {config['seeds']}"
     table = "\n".join([title, "", *metrics_table(results, columns), ""])
     (out / "table.md").write_text(table)

@@ -26,6 +26,7 @@ from quad_wrench_cli import (
     reproduce_hentzen,
     reproduce_mckinnon,
     reproduce_yuksel,
+    study,
     sweep,
     train,
     tune_hentzen,
@@ -54,6 +55,7 @@ COMMANDS: dict[str, ModuleType | Group] = {
     ),
     "bench": bench,
     "sweep": sweep,
+    "study": study,
     "list": listing,
 }
 """Every command: a module (``add_arguments(parser)``, ``run(args) -> int``, its docstring the help) or a

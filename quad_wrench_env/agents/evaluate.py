@@ -15,6 +15,7 @@ import gymnasium as gym
 import numpy as np
 
 from quad_wrench_env.agents.base import Policy
+from quad_wrench_env.config import merged
 from quad_wrench_env.tasks import TASKS
 
 TRACE_KEYS = ("time", "position", "wrench_true", "wrench_est", "wind_velocity")
@@ -179,3 +180,26 @@ def metrics_table(
         seeds = ",".join(str(s) for s in ev.seeds)
         lines.append(f"| {agent} | {case} | {seeds} | " + " | ".join(cells) + " |")
     return lines
+
+
+def compare(config: Mapping[str, Any]) -> dict[tuple[str, str], Evaluation]:
+    """Every agent of a comparison config (``env_id``, ``env``, ``seeds``, ``agents``: label ->
+    ``{agent, params, env}``, ``cases``: label -> ``{options, env}``) on every case, the same seeds
+    for all: the config's env, then the agent's, then the case's."""
+    from tqdm import tqdm
+
+    from quad_wrench_env.agents import make_agent
+
+    results = {}
+    jobs = [(label, case) for label in config["agents"] for case in config["cases"]]
+    for label, case in tqdm(jobs, desc="agents x cases", unit="evaluation"):
+        spec, setup = config["agents"][label], config["cases"][case]
+        env = merged(merged(config.get("env", {}), spec.get("env", {})), setup.get("env", {}))
+        results[label, case] = evaluate(
+            make_agent(spec["agent"], **spec.get("params", {})),
+            config["env_id"],
+            config["seeds"],
+            options=setup.get("options", {}),
+            **env,
+        )
+    return results

@@ -1,0 +1,339 @@
+"""A study: arms of training runs (the same task trained with and without the wrench, with and without
+memory, with each estimator), several training seeds each, all evaluated on the same held-out seeds and
+cases beside the classical controllers, in one table with the spread across training seeds.
+
+A :class:`StudyConfig` names a base training config, the ``arms`` (each a set of dotted overrides of it,
+e.g. ``{env.observe_wrench: false, env.history: 8}``), the training ``seeds`` and a comparison config
+(as ``quad-wrench compare agents`` takes: env id, env, held-out seeds, classical agents, cases).
+:func:`study` trains each (arm, seed) into ``<folder>/runs/<arm>-seed<k>/`` on Ray (a local Ray on this
+machine's cores by default, one run per CPU, or the cluster at ``address``), skipping finished runs and
+resuming interrupted ones from their last checkpoint, so the same command continues a study; then it
+flies each run's kept model and each classical agent on every case and writes ``results.md`` (mean ±
+sd across training seeds of each run's mean over the held-out seeds; the classical controllers' over
+the seeds; and which arms differ by more than their spread), ``results.csv`` (every run, case and
+metric) and ``results.png``.
+"""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import logging
+import math
+import os
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from quad_wrench_env.agents.evaluate import Evaluation, compare, table_columns
+from quad_wrench_env.agents.sb3 import (
+    TrainConfig,
+    TrainingConfigError,
+    _latest_snapshot,
+    check_training,
+    train,
+    train_config,
+)
+from quad_wrench_env.config import apply_overrides, build, check_numbers, load_yaml
+
+
+@dataclass
+class StudyConfig:
+    """One study (a YAML file; see ``configs/study_*.yaml``)."""
+
+    base: str | dict[str, Any] = field(default_factory=dict)
+    """The training config every arm starts from: a path (relative to the study file) or a mapping."""
+    arms: dict[str, dict[str, Any]] = field(default_factory=dict)
+    """Arm label -> dotted overrides of ``base`` (``{}``: the base as it is)."""
+    seeds: list[int] = field(default_factory=lambda: [0, 1, 2])
+    """Training seeds of every arm (the config's ``seed``: vehicle i of a run starts from seed + i)."""
+    comparison: str | dict[str, Any] = field(default_factory=dict)
+    """Where every run and the classical agents are scored: a ``compare agents`` config (``env_id``,
+    ``env``, ``seeds`` never trained on, ``agents`` (the classical ones), ``cases``), a path (relative
+    to the study file) or a mapping. Each run flies with its training env on top of the config's."""
+    cpus_per_run: float = 1.0
+    """CPUs Ray reserves for each run (a run steps its env and its network in one process)."""
+
+    def __post_init__(self) -> None:
+        if not (isinstance(self.arms, dict) and self.arms):
+            raise ValueError(f"arms={self.arms!r} must name at least one arm (label -> overrides)")
+        seeds = self.seeds
+        if not (
+            isinstance(seeds, list)
+            and seeds
+            and all(_is_seed(s) for s in seeds)
+            and len(set(seeds)) == len(seeds)
+        ):
+            raise ValueError(f"seeds={seeds!r} must be a non-empty list of distinct integers >= 0")
+        check_numbers("study", self, ("cpus_per_run",))
+        slugs = [slug(label) for label in self.arms]
+        if len(set(slugs)) != len(slugs):
+            raise ValueError(f"arms {list(self.arms)}: two labels give the same folder name {slugs}")
+        for label in self.arms:
+            for seed in seeds:
+                try:
+                    self.run_config(label, seed)
+                except ValueError as error:
+                    raise ValueError(f"arms[{label!r}]: {error}") from None
+        comparison = self.comparison_values()
+        for key in ("env_id", "seeds", "cases"):
+            if key not in comparison:
+                raise ValueError(f"comparison: missing key {key!r} (a compare-agents config)")
+        used = {s + i for s in seeds for i in range(self._vehicles())}
+        used |= {s for label in self.arms for s in self.run_config(label, seeds[0]).evaluation.seeds}
+        overlap = sorted(set(comparison["seeds"]) & used)
+        if overlap:
+            raise ValueError(
+                f"comparison seeds {overlap} were trained on or chose the kept models; "
+                "score on seeds never used in training"
+            )
+
+    def run_config(self, label: str, seed: int) -> TrainConfig:
+        """The training config of arm ``label`` with training seed ``seed``."""
+        return train_config(self.base_values(), {**self.arms[label], "seed": seed})
+
+    def base_values(self) -> dict[str, Any]:
+        return load_yaml(self.base) if isinstance(self.base, str) else dict(self.base)
+
+    def comparison_values(self) -> dict[str, Any]:
+        return load_yaml(self.comparison) if isinstance(self.comparison, str) else dict(self.comparison)
+
+    def _vehicles(self) -> int:
+        return max(self.run_config(label, self.seeds[0]).num_envs for label in self.arms)
+
+
+def _is_seed(value: Any) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool) and value >= 0
+
+
+def slug(label: str) -> str:
+    """A folder name for an arm label."""
+    return re.sub(r"[^a-z0-9]+", "-", label.lower()).strip("-") or "arm"
+
+
+def load_study_config(path: str | Path, overrides: list[str] | None = None) -> StudyConfig:
+    """The :class:`StudyConfig` of the YAML file ``path`` with ``--set``-style ``key=value`` overrides;
+    relative ``base`` and ``comparison`` paths are read from the file's folder."""
+    values = apply_overrides(load_yaml(path), overrides or [])
+    for key in ("base", "comparison"):
+        if isinstance(values.get(key), str):
+            values[key] = str(Path(path).resolve().parent / values[key])
+    return build(StudyConfig, values)
+
+
+def run_folder(folder: Path, label: str, seed: int) -> Path:
+    return folder / "runs" / f"{slug(label)}-seed{seed}"
+
+
+def status(run: Path) -> str:
+    """``done`` (a final model), ``resume`` (a checkpoint to continue from) or ``new``."""
+    if (run / "final" / "model.zip").is_file():
+        return "done"
+    try:
+        _latest_snapshot(run)
+    except FileNotFoundError:
+        return "new"
+    return "resume"
+
+
+def _train_run(values: dict[str, Any], folder: str, resume: bool) -> str:
+    """One run (a Ray task): the training config ``values`` into ``folder``."""
+    import shutil
+
+    run = Path(folder)
+    if not resume and run.exists():  # started but never checkpointed: start again
+        shutil.rmtree(run)
+    train(build(TrainConfig, values), run, resume=resume, progress=False)
+    return folder
+
+
+def train_all(config: StudyConfig, folder: Path, address: str | None = None) -> list[str]:
+    """Every run not finished yet, on Ray; returns a line per run trained."""
+    import ray
+
+    pending = [
+        (label, seed, run_folder(folder, label, seed))
+        for label in config.arms
+        for seed in config.seeds
+        if status(run_folder(folder, label, seed)) != "done"
+    ]
+    if not pending:
+        return []
+    started = not ray.is_initialized()
+    if started:
+        local = {} if address else {"num_cpus": os.cpu_count(), "include_dashboard": False}
+        try:
+            ray.init(address=address, log_to_driver=False, logging_level=logging.WARNING, **local)
+        except ConnectionError as error:
+            raise ConnectionError(f"address={address!r}: {str(error).splitlines()[0]}") from None
+    try:
+        task = ray.remote(num_cpus=config.cpus_per_run)(_train_run)
+        jobs = {
+            task.remote(
+                dataclasses.asdict(config.run_config(label, seed)), str(run), status(run) == "resume"
+            ): (
+                label,
+                seed,
+            )
+            for label, seed, run in pending
+        }
+        lines = []
+        while jobs:
+            done, _ = ray.wait(list(jobs))
+            label, seed = jobs.pop(done[0])
+            ray.get(done[0])
+            lines.append(f"trained {label}, seed {seed}")
+        return lines
+    finally:
+        if started:
+            ray.shutdown()
+
+
+def evaluate_all(config: StudyConfig, folder: Path) -> dict[tuple[str, str], Evaluation]:
+    """Each run's kept model (label ``<arm> seed <k>``, with its training env) and each classical agent
+    of the comparison on every case: :func:`quad_wrench_env.agents.evaluate.compare`."""
+    comparison = config.comparison_values()
+    agents = dict(comparison.get("agents", {}))
+    for label in config.arms:
+        for seed in config.seeds:
+            trained = config.run_config(label, seed)
+            agents[f"{label} seed {seed}"] = {
+                "agent": str(run_folder(folder, label, seed)),
+                "env": trained.env,
+            }
+    return compare({**comparison, "agents": agents})
+
+
+def summary(config: StudyConfig, results: dict[tuple[str, str], Evaluation]) -> list[dict[str, Any]]:
+    """One row per (arm or classical agent, case, metric): the mean and the spread (across training
+    seeds of each run's mean over the held-out seeds; for a classical agent, over the seeds)."""
+    comparison = config.comparison_values()
+    metrics = [key for key, _, _ in table_columns(comparison["env_id"])]
+    rows = []
+    for case in comparison["cases"]:
+        for label in list(comparison.get("agents", {})) + list(config.arms):
+            for metric in metrics:
+                if label in config.arms:
+                    values = [results[f"{label} seed {s}", case].mean[metric] for s in config.seeds]
+                    kind = "arm"
+                else:
+                    values = [m[metric] for m in results[label, case].per_seed]
+                    kind = "classical"
+                values = np.array(values, dtype=float)
+                rows.append(
+                    {
+                        "case": case, "agent": label, "kind": kind, "metric": metric,
+                        "mean": float(np.mean(values)), "sd": float(np.std(values)), "n": len(values),
+                    }
+                )  # fmt: skip
+    return rows
+
+
+def differences(rows: list[dict[str, Any]], metric: str) -> list[str]:
+    """For ``metric``, the pairs of arms (and arm versus classical agent) per case whose means differ by
+    more than their spreads together (``|a - b| > sd_a + sd_b``), the lower first."""
+    lines = []
+    for case in dict.fromkeys(r["case"] for r in rows):
+        entries = [
+            r for r in rows if r["case"] == case and r["metric"] == metric and math.isfinite(r["mean"])
+        ]
+        for i, a in enumerate(entries):
+            for b in entries[i + 1 :]:
+                if "arm" not in (a["kind"], b["kind"]):
+                    continue
+                low, high = sorted((a, b), key=lambda r: r["mean"])
+                if high["mean"] - low["mean"] > low["sd"] + high["sd"]:
+                    lines.append(
+                        f"- {case}: {low['agent']} {low['mean']:.4g} ± {low['sd']:.2g} < {high['agent']} "
+                        f"{high['mean']:.4g} ± {high['sd']:.2g}"
+                    )
+    return lines
+
+
+def study(config: StudyConfig, folder: str | Path, address: str | None = None) -> list[dict[str, Any]]:
+    """Train what is not trained yet, evaluate everything, write ``results.csv`` and ``results.md``;
+    returns the summary rows (:func:`summary`), which :func:`figure` draws."""
+    folder = Path(folder).resolve()
+    for label in config.arms:  # env settings and hyperparameters, before any run starts
+        try:
+            check_training(config.run_config(label, config.seeds[0]), folder / "runs" / "not-a-run")
+        except TrainingConfigError as error:
+            raise TrainingConfigError(f"arms[{label!r}]: {error}") from None
+    (folder / "runs").mkdir(parents=True, exist_ok=True)
+    for line in train_all(config, folder, address):
+        print(line, flush=True)
+    rows = summary(config, evaluate_all(config, folder))
+    write_results(config, folder, rows)
+    return rows
+
+
+def write_results(config: StudyConfig, folder: Path, rows: list[dict[str, Any]]) -> None:
+    """``results.csv`` (every row) and ``results.md`` (the table and the differences)."""
+    with (folder / "results.csv").open("w", newline="") as handle:
+        writer = csv.DictWriter(handle, list(rows[0]))
+        writer.writeheader()
+        writer.writerows(rows)
+    comparison = config.comparison_values()
+    columns = table_columns(comparison["env_id"])
+    header = ["agent", "case", *[title for _, title, _ in columns]]
+    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    for case in comparison["cases"]:
+        for agent in dict.fromkeys(r["agent"] for r in rows):
+            cells = []
+            for key, _, fmt in columns:
+                (row,) = [r for r in rows if r["case"] == case and r["agent"] == agent and r["metric"] == key]
+                cells.append(
+                    f"{fmt.format(row['mean'])} ± {fmt.format(row['sd'])}"
+                    if math.isfinite(row["mean"])
+                    else "n/a"
+                )
+            lines.append(f"| {agent} | {case} | " + " | ".join(cells) + " |")
+    primary = columns[0][0]
+    runs = [dataclasses.asdict(config.run_config(a, config.seeds[0])) for a in config.arms]
+    text = [
+        f"# Study of {comparison['env_id']}: {len(config.arms)} arms x training seeds {config.seeds}",
+        "",
+        f"Arms (overrides of the base training config): {config.arms}; held-out seeds "
+        f"{comparison['seeds']}. An arm's cell: mean ± sd across training seeds of each run's mean over "
+        "the held-out seeds; a classical agent's: mean ± sd over the seeds.",
+        "",
+        *lines,
+        "",
+        f"Differences larger than the spreads together ({primary}):",
+        "",
+        *(differences(rows, primary) or ["- none"]),
+        "",
+        f"Training steps per run: {sorted({r['total_steps'] for r in runs})}, wall-clock budget "
+        f"{sorted({r['max_minutes'] for r in runs})} min; each run's curve.csv and config.yaml are in runs/.",
+    ]
+    (folder / "results.md").write_text("\n".join(text) + "\n")
+
+
+def figure(rows: list[dict[str, Any]], env_id: str) -> Any:
+    """Bars of the task's first metric per case and agent, with the spreads of the table."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    metric, title, _ = table_columns(env_id)[0]
+    chosen = [r for r in rows if r["metric"] == metric]
+    agents = list(dict.fromkeys(r["agent"] for r in chosen))
+    cases = list(dict.fromkeys(r["case"] for r in chosen))
+    fig, ax = plt.subplots(figsize=(1.6 * len(cases) + 3, 4.5))
+    width = 0.8 / len(agents)
+    for k, agent in enumerate(agents):
+        picked = [next(r for r in chosen if r["agent"] == agent and r["case"] == c) for c in cases]
+        ax.bar(
+            np.arange(len(cases)) + k * width, [r["mean"] for r in picked], width,
+            yerr=[r["sd"] for r in picked], label=agent, capsize=2,
+        )  # fmt: skip
+    ax.set_xticks(np.arange(len(cases)) + 0.4 - width / 2, cases, rotation=20, ha="right")
+    ax.set_xlabel("case")
+    ax.set_ylabel(title)
+    ax.set_title("arms: mean ± sd across training seeds; classical: across the held-out seeds")
+    ax.legend(fontsize=7)
+    return fig

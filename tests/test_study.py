@@ -1,0 +1,82 @@
+"""``quad-wrench study``: arms x training seeds trained on a local Ray, every run and the classical
+agents scored on the same held-out seeds, the table with the spread across training seeds, and a second
+call that continues the study instead of starting it again."""
+
+from __future__ import annotations
+
+import csv
+
+import pytest
+
+from quad_wrench_env.agents.sb3 import TrainingConfigError
+from quad_wrench_env.agents.study import StudyConfig, status, study, train_all
+from quad_wrench_env.config import build
+from tests.conftest import FAN_TRACKING
+
+pytest.importorskip("ray")
+
+BASE = {
+    "env_id": FAN_TRACKING,
+    "env": {"episode_seconds": 2.0},
+    "num_envs": 2,
+    "total_steps": 64,
+    "checkpoint_every_steps": 1024,
+    "hyperparameters": {"n_steps": 32, "batch_size": 64, "n_epochs": 1},
+    "evaluation": {"seeds": [900], "every_steps": 10000, "metric": "return"},
+}
+COMPARISON = {
+    "env_id": FAN_TRACKING,
+    "seeds": [2000, 2001],
+    "agents": {"admittance (oracle)": {"agent": "admittance", "env": {"estimator": "oracle"}}},
+    "cases": {"static": {"options": {"fan_motion": "static"}, "env": {"episode_seconds": 6.0}}},
+}
+
+
+def _config(**changes) -> StudyConfig:
+    values = {
+        "base": BASE,
+        "arms": {"no wrench": {"env.observe_wrench": False}, "ukf, history 2": {"env.history": 2}},
+        "seeds": [0, 1],
+        "comparison": COMPARISON,
+        **changes,
+    }
+    return build(StudyConfig, values)
+
+
+def test_a_study_trains_every_arm_and_seed_scores_them_beside_the_classical_agent_and_continues(tmp_path):
+    config = _config()
+    rows = study(config, tmp_path)
+    runs = sorted(p.name for p in (tmp_path / "runs").iterdir())
+    assert runs == ["no-wrench-seed0", "no-wrench-seed1", "ukf-history-2-seed0", "ukf-history-2-seed1"]
+    assert all(status(tmp_path / "runs" / run) == "done" for run in runs)
+    arm = next(r for r in rows if r["agent"] == "ukf, history 2" and r["metric"] == "mean_abs_error_after_5s")
+    assert arm["n"] == 2 and arm["kind"] == "arm"  # across the two training seeds
+    classical = next(r for r in rows if r["agent"] == "admittance (oracle)")
+    assert classical["n"] == 2 and classical["kind"] == "classical"  # across the two held-out seeds
+    table = (tmp_path / "results.md").read_text()
+    assert "| ukf, history 2 | static |" in table and "| admittance (oracle) | static |" in table
+    with (tmp_path / "results.csv").open() as handle:
+        assert len(list(csv.DictReader(handle))) == len(rows)
+    assert train_all(config, tmp_path) == []  # a second call trains nothing: every run is done
+
+
+@pytest.mark.parametrize(
+    ("changes", "message"),
+    [
+        ({"arms": {}}, "at least one arm"),
+        ({"seeds": [0, 0]}, "distinct"),
+        ({"comparison": {**COMPARISON, "seeds": [1]}}, r"comparison seeds \[1\] were trained on"),
+        ({"comparison": {**COMPARISON, "seeds": [900]}}, r"comparison seeds \[900\]"),
+        ({"arms": {"a b": {}, "a-b": {}}}, "the same folder name"),
+    ],
+)
+def test_a_bad_study_is_refused_by_name(changes, message):
+    with pytest.raises(ValueError, match=message):
+        _config(**changes)
+
+
+def test_an_arm_whose_env_the_task_refuses_stops_the_study_before_any_run(tmp_path):
+    config = _config(arms={"bad": {"env.estimator": "kalman"}})
+    with pytest.raises(TrainingConfigError, match=r"arms\['bad'\]: unknown estimator 'kalman'"):
+        study(config, tmp_path)
+    assert not (tmp_path / "runs").exists()
