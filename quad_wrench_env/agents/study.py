@@ -292,7 +292,12 @@ def write_results(config: StudyConfig, folder: Path, rows: list[dict[str, Any]])
                 )
             lines.append(f"| {agent} | {case} | " + " | ".join(cells) + " |")
     primary = columns[0][0]
-    runs = [dataclasses.asdict(config.run_config(a, config.seeds[0])) for a in config.arms]
+    done = []  # (steps, wall seconds) each run trained: the last row of its curve
+    for label in config.arms:
+        for seed in config.seeds:
+            with (run_folder(folder, label, seed) / "curve.csv").open() as handle:
+                last = list(csv.DictReader(handle))[-1]
+            done.append((int(last["steps"]), float(last["wall_seconds"])))
     text = [
         f"# Study of {comparison['env_id']}: {len(config.arms)} arms x training seeds {config.seeds}",
         "",
@@ -306,8 +311,9 @@ def write_results(config: StudyConfig, folder: Path, rows: list[dict[str, Any]])
         "",
         *(differences(rows, primary) or ["- none"]),
         "",
-        f"Training steps per run: {sorted({r['total_steps'] for r in runs})}, wall-clock budget "
-        f"{sorted({r['max_minutes'] for r in runs})} min; each run's curve.csv and config.yaml are in runs/.",
+        f"Each run trained {min(s for s, _ in done):,} to {max(s for s, _ in done):,} env steps in "
+        f"{min(w for _, w in done) / 60:.1f} to {max(w for _, w in done) / 60:.1f} min of wall time; its "
+        "curve.csv and config.yaml are in runs/.",
     ]
     (folder / "results.md").write_text("\n".join(text) + "\n")
 
@@ -334,6 +340,6 @@ def figure(rows: list[dict[str, Any]], env_id: str) -> Any:
     ax.set_xticks(np.arange(len(cases)) + 0.4 - width / 2, cases, rotation=20, ha="right")
     ax.set_xlabel("case")
     ax.set_ylabel(title)
-    ax.set_title("arms: mean ± sd across training seeds; classical: across the held-out seeds")
+    ax.set_title("arms: across training seeds; classical: across held-out seeds", fontsize=9)
     ax.legend(fontsize=7)
     return fig
