@@ -240,7 +240,7 @@ def check_training(config: TrainConfig, folder: str | Path, resume: bool = False
     folder = Path(folder)
     try:
         if resume:
-            _latest_snapshot(folder)
+            latest_snapshot(folder)
         elif folder.exists() and any(folder.iterdir()):
             raise ValueError(f"run folder {str(folder)!r} is not empty; resume it or give a new folder")
         try:
@@ -375,7 +375,7 @@ def train(config: TrainConfig, folder: str | Path, resume: bool = False, progres
     adapter, env = training_env(config)  # the adapter's arrays are read by Loop below
     start_steps = 0
     if resume:
-        last = _latest_snapshot(folder)
+        last = latest_snapshot(folder)
         env = VecNormalize.load(str(last / "vecnormalize.pkl"), env.venv)
         model = _algorithm(config.algorithm).load(last / "model.zip", env=env, device="cpu")
         start_steps = model.num_timesteps
@@ -478,7 +478,7 @@ def train(config: TrainConfig, folder: str | Path, resume: bool = False, progres
     return folder
 
 
-def _latest_snapshot(folder: Path) -> Path:
+def latest_snapshot(folder: Path) -> Path:
     """The newest of the run's checkpoints and its ``final/`` model, to resume from."""
     found = [p for p in (folder / "checkpoints").glob("*") if (p / "model.zip").is_file()]
     if (folder / "final" / "model.zip").is_file():

@@ -18,9 +18,7 @@ from __future__ import annotations
 
 import csv
 import dataclasses
-import logging
 import math
-import os
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -32,11 +30,12 @@ from quad_wrench_env.agents.evaluate import Evaluation, compare, table_columns
 from quad_wrench_env.agents.sb3 import (
     TrainConfig,
     TrainingConfigError,
-    _latest_snapshot,
     check_training,
+    latest_snapshot,
     train,
     train_config,
 )
+from quad_wrench_env.agents.sweep import ray_session
 from quad_wrench_env.config import apply_overrides, build, check_numbers, load_yaml
 
 
@@ -133,7 +132,7 @@ def status(run: Path) -> str:
     if (run / "final" / "model.zip").is_file():
         return "done"
     try:
-        _latest_snapshot(run)
+        latest_snapshot(run)
     except FileNotFoundError:
         return "new"
     return "resume"
@@ -162,24 +161,12 @@ def train_all(config: StudyConfig, folder: Path, address: str | None = None) -> 
     ]
     if not pending:
         return []
-    started = not ray.is_initialized()
-    if started:
-        local = {} if address else {"num_cpus": os.cpu_count(), "include_dashboard": False}
-        try:
-            ray.init(address=address, log_to_driver=False, logging_level=logging.WARNING, **local)
-        except ConnectionError as error:
-            raise ConnectionError(f"address={address!r}: {str(error).splitlines()[0]}") from None
-    try:
+    with ray_session(address):
         task = ray.remote(num_cpus=config.cpus_per_run)(_train_run)
-        jobs = {
-            task.remote(
-                dataclasses.asdict(config.run_config(label, seed)), str(run), status(run) == "resume"
-            ): (
-                label,
-                seed,
-            )
-            for label, seed, run in pending
-        }
+        jobs = {}
+        for label, seed, run in pending:
+            values = dataclasses.asdict(config.run_config(label, seed))
+            jobs[task.remote(values, str(run), status(run) == "resume")] = (label, seed)
         lines = []
         while jobs:
             done, _ = ray.wait(list(jobs))
@@ -187,9 +174,6 @@ def train_all(config: StudyConfig, folder: Path, address: str | None = None) -> 
             ray.get(done[0])
             lines.append(f"trained {label}, seed {seed}")
         return lines
-    finally:
-        if started:
-            ray.shutdown()
 
 
 def evaluate_all(config: StudyConfig, folder: Path) -> dict[tuple[str, str], Evaluation]:

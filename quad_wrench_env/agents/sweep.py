@@ -17,7 +17,8 @@ import dataclasses
 import logging
 import math
 import os
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -145,7 +146,6 @@ def sweep(
     cluster at ``address`` (whose nodes must have this package installed and see ``folder`` at the
     same path), else a local one on all of this machine's cores; ``progress``: Tune's status table."""
     try:
-        import ray
         from ray import tune
     except ImportError as error:
         raise ImportError(INSTALL) from error
@@ -157,14 +157,7 @@ def sweep(
     mode = "min" if evaluation.lower_is_better else "max"
     # Trials keep the driver's working directory (Tune passes this variable on to its trial actors).
     os.environ["RAY_CHDIR_TO_TRIAL_DIR"] = "0"
-    started = not ray.is_initialized()
-    if started:
-        local = {} if address else {"num_cpus": os.cpu_count(), "include_dashboard": False}
-        try:
-            ray.init(address=address, log_to_driver=False, logging_level=logging.WARNING, **local)
-        except ConnectionError as error:  # before any trial: nothing written
-            raise ConnectionError(f"address={address!r}: {str(error).splitlines()[0]}") from None
-    try:
+    with ray_session(address):
         trainable = tune.with_parameters(
             _run_trial, base=base, runs=str(folder / "runs"), metric=evaluation.metric, mode=mode
         )
@@ -181,12 +174,30 @@ def sweep(
             run_config=tune.RunConfig(storage_path=str(folder), name="ray", verbose=None if progress else 0),
         )
         results = tuner.fit()
-    finally:
-        if started:
-            ray.shutdown()
     rows = _rows(results, folder / "runs", list(config.space), evaluation.metric, mode)
     _write_tables(folder, rows)
     return _best(folder, rows, base, list(config.space), evaluation.metric)
+
+
+@contextmanager
+def ray_session(address: str | None) -> Iterator[None]:
+    """Ray for the block: one already started in this process, else the cluster at ``address``, else a
+    local one on all of this machine's cores (shut down after the block). No cluster at ``address``:
+    ``ConnectionError`` naming it, before anything runs."""
+    import ray
+
+    started = not ray.is_initialized()
+    if started:
+        local = {} if address else {"num_cpus": os.cpu_count(), "include_dashboard": False}
+        try:
+            ray.init(address=address, log_to_driver=False, logging_level=logging.WARNING, **local)
+        except ConnectionError as error:
+            raise ConnectionError(f"address={address!r}: {str(error).splitlines()[0]}") from None
+    try:
+        yield
+    finally:
+        if started:
+            ray.shutdown()
 
 
 def _domain(spec: Mapping[str, Any]) -> Any:
