@@ -4,11 +4,14 @@
     quad-wrench evaluate pid QuadWrench/DisturbanceRejection-v0 --seeds 0 1 --env estimator=ekf \\
         --agent-param bandwidth=3.5 --options '{"scenario": "jet_crossing"}' --json out.json
     quad-wrench evaluate runs/NAME QuadWrench/FanTracking-v1 --seeds 100 101 --csv out.csv --video out.mp4
+    quad-wrench evaluate hold QuadWrench/FanTracking-v1 --seeds 0 --log flight.csv   # then: estimate
 
 AGENT is a classical agent, a shipped learned policy (``quad-wrench list`` names both) or a training run
 folder. The episodes run through the one harness (:func:`quad_wrench_env.agents.evaluate.evaluate`); the
 table shows each seed's metrics and their mean ± standard deviation; ``--json`` and ``--csv`` write them for
-tools (JSON: null where a metric is undefined or never reached).
+tools (JSON: null where a metric is undefined or never reached). ``--log`` writes the first seed's flight
+as its estimator saw it, at the physics rate, in the flight-log layout that ``quad-wrench estimate`` reads
+(:mod:`quad_wrench_env.flight_log`).
 """
 
 from __future__ import annotations
@@ -30,8 +33,10 @@ from quad_wrench_cli.common import (
     write_json,
 )
 from quad_wrench_env.agents import make_agent
-from quad_wrench_env.agents.evaluate import Evaluation, evaluate, metrics_table
+from quad_wrench_env.agents.base import Policy
+from quad_wrench_env.agents.evaluate import Evaluation, episode_metrics, evaluate, metrics_table, run_episode
 from quad_wrench_env.config import apply_overrides
+from quad_wrench_env.flight_log import FlightRecorder, write_flight_log
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -81,6 +86,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="with --video: record every N-th policy step (N >= 1; default: every step for .mp4, "
         "12.5 frames per second for .gif); N = 2 records about twice as fast",
     )
+    parser.add_argument(
+        "--log",
+        metavar="PATH",
+        type=_log_path,
+        help="write the first seed's flight to PATH (.csv): what its estimator saw at each physics step "
+        "and the true wrench, for quad-wrench estimate (docs/estimators.md, Flight logs)",
+    )
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
@@ -88,6 +100,13 @@ def _video_path(text: str) -> str:
     """argparse type: a video file name that :func:`quad_wrench_env.agents.video.record_video` writes."""
     if not text.lower().endswith((".mp4", ".gif")):
         raise argparse.ArgumentTypeError(f"{text!r} must end in .mp4 or .gif")
+    return text
+
+
+def _log_path(text: str) -> str:
+    """argparse type: a flight log's file name (CSV)."""
+    if not text.lower().endswith(".csv"):
+        raise argparse.ArgumentTypeError(f"{text!r} must end in .csv (a flight log)")
     return text
 
 
@@ -111,7 +130,12 @@ def run(args: argparse.Namespace) -> int:
         finally:
             env.close()
     seeds = tqdm(args.seeds, desc=f"{args.agent} on {args.env_id}", unit="episode", disable=args.no_progress)
-    runs = [evaluate(policy, args.env_id, [s], options=args.options, **env_kwargs) for s in seeds]
+    runs = [
+        _logged(policy, args, s, env_kwargs)
+        if args.log and not i
+        else evaluate(policy, args.env_id, [s], options=args.options, **env_kwargs)
+        for i, s in enumerate(seeds)
+    ]
     result = Evaluation(
         args.env_id, args.seeds, [m for r in runs for m in r.per_seed], [e for r in runs for e in r.episodes]
     )
@@ -136,7 +160,20 @@ def run(args: argparse.Namespace) -> int:
             policy, args.env_id, args.video, args.seeds[0], args.options, args.video_every,
             progress=not args.no_progress, **env_kwargs,
         )  # fmt: skip
-    written = [path for path in (args.json, args.csv, args.video) if path]
+    written = [path for path in (args.json, args.csv, args.video, args.log) if path]
     if written:
         print("wrote " + ", ".join(written))
     return 0
+
+
+def _logged(policy: Policy, args: argparse.Namespace, seed: int, env_kwargs: dict) -> Evaluation:
+    """The evaluation of ``seed`` (as :func:`~quad_wrench_env.agents.evaluate.evaluate` runs it), its
+    flight written to ``args.log``."""
+    env = gym.make(args.env_id, **env_kwargs)
+    try:
+        recorder = FlightRecorder(env)
+        episode = run_episode(policy, env, seed, args.options, on_step=recorder.on_step)
+    finally:
+        env.close()
+    write_flight_log(args.log, recorder.log())
+    return Evaluation(args.env_id, [seed], [episode_metrics(args.env_id, episode)], [episode])

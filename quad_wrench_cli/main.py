@@ -21,6 +21,7 @@ from quad_wrench_cli import (
     compare_agents,
     compare_estimators,
     demo,
+    estimate,
     evaluate,
     listing,
     reproduce_hentzen,
@@ -40,6 +41,7 @@ COMMANDS: dict[str, ModuleType | Group] = {
     "demo": demo,
     "train": train,
     "evaluate": evaluate,
+    "estimate": estimate,
     "compare": (
         "Compare agents, or the wrench estimators, on the same seeds",
         {"agents": compare_agents, "estimators": compare_estimators},
