@@ -8,15 +8,21 @@ process), for the training config's task, vehicles and settings:
 1. the training path's wrappers, stepped in alternating blocks on the same random actions, µs per
    vehicle and policy step: the vector env's Gymnasium ``step`` (with its info), its ``step_arrays``
    (what training steps), ``SB3VecEnv``, ``+ VecMonitor``, ``+ VecNormalize`` (the training path
-   whole), each with its ratio to ``step_arrays``; and the bare PyBullet floor of as many bodies
+   whole, in one process), the same vehicles' ``step_arrays`` in ``P`` processes
+   (:class:`~quad_wrench_env.envs.processes.ProcessVectorEnv`, wall time: the processes step at
+   once), each with its ratio to ``step_arrays``; and the bare PyBullet floor of as many bodies
    with the loads of one physics step, times the physics steps of a policy step;
-2. ``--steps`` env steps of the config's algorithm learning on that path: env steps per second (wall
-   and CPU) and the shares of wall time in env stepping (the whole wrapper stack), policy inference
-   and the rest of the rollout (collection minus env stepping), and the updates.
+2. ``--steps`` env steps of the config's algorithm learning on that path, with the vehicles in one
+   process and in ``P``, one after the other: env steps per second (wall, and per CPU-second of
+   the learner's process) and the shares of wall time in env stepping (the whole wrapper stack),
+   policy inference with the rest of the rollout, and the updates.
+
+``P`` is the config's ``env_processes``, or 2 where it says 1.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from pathlib import Path
 from typing import Any
@@ -51,6 +57,7 @@ def wrapper_rows(config: Any, blocks: int) -> list[list[str]]:
     from stable_baselines3.common.vec_env import VecMonitor
 
     from quad_wrench_env.agents.sb3 import training_env
+    from quad_wrench_env.envs.processes import ProcessVectorEnv
     from quad_wrench_env.envs.sb3_vec_env import SB3VecEnv
 
     def vector() -> Any:
@@ -61,28 +68,34 @@ def wrapper_rows(config: Any, blocks: int) -> list[list[str]]:
     raw, arrays = vector(), vector()
     adapter = SB3VecEnv(vector(), step_infos=False)
     monitored = VecMonitor(SB3VecEnv(vector(), step_infos=False))
-    whole = training_env(config)[1]
+    whole = training_env(dataclasses.replace(config, env_processes=1))[1]
+    processes = processes_compared(config)[-1]
+    split = SB3VecEnv(
+        ProcessVectorEnv(config.env_id, config.num_envs, processes, **config.env), step_infos=False
+    )
     layers: dict[str, Any] = {
         "vector env `step` (Gymnasium info)": raw.step,
         "vector env `step_arrays`": arrays.unwrapped.step_arrays,
         "+ SB3VecEnv": adapter.step,
         "+ VecMonitor": monitored.step,
-        "+ VecNormalize (the training path)": whole.step,
+        "+ VecNormalize (the training path, 1 process)": whole.step,
+        f"`step_arrays` in {processes} processes (wall time)": split.venv.step_arrays,
     }
     raw.reset(seed=config.seed)
     arrays.reset(seed=config.seed)
-    for env in (adapter, monitored, whole):
+    for env in (adapter, monitored, whole, split):
         env.seed(config.seed)
         env.reset()
     actions = np.random.default_rng(0).uniform(-0.3, 0.3, (BLOCK, config.num_envs, 4)).astype(np.float32)
     best = dict.fromkeys(layers, np.inf)
     for _ in range(blocks):
         for name, step in layers.items():
-            started = time.process_time()
+            clock = time.perf_counter if "wall" in name else time.process_time
+            started = clock()
             for action in actions:
                 step(action)
-            best[name] = min(best[name], (time.process_time() - started) / (BLOCK * config.num_envs))
-    for env in (raw, arrays, adapter, monitored, whole):
+            best[name] = min(best[name], (clock() - started) / (BLOCK * config.num_envs))
+    for env in (raw, arrays, adapter, monitored, whole, split):
         env.close()
     substeps = raw.unwrapped.fleet.substeps
     world_step = min(
@@ -96,8 +109,13 @@ def wrapper_rows(config: Any, blocks: int) -> list[list[str]]:
     return [*rows, [label, f"{floor * 1e6:.1f}", f"{floor / base:.3f}"]]
 
 
+def processes_compared(config: Any) -> list[int]:
+    """The vehicles' process counts compared: 1 and the config's ``env_processes`` (2 where it is 1)."""
+    return [1, max(config.env_processes, 2)]
+
+
 def learning_rows(config: Any, steps: int) -> list[list[str]]:
-    """Table 2: the config's algorithm learning ``steps`` env steps on the training path."""
+    """Table 2's column: the config's algorithm learning ``steps`` env steps on the training path."""
     import torch
     from stable_baselines3.common.vec_env import VecEnvWrapper
 
@@ -135,11 +153,12 @@ def learning_rows(config: Any, steps: int) -> list[list[str]]:
     wall = total.wall
     inference = wall - update_clock.wall - env_clock.wall
     return [
-        ["env steps", f"{done}", ""],
-        ["env steps / s", f"{done / total.wall:,.0f} (wall)", f"{done / total.cpu:,.0f} (per CPU-s)"],
-        ["env stepping (the whole wrapper stack)", f"{env_clock.wall:.1f} s", f"{env_clock.wall / wall:.0%}"],
-        ["policy inference, rollout bookkeeping", f"{inference:.1f} s", f"{inference / wall:.0%}"],
-        ["updates", f"{update_clock.wall:.1f} s", f"{update_clock.wall / wall:.0%}"],
+        ["env steps", f"{done}"],
+        ["env steps / s (wall)", f"{done / wall:,.0f}"],
+        ["env steps / CPU-s of the learner's process", f"{done / total.cpu:,.0f}"],
+        ["env stepping (the whole wrapper stack)", f"{env_clock.wall:.1f} s ({env_clock.wall / wall:.0%})"],
+        ["policy inference, rollout bookkeeping", f"{inference:.1f} s ({inference / wall:.0%})"],
+        ["updates", f"{update_clock.wall:.1f} s ({update_clock.wall / wall:.0%})"],
     ]  # fmt: skip
 
 
@@ -157,4 +176,8 @@ def report(config_file: str | Path, steps: int | None, repeats: int) -> None:
     table = markdown_table(["layer", "µs / vehicle step", "x step_arrays"], wrapper_rows(config, repeats))
     show(f"{title}\n\n{table}\n")
     title = f"{config.algorithm.upper()} learning {steps} env steps ({config.hyperparameters}), wall time"
-    show(f"{title}\n\n{markdown_table(['what', 'value', 'share'], learning_rows(config, steps))}")
+    counts = processes_compared(config)
+    columns = [learning_rows(dataclasses.replace(config, env_processes=n), steps) for n in counts]
+    rows = [[label, *(column[i][1] for column in columns)] for i, (label, _) in enumerate(columns[0])]
+    header = ["what", *(f"vehicles in {n} process{'es' if n > 1 else ''}" for n in counts)]
+    show(f"{title}\n\n{markdown_table(header, rows)}")

@@ -173,16 +173,26 @@ class TrainConfig:
     evaluation: EvaluationConfig = field(default_factory=EvaluationConfig)
     threads: int = 1
     """Torch threads: 1 leaves the other core of a 2-core machine to a second run."""
+    env_processes: int = 1
+    """Processes the vehicles are stepped in at once (:class:`~quad_wrench_env.envs.processes.
+    ProcessVectorEnv`): 1 steps them all in the learner's process; 2 uses both cores of a 2-core
+    machine for one run (the same numbers, so the same model). Keep 1 where runs share the cores
+    (``quad-wrench study`` and ``sweep`` with two runs at once)."""
 
     def __post_init__(self) -> None:
         if self.algorithm not in ALGORITHMS:
             raise ValueError(f"algorithm={self.algorithm!r}; allowed: {sorted(ALGORITHMS)}")
         if self.activation not in ACTIVATIONS:
             raise ValueError(f"activation={self.activation!r}; allowed: {sorted(ACTIVATIONS)}")
-        for name in ("num_envs", "total_steps", "checkpoint_every_steps", "threads"):
+        for name in ("num_envs", "total_steps", "checkpoint_every_steps", "threads", "env_processes"):
             value = getattr(self, name)
             if not (_is_int(value) and value >= 1):
                 raise ValueError(f"{name}={value!r} must be an integer >= 1")
+        if self.env_processes > self.num_envs:
+            raise ValueError(
+                f"env_processes={self.env_processes} must be at most num_envs={self.num_envs} "
+                "(each process flies at least one vehicle)"
+            )
         check_numbers("train", self, ("max_minutes",), positive=False)
         check_numbers("train", self, ("clip_observations",))
         if not (isinstance(self.log_std_init, (int, float)) and math.isfinite(self.log_std_init)):
@@ -322,16 +332,21 @@ def _commit() -> str:
 
 
 def training_env(config: TrainConfig) -> tuple[Any, VecNormalize]:
-    """The training path: the task's vector env of ``num_envs`` vehicles behind ``SB3VecEnv`` (its
+    """The training path: the task's vector env of ``num_envs`` vehicles (in ``env_processes``
+    processes) behind ``SB3VecEnv`` (its
     step's numbers as arrays, no per-vehicle infos), ``VecMonitor`` and ``VecNormalize`` as the config
     says, seeded with ``config.seed``; returns the adapter and the outermost env."""
     from stable_baselines3.common.vec_env import VecMonitor
 
+    from quad_wrench_env.envs.processes import ProcessVectorEnv
     from quad_wrench_env.envs.sb3_vec_env import SB3VecEnv
 
-    venv = gym.make_vec(
-        config.env_id, num_envs=config.num_envs, vectorization_mode="vector_entry_point", **config.env
-    )
+    if config.env_processes > 1:
+        venv = ProcessVectorEnv(config.env_id, config.num_envs, config.env_processes, **config.env)
+    else:
+        venv = gym.make_vec(
+            config.env_id, num_envs=config.num_envs, vectorization_mode="vector_entry_point", **config.env
+        )
     adapter = SB3VecEnv(venv, step_infos=False)
     env = VecNormalize(
         VecMonitor(adapter),

@@ -6,8 +6,9 @@ train on N vehicles flown in one world directly:
     model = PPO("MlpPolicy", VecNormalize(VecMonitor(venv)), n_steps=256, batch_size=1024, n_epochs=5)
     model.learn(1_000_000)
 
-(PPO's default ``n_steps=2048`` would fly 65k samples before its first update; ``quad-wrench train``
-runs the project's configs.)
+A :class:`~quad_wrench_env.envs.processes.ProcessVectorEnv` in place of the vector env steps the
+vehicles in several processes at once, with the same numbers. (PPO's default ``n_steps=2048``
+would fly 65k samples before its first update; ``quad-wrench train`` runs the project's configs.)
 
 Both restart an episode in the step that ends it; the adapter moves the ended episode's last
 observation to ``infos[i]["terminal_observation"]`` and marks time-outs with
@@ -24,6 +25,7 @@ import gymnasium as gym
 import numpy as np
 from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvIndices, VecEnvStepReturn
 
+from quad_wrench_env.envs.processes import ProcessVectorEnv
 from quad_wrench_env.envs.vector import QuadWrenchVectorEnv
 
 
@@ -37,12 +39,12 @@ class SB3VecEnv(VecEnv):
     same numbers as arrays over vehicles in :attr:`reward_terms` and :attr:`task_entries`: what
     ``quad-wrench train`` logs, with no per-vehicle Python objects on the training path."""
 
-    def __init__(self, venv: gym.vector.VectorEnv, step_infos: bool = True) -> None:
+    def __init__(self, venv: gym.vector.VectorEnv | ProcessVectorEnv, step_infos: bool = True) -> None:
         unwrapped = venv.unwrapped
-        if not isinstance(unwrapped, QuadWrenchVectorEnv):
+        if not isinstance(unwrapped, (QuadWrenchVectorEnv, ProcessVectorEnv)):
             raise ValueError(
                 f"SB3VecEnv wraps a QuadWrenchVectorEnv (gym.make_vec(..., vectorization_mode="
-                f"'vector_entry_point')), got {type(unwrapped).__name__}"
+                f"'vector_entry_point')) or a ProcessVectorEnv, got {type(unwrapped).__name__}"
             )
         self.venv = unwrapped
         super().__init__(
