@@ -6,9 +6,10 @@ All measured in this run, wall and CPU time (machines are shared: CPU seconds co
 process), for the training config's task, vehicles and settings:
 
 1. the training path's wrappers, stepped in alternating blocks on the same random actions, µs per
-   vehicle and policy step: the vector env's Gymnasium ``step`` (with its info), its ``step_arrays``
-   (what training steps), ``SB3VecEnv``, ``+ VecMonitor``, ``+ VecNormalize`` (the training path
-   whole, in one process), the same vehicles' ``step_arrays`` in ``P`` processes
+   vehicle and policy step: the vector env's Gymnasium ``step`` (with its info), its
+   ``step_arrays`` (what training steps), ``SB3VecEnv``, ``+ VecMonitor``, ``+`` SB3's
+   ``VecNormalize`` and, in its place, ``+ CompiledVecNormalize`` (the training path whole, in one
+   process), the same vehicles' ``step_arrays`` in ``P`` processes
    (:class:`~quad_wrench_env.envs.processes.ProcessVectorEnv`, wall time: the processes step at
    once), each with its ratio to ``step_arrays``; and the bare PyBullet floor of as many bodies
    with the loads of one physics step, times the physics steps of a policy step;
@@ -54,7 +55,7 @@ class _Clock:
 def wrapper_rows(config: Any, blocks: int) -> list[list[str]]:
     """Table 1: µs (CPU) per vehicle and policy step of each layer of the training path."""
     import gymnasium as gym
-    from stable_baselines3.common.vec_env import VecMonitor
+    from stable_baselines3.common.vec_env import VecMonitor, VecNormalize
 
     from quad_wrench_env.agents.sb3 import training_env
     from quad_wrench_env.envs.processes import ProcessVectorEnv
@@ -69,6 +70,10 @@ def wrapper_rows(config: Any, blocks: int) -> list[list[str]]:
     adapter = SB3VecEnv(vector(), step_infos=False)
     monitored = VecMonitor(SB3VecEnv(vector(), step_infos=False))
     whole = training_env(dataclasses.replace(config, env_processes=1))[1]
+    plain = VecNormalize(
+        VecMonitor(SB3VecEnv(vector(), step_infos=False)), clip_obs=config.clip_observations,
+        norm_obs=config.normalize_observations, norm_reward=config.normalize_rewards,
+    )  # fmt: skip
     processes = processes_compared(config)[-1]
     split = SB3VecEnv(
         ProcessVectorEnv(config.env_id, config.num_envs, processes, **config.env), step_infos=False
@@ -78,12 +83,13 @@ def wrapper_rows(config: Any, blocks: int) -> list[list[str]]:
         "vector env `step_arrays`": arrays.unwrapped.step_arrays,
         "+ SB3VecEnv": adapter.step,
         "+ VecMonitor": monitored.step,
-        "+ VecNormalize (the training path, 1 process)": whole.step,
+        "+ SB3's VecNormalize": plain.step,
+        "+ CompiledVecNormalize (the training path, 1 process)": whole.step,
         f"`step_arrays` in {processes} processes (wall time)": split.venv.step_arrays,
     }
     raw.reset(seed=config.seed)
     arrays.reset(seed=config.seed)
-    for env in (adapter, monitored, whole, split):
+    for env in (adapter, monitored, plain, whole, split):
         env.seed(config.seed)
         env.reset()
     actions = np.random.default_rng(0).uniform(-0.3, 0.3, (BLOCK, config.num_envs, 4)).astype(np.float32)
@@ -95,7 +101,7 @@ def wrapper_rows(config: Any, blocks: int) -> list[list[str]]:
             for action in actions:
                 step(action)
             best[name] = min(best[name], (clock() - started) / (BLOCK * config.num_envs))
-    for env in (raw, arrays, adapter, monitored, whole, split):
+    for env in (raw, arrays, adapter, monitored, plain, whole, split):
         env.close()
     substeps = raw.unwrapped.fleet.substeps
     world_step = min(

@@ -27,6 +27,7 @@ import yaml
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.vec_env import VecNormalize
 
+from quad_wrench_env.agents.normalize import CompiledVecNormalize
 from quad_wrench_env.config import build, check_numbers, load_yaml, set_keys
 
 
@@ -333,9 +334,10 @@ def _commit() -> str:
 
 def training_env(config: TrainConfig) -> tuple[Any, VecNormalize]:
     """The training path: the task's vector env of ``num_envs`` vehicles (in ``env_processes``
-    processes) behind ``SB3VecEnv`` (its
-    step's numbers as arrays, no per-vehicle infos), ``VecMonitor`` and ``VecNormalize`` as the config
-    says, seeded with ``config.seed``; returns the adapter and the outermost env."""
+    processes) behind ``SB3VecEnv`` (its step's numbers as arrays, no per-vehicle infos),
+    ``VecMonitor`` and ``VecNormalize`` (compiled: :class:`~quad_wrench_env.agents.normalize.
+    CompiledVecNormalize`, the same numbers) as the config says, seeded with ``config.seed``;
+    returns the adapter and the outermost env."""
     from stable_baselines3.common.vec_env import VecMonitor
 
     from quad_wrench_env.envs.processes import ProcessVectorEnv
@@ -348,7 +350,7 @@ def training_env(config: TrainConfig) -> tuple[Any, VecNormalize]:
             config.env_id, num_envs=config.num_envs, vectorization_mode="vector_entry_point", **config.env
         )
     adapter = SB3VecEnv(venv, step_infos=False)
-    env = VecNormalize(
+    env = CompiledVecNormalize(
         VecMonitor(adapter),
         norm_obs=config.normalize_observations,
         norm_reward=config.normalize_rewards,
@@ -391,7 +393,7 @@ def train(config: TrainConfig, folder: str | Path, resume: bool = False, progres
     start_steps = 0
     if resume:
         last = latest_snapshot(folder)
-        env = VecNormalize.load(str(last / "vecnormalize.pkl"), env.venv)
+        env = CompiledVecNormalize.load(str(last / "vecnormalize.pkl"), env.venv)
         model = _algorithm(config.algorithm).load(last / "model.zip", env=env, device="cpu")
         start_steps = model.num_timesteps
     else:
