@@ -68,11 +68,20 @@ def test_a_study_trains_every_arm_and_seed_scores_them_beside_the_classical_agen
         ({"comparison": {**COMPARISON, "seeds": [1]}}, r"comparison seeds \[1\] were trained on"),
         ({"comparison": {**COMPARISON, "seeds": [900]}}, r"comparison seeds \[900\]"),
         ({"arms": {"a b": {}, "a-b": {}}}, "the same folder name"),
+        ({"common": {"env_processes": 2}}, r"env_processes=2 is more than cpus_per_run=1.0"),
+        ({"common": [1]}, "common=.* must be a mapping"),
     ],
 )
 def test_a_bad_study_is_refused_by_name(changes, message):
     with pytest.raises(ValueError, match=message):
         _config(**changes)
+
+
+def test_common_overrides_reach_every_arm_and_an_arm_overrides_them():
+    config = _config(common={"total_steps": 96, "env.history": 3})
+    assert config.run_config("no wrench", 1).total_steps == 96
+    assert config.run_config("no wrench", 1).env["history"] == 3
+    assert config.run_config("ukf, history 2", 0).env["history"] == 2
 
 
 def test_an_arm_whose_env_the_task_refuses_stops_the_study_before_any_run(tmp_path):

@@ -45,8 +45,11 @@ class StudyConfig:
 
     base: str | dict[str, Any] = field(default_factory=dict)
     """The training config every arm starts from: a path (relative to the study file) or a mapping."""
+    common: dict[str, Any] = field(default_factory=dict)
+    """Dotted overrides of ``base`` for every arm (e.g. ``{total_steps: 1500000}``: the same budget of
+    env steps for each run, fair where runs share a loaded machine, unlike ``max_minutes``)."""
     arms: dict[str, dict[str, Any]] = field(default_factory=dict)
-    """Arm label -> dotted overrides of ``base`` (``{}``: the base as it is)."""
+    """Arm label -> dotted overrides of ``base`` (``{}``: the base as it is), after ``common``."""
     seeds: list[int] = field(default_factory=lambda: [0, 1, 2])
     """Training seeds of every arm (the config's ``seed``: vehicle i of a run starts from seed + i)."""
     comparison: str | dict[str, Any] = field(default_factory=dict)
@@ -57,6 +60,8 @@ class StudyConfig:
     """CPUs Ray reserves for each run (a run steps its env and its network in one process)."""
 
     def __post_init__(self) -> None:
+        if not isinstance(self.common, dict):
+            raise ValueError(f"common={self.common!r} must be a mapping of dotted overrides")
         if not (isinstance(self.arms, dict) and self.arms):
             raise ValueError(f"arms={self.arms!r} must name at least one arm (label -> overrides)")
         seeds = self.seeds
@@ -74,9 +79,14 @@ class StudyConfig:
         for label in self.arms:
             for seed in seeds:
                 try:
-                    self.run_config(label, seed)
+                    run = self.run_config(label, seed)
                 except ValueError as error:
                     raise ValueError(f"arms[{label!r}]: {error}") from None
+                if run.env_processes > self.cpus_per_run:
+                    raise ValueError(
+                        f"arms[{label!r}]: env_processes={run.env_processes} is more than "
+                        f"cpus_per_run={self.cpus_per_run}: runs side by side would share cores"
+                    )
         comparison = self.comparison_values()
         for key in ("env_id", "seeds", "cases"):
             if key not in comparison:
@@ -92,7 +102,7 @@ class StudyConfig:
 
     def run_config(self, label: str, seed: int) -> TrainConfig:
         """The training config of arm ``label`` with training seed ``seed``."""
-        return train_config(self.base_values(), {**self.arms[label], "seed": seed})
+        return train_config(self.base_values(), {**self.common, **self.arms[label], "seed": seed})
 
     def base_values(self) -> dict[str, Any]:
         return load_yaml(self.base) if isinstance(self.base, str) else dict(self.base)
