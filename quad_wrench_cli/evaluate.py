@@ -34,7 +34,14 @@ from quad_wrench_cli.common import (
 )
 from quad_wrench_env.agents import make_agent
 from quad_wrench_env.agents.base import Policy
-from quad_wrench_env.agents.evaluate import Evaluation, episode_metrics, evaluate, metrics_table, run_episode
+from quad_wrench_env.agents.evaluate import (
+    Evaluation,
+    episode_metrics,
+    evaluate,
+    flying_settings,
+    metrics_table,
+    run_episode,
+)
 from quad_wrench_env.config import apply_overrides
 from quad_wrench_env.flight_log import FlightRecorder, write_flight_log
 
@@ -123,6 +130,7 @@ def run(args: argparse.Namespace) -> int:
     with usage_errors():
         env_kwargs, agent_params = apply_overrides({}, args.env), apply_overrides({}, args.agent_param)
         policy = make_agent(args.agent, **agent_params)
+        env_kwargs = flying_settings(policy, env_kwargs)  # a learned policy: its training env's meaning
         env = gym.make(args.env_id, **env_kwargs)  # bad settings and reset options, before any episode
         try:
             env.reset(seed=args.seeds[0], options=args.options)

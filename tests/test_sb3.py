@@ -227,3 +227,19 @@ def test_the_train_command_refuses_an_unknown_key_with_exit_code_2():
     done = subprocess.run([*command, "nonsense=1"], cwd=root, capture_output=True, text=True, timeout=120)
     assert done.returncode == 2
     assert "'nonsense'" in done.stderr
+
+
+def test_a_shipped_policy_flies_with_its_training_envs_meaning_unless_told_otherwise():
+    """ppo_fan_tracking_no_wrench was trained with observe_wrench=false and the velocity action: by
+    name it flies so with no settings given; a contradicting setting is refused by name."""
+    from quad_wrench_env.agents import make_agent
+    from quad_wrench_env.agents.evaluate import evaluate, flying_settings
+
+    policy = make_agent("ppo_fan_tracking_no_wrench")
+    assert flying_settings(policy, {"vehicle": "ardrone2"}) == {
+        "observe_wrench": False, "action_type": "velocity", "vehicle": "ardrone2",
+    }  # fmt: skip
+    result = evaluate(policy, "QuadWrench/FanTracking-v1", [3], episode_seconds=0.2)
+    assert result.per_seed[0]["episode_seconds"] == pytest.approx(0.2)
+    with pytest.raises(ValueError, match="trained with observe_wrench=False, the env has observe_wrench=True"):
+        evaluate(policy, "QuadWrench/FanTracking-v1", [3], episode_seconds=0.2, observe_wrench=True)

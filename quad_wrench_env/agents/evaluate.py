@@ -103,6 +103,15 @@ def run_episode(
     return Episode(seed, trace, float(total), length, reason)
 
 
+def flying_settings(policy: Policy, env_kwargs: Mapping[str, Any]) -> dict[str, Any]:
+    """``env_kwargs`` with, for a learned policy, the settings that give its actions and
+    observations their meaning (action type, observed wrench, history) as its training env had them,
+    where ``env_kwargs`` does not set them (a setting given that differs is refused by the policy's
+    ``reset``, naming it)."""
+    settings = getattr(policy, "env_settings", None)
+    return {**(settings() if callable(settings) else {}), **env_kwargs}
+
+
 def evaluate(
     policy: Policy,
     env_id: str,
@@ -115,7 +124,8 @@ def evaluate(
     wrap a model trained behind ``VecNormalize`` in ``quad_wrench_env.agents.sb3.SB3Policy`` with its
     scaling).
 
-    ``options`` go to every ``reset`` (e.g. ``{"offset_y": 0.8, "fan_motion": "static"}``).
+    ``options`` go to every ``reset`` (e.g. ``{"offset_y": 0.8, "fan_motion": "static"}``). A
+    learned policy flies with the settings its training env had (:func:`flying_settings`).
     """
     if not isinstance(policy, Policy) and hasattr(policy, "predict"):  # a bare SB3 model
         from quad_wrench_env.agents.sb3 import SB3Policy
@@ -124,7 +134,7 @@ def evaluate(
     seeds = [int(s) for s in seeds]
     if not seeds:
         raise ValueError("seeds must name at least one seed")
-    env = gym.make(env_id, **env_kwargs)
+    env = gym.make(env_id, **flying_settings(policy, env_kwargs))
     try:
         episodes = [run_episode(policy, env, seed, options) for seed in seeds]
     finally:

@@ -83,6 +83,12 @@ class SB3Policy:
         """A recurrent model's hidden state (None: a new episode; always None for the others)."""
         self._start = np.ones(1, dtype=bool)
 
+    def env_settings(self) -> dict[str, Any]:
+        """The :data:`MEANING_KEYS` its training env set (the others had the task's defaults): what
+        the harness flies it with unless told otherwise."""
+        trained = self.trained_on or {}
+        return {key: trained[key] for key in MEANING_KEYS if key in trained}
+
     def reset(self, env: gym.Env) -> None:
         self._memory, self._start = None, np.ones(1, dtype=bool)
         if self.trained_on is not None:
