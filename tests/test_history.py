@@ -90,3 +90,58 @@ def test_the_vector_envs_history_restarts_with_each_episode_and_matches_the_sing
         vec.close()
         for single in singles:
             single.close()
+
+
+def _wrench_regression(history: int, seed: int) -> np.ndarray:
+    """R² per axis of a ridge regression from the observation (no wrench in it) to the true external
+    force, fitted on 8 vehicles and scored on 8 others, flown by smooth random velocity commands in
+    the fan's default episodes. Samples up to 10 steps after a restart are left out (a new episode's
+    history is still filling)."""
+    env = gym.make_vec(
+        FAN_TRACKING, num_envs=16, vectorization_mode="vector_entry_point", observe_wrench=False,
+        estimator="oracle", action_type="velocity", history=history, episode_seconds=10.0,
+    )  # fmt: skip
+    try:
+        env.reset(seed=seed)
+        rng = np.random.default_rng(seed)
+        action = np.zeros((16, 4), np.float32)
+        since = np.full(16, 100)
+        rows, forces, kept = [], [], []
+        for step in range(400):
+            noise = rng.normal(size=(16, 4)) * np.array([1.0, 1.0, 0.3, 0.3])
+            action = np.clip(0.9 * action + 0.1 * noise, -1, 1).astype(np.float32)
+            obs, _, terminated, truncated, info = env.step(action)
+            since = np.where(terminated | truncated, 0, since + 1)
+            if step > 20:
+                rows.append(obs.copy())
+                forces.append(info["wrench_true"][:, :3].copy())
+                kept.append(since > 10)
+    finally:
+        env.close()
+    x, y, mask = np.array(rows), np.array(forces), np.array(kept)
+    x_fit, y_fit, x_test, y_test = (
+        x[:, :8][mask[:, :8]],
+        y[:, :8][mask[:, :8]],
+        x[:, 8:][mask[:, 8:]],
+        y[:, 8:][mask[:, 8:]],
+    )
+    mean, sd = x_fit.mean(0), x_fit.std(0) + 1e-9
+    fit = np.c_[(x_fit - mean) / sd, np.ones(len(x_fit))]
+    test = np.c_[(x_test - mean) / sd, np.ones(len(x_test))]
+    weights = np.linalg.solve(fit.T @ fit + 10.0 * np.eye(fit.shape[1]), fit.T @ y_fit)
+    residual = ((test @ weights - y_test) ** 2).sum(0)
+    return 1.0 - residual / ((y_test - y_test.mean(0)) ** 2).sum(0)
+
+
+@pytest.mark.parametrize("seed", [0, 3])
+def test_the_history_carries_the_unobserved_wrench(seed):
+    """Newton: m·dv/dt = thrust + gravity + external force. One observation holds the velocity but not
+    its rate of change, so without the wrench in it the jet's push along y (the fan's lateral force,
+    which the position and velocity alone do not give) cannot be read off it (R² ≈ 0); a history of 8
+    frames holds the velocity's change and the commands, and a linear read-out recovers most of it.
+    Measured (seeds 0-4): R² of f_y -0.12 to -0.04 without history, 0.59-0.67 with 8 frames; of f_x
+    0.49-0.68 and 0.90-0.94. A history that repeated the current frame would score as none."""
+    without, with_history = _wrench_regression(0, seed), _wrench_regression(8, seed)
+    assert without[1] < 0.2
+    assert with_history[1] > 0.45 and with_history[1] - without[1] > 0.4
+    assert with_history[0] > 0.8 and with_history[0] - without[0] > 0.15
