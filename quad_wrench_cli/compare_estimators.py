@@ -1,8 +1,9 @@
 """Compare the UKF, the EKF and the nonlinear observer on the same recorded flights.
 
-    quad-wrench compare estimators [--config configs/compare_estimators.yaml] [--only fig5 fig4 cost]
+    quad-wrench compare estimators [--config configs/compare_estimators.yaml] [--only fig5 fig4 cost nees]
 
-Writes figures and ``table.md`` to the config's ``output`` folder.
+Writes figures and ``table.md`` to the config's ``output`` folder. ``nees`` is the filters' consistency on
+flights of the env (:mod:`quad_wrench_cli.consistency`).
 """
 
 from __future__ import annotations
@@ -22,6 +23,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 
 from quad_wrench_cli.common import add_config_argument, load_config, save_figure, show, usage_errors
+from quad_wrench_cli.consistency import nees_table
 from quad_wrench_env.agents import make_agent
 from quad_wrench_env.agents.evaluate import run_episode, write_report
 from quad_wrench_env.bench import bare_pybullet_step_seconds, estimator_step_seconds
@@ -71,6 +73,9 @@ class _Recorder:
 
     def estimates(self):
         return self.inner.estimates()
+
+    def wrench_covariances(self):
+        return self.inner.wrench_covariances()
 
     def statuses(self):
         return self.inner.statuses()
@@ -273,7 +278,7 @@ def _plot(t: np.ndarray, true: np.ndarray, traces: dict, path: Path, title: str)
     save_figure(fig, path, dpi=110)
 
 
-PARTS = {"fig5": fig5, "fig4": fig4_yuksel, "cost": cost}
+PARTS = {"fig5": fig5, "fig4": fig4_yuksel, "cost": cost, "nees": nees_table}
 CONFIG = "compare_estimators.yaml"
 
 

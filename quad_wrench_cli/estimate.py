@@ -62,8 +62,8 @@ def replay(
 ) -> tuple[np.ndarray, np.ndarray | None]:
     """``estimator`` (built for ``vehicle`` with ``log.period``; the oracle needs the log's true wrench) on
     ``log`` as an env runs it: the (n, 6) estimated ``[f, τ]`` (world frame) after each row, the first
-    after the reset; and the (n, 6) standard deviations of its covariance, None where it carries none
-    (zero covariance: the observer, the oracle)."""
+    after the reset; and the (n, 6) standard deviations of its covariance, None where there is no band
+    to draw (the observer's NaN: it carries none; the oracle's zeros: the truth)."""
     truth_fed = isinstance(estimator, TruthFed)
     squared = log.motor_speeds * log.motor_speeds
     nominal = rows_times(squared, Mixer(vehicle).allocation.T)  # [c_t, τ], as the env's sensors give them
@@ -80,7 +80,7 @@ def replay(
         estimate = estimator.estimate
         wrenches[k, :3], wrenches[k, 3:] = estimate.force, estimate.torque
         variances[k] = np.diag(estimate.covariance)
-    return wrenches, np.sqrt(variances) if variances.any() else None
+    return wrenches, np.sqrt(variances) if np.isfinite(variances).all() and variances.any() else None
 
 
 def _rows(time: np.ndarray, wrenches: np.ndarray, sd: np.ndarray | None) -> list[dict[str, str]]:

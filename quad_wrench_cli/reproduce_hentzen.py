@@ -91,9 +91,10 @@ def _cells(values: list[float], scale: float = 100.0) -> str:
 # -- Table I: the jet crossing ------------------------------------------------------------------------
 def table1(config: dict, out: Path) -> list[str]:
     setup, seeds = config["table1"], config["seeds"]
-    speeds = setup["jet_speeds"]
+    speeds, env = setup["jet_speeds"], setup.get("env", {})
+    settings = f", env {env}" if env else ""
     lines = [
-        f"## Table I: max horizontal deviation (cm) through the jet (mean ± sd over seeds {seeds})",
+        f"## Table I: max horizontal deviation (cm) through the jet (mean ± sd over seeds {seeds}{settings})",
         "",
         "| controller | estimator | " + " | ".join(f"{v:g} m/s" for v in speeds)
         + " | improvement over PID | paper (" + ", ".join(f"{v:g}" for v in speeds) + " m/s) |",
@@ -101,7 +102,7 @@ def table1(config: dict, out: Path) -> list[str]:
     ]  # fmt: skip
     results = sweep(
         config, setup["controllers"], speeds, "Table I", "max_horizontal_deviation",
-        lambda speed: ({"jet_speed": speed}, {"episode_seconds": setup["seconds"]}),
+        lambda speed: ({"jet_speed": speed}, {"episode_seconds": setup["seconds"], **env}),
     )  # fmt: skip
     for estimator in config["estimators"]:
         base = {v: np.mean(results[estimator, setup["baseline"], v]) for v in speeds}

@@ -61,6 +61,25 @@ CASES = {
     "second jet": {
         "wind": [{"model": "jet", "position": [2.3, -1.5, 1.0], "direction": [0, 1, 0], "speed": 10.0}]
     },
+    "turbulent jets, vector": {
+        "num_envs": 2,
+        "wind": [
+            {
+                "model": "jet",
+                "position": [2.3, -1.5, 1.0],
+                "direction": [0, 1, 0],
+                "turbulence_intensity": 0.2,
+            },
+            {
+                "model": "jet",
+                "position": [2.3, 1.5, 0.9],
+                "direction": [0, -1, 0.1],
+                "speed": 6.0,
+                "turbulence_intensity": 0.1,
+                "turbulence_length": 0.3,
+            },
+        ],
+    },
     "ground effect over a table": {
         "fan": {"height": 1.0},
         "ground_effect": True,

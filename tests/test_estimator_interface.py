@@ -16,6 +16,22 @@ from quad_wrench_env.estimators import (
 from quad_wrench_env.rotations import quat_from_euler_zyx, rotation_matrix
 from quad_wrench_env.vehicle import GRAVITY, make_vehicle
 
+NO_COVARIANCE = ("observer",)
+"""Estimators that carry no covariance: they report NaN (the oracle, the truth, reports zeros)."""
+
+
+def _check_covariance(name: str, covariance: np.ndarray) -> None:
+    """A filter's wrench covariance is symmetric positive semi-definite; the observer's NaN, the oracle's
+    zero."""
+    if name in NO_COVARIANCE:
+        assert np.isnan(covariance).all()
+    elif name == "oracle":
+        assert not covariance.any()
+    else:
+        np.testing.assert_allclose(covariance, covariance.T)
+        assert np.all(np.linalg.eigvalsh(covariance) >= -1e-15)
+        assert np.all(np.diag(covariance) > 0)
+
 
 @pytest.mark.parametrize("name", ESTIMATORS)
 def test_estimator_conforms(name):
@@ -32,8 +48,14 @@ def test_estimator_conforms(name):
     for _ in range(20):
         out = est.step(vehicle.mass * GRAVITY, np.zeros(3), position, q)
     assert out.force.shape == (3,) and out.torque.shape == (3,) and out.covariance.shape == (6, 6)
-    np.testing.assert_allclose(out.covariance, out.covariance.T)
-    assert np.all(np.linalg.eigvalsh(out.covariance) >= -1e-15)
+    _check_covariance(name, out.covariance)
+    bank = make_estimator_bank(name, vehicle, 0.005, 2)
+    for i in range(2):
+        bank.reset(i, position, q)
+    covariances = bank.wrench_covariances()
+    assert covariances.shape == (2, 6, 6)
+    for covariance in covariances:
+        _check_covariance(name, covariance)
     state = est.state
     assert state.position.shape == state.velocity.shape == state.body_rates.shape == (3,)
     assert np.linalg.norm(state.quaternion) == pytest.approx(1.0)

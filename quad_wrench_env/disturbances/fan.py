@@ -8,7 +8,8 @@ axis, and a centre-line speed that conserves the outlet's axial momentum flux: t
 ``t_transit(x) = ∫₀ˣ dξ/u_c(ξ)`` earlier (closed form in :meth:`FanJet.transit_time`), so the axis
 there sits at the fan's *retarded* position ``y_f(t - t_transit(x))``. Turbulence multiplies the
 local mean speed by ``I·n(t)`` in each component, ``n`` a unit-variance Ornstein-Uhlenbeck process
-with time scale ``b/u_c`` at the vehicle.
+with time scale ``b/u_c`` at the vehicle (:func:`advance_turbulence`; paper 003's fixed jet,
+:mod:`.jet`, takes the same model with a length scale of its own).
 Before ``t = 0`` the fan rests where its motion starts.
 """
 
@@ -121,6 +122,18 @@ def half_width(x: np.ndarray, radius2: float, spread: float) -> np.ndarray:
 def centreline_speed(x: np.ndarray, u0: float, radius2: float, spread: float) -> np.ndarray:
     """``u_c = U0·min(1, D/(√2·b))``: the outlet's momentum flux, spread over the profile."""
     return u0 * np.minimum(1.0, np.sqrt(2.0 * radius2) / half_width(x, radius2, spread))
+
+
+def advance_turbulence(
+    noise: np.ndarray, dt: float, speed: np.ndarray, length: np.ndarray | float, normals: np.ndarray
+) -> None:
+    """A jet's turbulence (N, 3) one step ``dt`` on, in place: per vehicle a unit-variance
+    Ornstein-Uhlenbeck process of time scale ``length/speed`` (the eddies of size ``length`` carried
+    past at ``speed``), stepped exactly, ``n' = a·n + sqrt(1 - a²)·η`` with ``a = exp(-dt·speed/length)``
+    on the (N, 3) standard normal ``normals``: its variance stays 1 and its autocorrelation is
+    ``exp(-τ·speed/length)`` at lag τ, at any ``dt``."""
+    decay = np.exp(-dt * speed / length)
+    noise[:] = decay[:, None] * noise + np.sqrt(1.0 - decay * decay)[:, None] * normals
 
 
 RANDOM = "random"
@@ -317,8 +330,7 @@ class FanJet:
         if self.config.turbulence_intensity == 0.0 or not self.config.enabled:
             return
         x = np.maximum(position[:, 0], 1e-3)
-        decay = np.exp(-dt * self.centreline_speed(x) / self.half_width(x))
-        self.noise[:] = decay[:, None] * self.noise + np.sqrt(1.0 - decay * decay)[:, None] * normals
+        advance_turbulence(self.noise, dt, self.centreline_speed(x), self.half_width(x), normals)
 
     def velocity_at(
         self, points: np.ndarray, t: np.ndarray, index: np.ndarray | slice, mean: bool = False

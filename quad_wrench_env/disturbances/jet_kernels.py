@@ -1,6 +1,7 @@
 """Compiled forms of the round turbulent jet (:mod:`.fan`, :mod:`.jet`): the numpy reference's arithmetic,
 point by point. A jet's numbers start ``[on, U0, x_c, R, c]`` (on > 0, outlet speed, core length
-``D/(2c)``, outlet radius ``D/2``, spread); :func:`jet_speed` and :func:`transit_time` read those."""
+``D/(2c)``, outlet radius ``D/2``, spread); :func:`jet_speed` and :func:`transit_time` read those. Both
+jets' turbulence steps with :func:`turbulence_step` (``fan.advance_turbulence``)."""
 
 from __future__ import annotations
 
@@ -81,6 +82,15 @@ def fan_velocity(fan, motion_tables, noise, points, time, out):
 
 
 @njit
+def turbulence_step(noise, n, dt, speed, length, normals):
+    """``fan.advance_turbulence`` of vehicle ``n``: its unit-variance Ornstein-Uhlenbeck turbulence
+    ``noise[n]`` (3,) one exact step ``dt`` on, time scale ``length/speed``, on its draws ``normals[n]``."""
+    decay = math.exp(-dt * speed / length)
+    for i in range(3):
+        noise[n, i] = decay * noise[n, i] + math.sqrt(1.0 - decay * decay) * normals[n, i]
+
+
+@njit
 def fan_advance(fan, motion_tables, noise, position, velocity, dt, normals):
     """``FanJet.advance``: each vehicle's turbulence one step on, an Ornstein-Uhlenbeck process of time
     scale ``b/u_c`` at its distance from the fan."""
@@ -88,18 +98,18 @@ def fan_advance(fan, motion_tables, noise, position, velocity, dt, normals):
         return
     for n in range(position.shape[0]):
         u_c, b = jet_speed(fan, max(position[n, 0], 1e-3))
-        decay = math.exp(-dt * u_c / b)
-        for i in range(3):
-            noise[n, i] = decay * noise[n, i] + math.sqrt(1.0 - decay * decay) * normals[n, i]
+        turbulence_step(noise, n, dt, u_c, b, normals)
 
 
 @njit
-def fixed_jet_velocity(jet, speed_scale, state, points, time, out):
+def fixed_jet_velocity(jet, speed_scale, turbulence, points, time, out):
     """``Jet.velocity_at`` added to ``out``: a fixed jet (numbers ``[on, U0, x_c, R, c, origin (3),
-    direction (3)]``) at the world ``points`` (N, P, 3), each vehicle's times its ``speed_scale``."""
+    direction (3), I, L]``) at the world ``points`` (N, P, 3), each vehicle's times its ``speed_scale``;
+    with an intensity ``I`` > 0 its ``turbulence`` (N, 3) adds ``I·n`` to the direction."""
     if jet[0] <= 0.0:
         return
     o0, o1, o2, d0, d1, d2 = jet[5], jet[6], jet[7], jet[8], jet[9], jet[10]
+    intensity = jet[11]
     for n in range(points.shape[0]):
         for p in range(points.shape[1]):
             r0, r1, r2 = points[n, p, 0] - o0, points[n, p, 1] - o1, points[n, p, 2] - o2
@@ -109,6 +119,24 @@ def fixed_jet_velocity(jet, speed_scale, state, points, time, out):
             e0, e1, e2 = r0 - x * d0, r1 - x * d1, r2 - x * d2
             u_c, b = jet_speed(jet, x)
             speed = speed_scale[n, 0] * u_c * math.exp(-(e0 * e0 + e1 * e1 + e2 * e2) / (b * b))
-            out[n, p, 0] += speed * d0
-            out[n, p, 1] += speed * d1
-            out[n, p, 2] += speed * d2
+            if intensity > 0.0:
+                out[n, p, 0] += speed * (d0 + intensity * turbulence[n, 0])
+                out[n, p, 1] += speed * (d1 + intensity * turbulence[n, 1])
+                out[n, p, 2] += speed * (d2 + intensity * turbulence[n, 2])
+            else:
+                out[n, p, 0] += speed * d0
+                out[n, p, 1] += speed * d1
+                out[n, p, 2] += speed * d2
+
+
+@njit
+def fixed_jet_advance(jet, speed_scale, turbulence, position, velocity, dt, normals):
+    """``Jet.advance``: each vehicle's turbulence one step on, time scale ``L/u_c`` at its distance
+    along the jet (``L`` the half-width ``b`` there when the config gives none), ``u_c`` times the
+    vehicle's ``speed_scale`` (a jet switched off, scale 0, keeps its turbulence still)."""
+    o0, o1, o2, d0, d1, d2 = jet[5], jet[6], jet[7], jet[8], jet[9], jet[10]
+    for n in range(position.shape[0]):
+        x = (position[n, 0] - o0) * d0 + (position[n, 1] - o1) * d1 + (position[n, 2] - o2) * d2
+        u_c, b = jet_speed(jet, max(x, 1e-3))
+        length = jet[12] if jet[12] > 0.0 else b
+        turbulence_step(turbulence, n, dt, speed_scale[n, 0] * u_c, length, normals)

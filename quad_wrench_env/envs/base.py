@@ -130,11 +130,15 @@ def clip_actions(action: Any, shape: tuple[int, ...]) -> np.ndarray:
 def info_entries(fleet: Fleet, task: Task, vehicle: int | None = None) -> dict[str, Any]:
     """The info of every vehicle, each entry with a leading vehicle axis (ARCHITECTURE.md keys); with
     ``vehicle``, that vehicle's entries alone (Python floats for its scalars). Copies, never views
-    of the fleet's state."""
+    of the fleet's state. ``wrench_cov`` is the estimator's 6x6 covariance of ``wrench_est``, in its
+    frame (the world's; zeros for the oracle); an estimator that carries none (NaN: the observer)
+    leaves it out, as a NaN in ``info`` would break Gymnasium's determinism check."""
     state = fleet.state
+    covariance = fleet.estimator.wrench_covariances()
     entries = {
         "time": fleet.time, "position": state.position, "velocity": state.velocity,
         "wrench_true": fleet.wrench_true, "wrench_est": fleet.estimates()[1],
+        **({} if np.isnan(covariance).all() else {"wrench_cov": covariance}),
         "wind_velocity": fleet.wind_velocity, **task.info(fleet),
     }  # fmt: skip
     statuses = fleet.estimator.statuses()

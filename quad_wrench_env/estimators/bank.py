@@ -51,7 +51,9 @@ class EstimatorBank(Protocol):
         the envs read after every policy step)."""
 
     def wrench_covariances(self) -> np.ndarray:
-        """(N, 6, 6) covariance of ``[f, τ]`` (zeros where an estimator carries none)."""
+        """(N, 6, 6) covariance of ``[f, τ]`` in the world frame, the frame of :meth:`wrenches` (the
+        force-torque cross blocks included); zeros for the oracle (the truth), NaN where an estimator
+        carries none (the observer)."""
 
     def states(self) -> np.ndarray:
         """(N, 13) estimated position, velocity, quaternion ``[w, x, y, z]`` and body rates."""

@@ -15,7 +15,8 @@ import numpy as np
 
 @dataclass(frozen=True)
 class WrenchEstimate:
-    """External force (N) and torque (N·m) in the world frame and their 6x6 covariance."""
+    """External force (N) and torque (N·m) in the world frame and their 6x6 covariance, world frame
+    (zeros for the oracle, NaN for an estimator that carries none: the observer)."""
 
     force: np.ndarray
     torque: np.ndarray

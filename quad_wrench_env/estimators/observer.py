@@ -24,7 +24,8 @@ with time constants ``velocity_time_constant`` and ``rate_time_constant`` (paper
 observer needs filtering under noise); measured velocity and body rates are used instead when the
 env provides them. The torque estimate ``τ̂_gen`` is in generalised (Euler) coordinates; it is
 reported in the world frame like every estimator's: ``R T⁻ᵀ τ̂_gen``. The observer carries no
-covariance: it reports zeros.
+covariance (paper 001 gives none: its error dynamics ``ė = -L e`` are deterministic): it reports NaN,
+not an invented one.
 
 :class:`ObserverBank` runs N observers as one batched computation (every array carries a leading
 vehicle axis); :class:`NonlinearWrenchObserver`, the single-vehicle estimator, is a bank of one.
@@ -264,8 +265,8 @@ class ObserverBank(FilterBank, EulerAttitudes):
         )  # fmt: skip
 
     def wrench_covariances(self) -> np.ndarray:
-        """The observer carries no covariance: zeros."""
-        return np.zeros((self.count, 6, 6))
+        """The observer carries no covariance: NaN (module docstring)."""
+        return np.full((self.count, 6, 6), np.nan)
 
     def statuses(self) -> list[str]:
         return ["ok"] * self.count

@@ -56,10 +56,10 @@ truncated after ``episode_seconds`` (30 s at 50 Hz: 1500 steps; physics at 200 H
 Reset options: ``offset_y`` (initial offset from the jet axis, m), ``fan_motion`` (``"random"``, a
 motion name, or a mapping ``{"name": ..., **parameters}``; every motion takes ``y0``).
 
-``info``: ``time``, ``position``, ``velocity``, ``wrench_true``, ``wrench_est``, ``fan_position``
-(the fan itself, now), ``jet_axis_y`` (the axis at the vehicle's x), ``axis_error`` (signed
-``y - jet_axis_y``), ``standoff_error`` (signed ``x - standoff_distance``), ``reward_terms``,
-``termination_reason``.
+``info``: ``time``, ``position``, ``velocity``, ``wrench_true``, ``wrench_est``, ``wrench_cov`` (its
+covariance), ``fan_position`` (the fan itself, now), ``jet_axis_y`` (the axis at the vehicle's x),
+``axis_error`` (signed ``y - jet_axis_y``), ``standoff_error`` (signed ``x - standoff_distance``),
+``reward_terms``, ``termination_reason``.
 """
 
 from __future__ import annotations
