@@ -191,7 +191,19 @@ def test_train_refuses_bad_input_before_anything_runs(argv, files, message, caps
         ),
         (
             ["evaluate", "ppo_fan_tracking", "QuadWrench/ForceExertion-v0", "--seeds", "0"],
-            "trained with action_type='velocity'",
+            "trained on observations of shape (25,), the env has (28,)",
+        ),
+        (
+            [
+                "evaluate",
+                "ppo_fan_tracking",
+                "QuadWrench/ForceExertion-v0",
+                "--seeds",
+                "0",
+                "--env",
+                "action_type=wrench",
+            ],
+            "trained with action_type='velocity', the env has action_type='wrench'",
         ),
         (["demo", "--config", "bad.yaml"], "is not valid YAML"),
         (["sweep", "sweep.yaml", "--address", "auto", "--folder", "sweep"], "address='auto'"),

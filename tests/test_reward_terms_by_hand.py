@@ -22,6 +22,7 @@ BACKENDS = [
     pytest.param("numba", marks=pytest.mark.skipif(not NUMBA_AVAILABLE, reason="numba is not installed")),
 ]
 EFFORT_WEIGHT, CRASH_PENALTY = 0.01, 10.0  # both tasks' reward tables
+TRACKING_CAP, CONTACT_CAP = 1.0, 2.0  # m, N: the caps of the tracking and contact terms, and the alive term
 APPROACH_WEIGHT, DISCOUNT = 10.0, 0.99  # ForceExertion's shaping: Φ = -10·gap, γ = 0.99
 WALL_X, CEILING_HEIGHT, TIP_RADIUS, START_GAP = 4.5, 2.2, 0.015, 0.05  # ForceExertion's room (m)
 NORMALS = {"wall": np.array((1.0, 0.0, 0.0)), "ceiling": np.array((0.0, 0.0, 1.0))}
@@ -64,7 +65,8 @@ def _force_exertion_terms(
     (Newton's third law), compared with ``f*``; Φ = -approach_weight·gap, shaping γ·Φ(s') - Φ(s)."""
     exerted = -np.asarray(info["contact_force"], dtype=float)
     return {
-        "contact": -float(np.linalg.norm(exerted - np.asarray(info["target_force"]))),
+        "contact": -min(float(np.linalg.norm(exerted - np.asarray(info["target_force"]))), CONTACT_CAP),
+        "alive": 0.0 if terminated else CONTACT_CAP,
         "effort": _effort(action),
         "crash": -CRASH_PENALTY if terminated else 0.0,
         "approach": DISCOUNT * potential - potential_before,
@@ -154,7 +156,8 @@ def _disturbance_rejection_terms(
     info: dict, action: np.ndarray, reference: np.ndarray, terminated: bool
 ) -> dict[str, float]:
     return {
-        "tracking": -float(np.linalg.norm(np.asarray(info["position"]) - reference)),
+        "tracking": -min(float(np.linalg.norm(np.asarray(info["position"]) - reference)), TRACKING_CAP),
+        "alive": 0.0 if terminated else TRACKING_CAP,
         "effort": _effort(action),
         "crash": -CRASH_PENALTY if terminated else 0.0,
     }

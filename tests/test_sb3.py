@@ -241,5 +241,6 @@ def test_a_shipped_policy_flies_with_its_training_envs_meaning_unless_told_other
     }  # fmt: skip
     result = evaluate(policy, "QuadWrench/FanTracking-v1", [3], episode_seconds=0.2)
     assert result.per_seed[0]["episode_seconds"] == pytest.approx(0.2)
-    with pytest.raises(ValueError, match="trained with observe_wrench=False, the env has observe_wrench=True"):
+    refused = "trained with observe_wrench=False, the env has observe_wrench=True"
+    with pytest.raises(ValueError, match=refused):
         evaluate(policy, "QuadWrench/FanTracking-v1", [3], episode_seconds=0.2, observe_wrench=True)

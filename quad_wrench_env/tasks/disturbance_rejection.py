@@ -18,7 +18,8 @@ jet_crossing  hover at ``(2, 0, 2.2)`` for 1 s, descend at 0.5 m/s to 0.6 m thro
               horizontal stream (centre speed ``jet_speed`` where it crosses the path: paper 003
               flew 3, 10 and 12 m/s; drawn from ``jet_speeds`` unless given), then hover. The
               descent speed, the heights and the jet's size (0.6 m outlet 1 m from the path) are
-              not in the paper: chosen here
+              not in the paper: chosen here. The jet is steady unless ``jet_turbulence_intensity``
+              is set (the fan's turbulence model)
 table_pass    hover at ``x = 2.5`` over ``y = 2``, fly along +x at 0.3 m/s with the hull's bottom 8 cm
               above the table top across both edges, hover at ``x = 4.5`` (paper 003 Fig. 10-11)
 gusts         hover at ``(2.5, 0, 1.5)`` in Dryden turbulence (``w20`` 4 m/s) and one horizontal
@@ -42,9 +43,13 @@ index  name                meaning
 28-30  reference_velocity  the reference's velocity now (m/s, world frame)
 =====  ==================  ======================================================
 
-Reward per step (terms in ``info["reward_terms"]``): ``tracking = -|p - p_ref|`` (m), ``effort =
--effort_weight·mean(a²)``, ``crash = -crash_penalty`` on an early end. Episode end as FanTracking
-(crash, flip, out of the arena); truncated after ``episode_seconds`` (15 s).
+Reward per step (terms in ``info["reward_terms"]``): ``tracking = -min(|p - p_ref|, c)`` (m),
+``alive = +c`` on every step that does not end the episode early (``c = tracking_cap``, 1 m), ``effort
+= -effort_weight·mean(a²)``, ``crash = -crash_penalty`` on an early end. ``tracking + alive`` lies in
+[0, c]: a step flown is never worth less than nothing, so ending an episode early never pays (with
+``tracking = -|p - p_ref|`` alone a policy that crashed escaped the tracking cost, -10 against up to
+-300 for a figure-8 it could not follow, and PPO learned to end its episodes). Episode end as
+FanTracking (crash, flip, out of the arena); truncated after ``episode_seconds`` (15 s).
 
 Reset options: ``scenario``, ``jet_speed`` (m/s; implies ``jet_crossing``), ``wind_speed`` (m/s;
 implies ``figure8``). ``info`` adds ``reference_position`` (3,), ``reference_velocity`` (3,) and
@@ -111,6 +116,12 @@ class JetCrossing:
     """From the outlet (on the path's -y side, blowing along +y) to the path (m)."""
     jet_diameter: float = 0.6
     jet_spread: float = 0.42
+    jet_turbulence_intensity: float = 0.0
+    """The jet's turbulence intensity ``I`` (1): each component's sd over the local mean speed, the fan's
+    model (:mod:`~quad_wrench_env.disturbances.jet`); 0, the default, is none (paper 003 gives none)."""
+    jet_turbulence_length: float | None = None
+    """Its length scale ``L`` (m), the time scale being ``L/u_c``; None: the jet's half-width where it
+    crosses the path (0.52 m), as the fan's turbulence."""
 
     def __post_init__(self) -> None:
         self.jet_speeds = _check_speeds("jet_crossing.jet_speeds", self.jet_speeds)
@@ -118,6 +129,12 @@ class JetCrossing:
         check_numbers("jet_crossing", self, ("start_height", "end_height", "descent_speed", "jet_height"))
         check_numbers("jet_crossing", self, ("jet_distance", "jet_diameter", "jet_spread"))
         check_numbers("jet_crossing", self, ("hover_seconds",), positive=False)
+        if not (0.0 <= self.jet_turbulence_intensity < 1.0):
+            raise ValueError(
+                f"jet_crossing.jet_turbulence_intensity={self.jet_turbulence_intensity!r} must be in [0, 1)"
+            )
+        if self.jet_turbulence_length is not None:
+            check_numbers("jet_crossing", self, ("jet_turbulence_length",))
         if self.end_height >= self.start_height:
             raise ValueError(
                 f"jet_crossing: end_height={self.end_height} must be below start_height={self.start_height}"
@@ -226,9 +243,14 @@ class Figure8:
 class DisturbanceRejectionReward:
     effort_weight: float = 0.01
     crash_penalty: float = 10.0
+    tracking_cap: float = 1.0
+    """m: the tracking term is ``-min(|p - p_ref|, tracking_cap)`` and ``alive = +tracking_cap`` per
+    step flown, so a step is never worth less than nothing and ending an episode early never pays
+    (module docstring)."""
 
     def __post_init__(self) -> None:
         check_numbers("reward", self, ("effort_weight", "crash_penalty"), positive=False)
+        check_numbers("reward", self, ("tracking_cap",))
 
 
 @dataclass
@@ -291,6 +313,7 @@ class DisturbanceRejection(TaskDefaults):
             JetConfig(
                 position=(x, y - jc.jet_distance, jc.jet_height), direction=(0.0, 1.0, 0.0), speed=1.0,
                 diameter=jc.jet_diameter, spread=jc.jet_spread,
+                turbulence_intensity=jc.jet_turbulence_intensity, turbulence_length=jc.jet_turbulence_length,
             ),
             count,
         )  # fmt: skip
@@ -423,7 +446,8 @@ class DisturbanceRejection(TaskDefaults):
     def reward_terms(self, fleet: Fleet, actions: np.ndarray, ended: np.ndarray) -> dict[str, np.ndarray]:
         r = self.cfg.reward
         return {
-            "tracking": -self._numbers(fleet)["tracking_error"],
+            "tracking": -np.minimum(self._numbers(fleet)["tracking_error"], r.tracking_cap),
+            "alive": r.tracking_cap * (~ended),
             "effort": -r.effort_weight * np.mean(actions * actions, axis=1),
             "crash": -r.crash_penalty * ended.astype(float),
         }
