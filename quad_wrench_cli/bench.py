@@ -139,7 +139,7 @@ ALL_DISTURBANCES = {
     "ground_effect": True,
     "scene": [{"kind": "table", "center": [2.3, 0.0], "size": [1.0, 1.0], "height": 0.7}],
 }
-"""The fan (FanTracking's own), Dryden turbulence, paper 003's second jet and ground effect over a
+"""The fan (FanTracking's own), Dryden turbulence, Hentzen et al.'s (2019) second jet and ground effect over a
 table, all on: the open engine's cost on the compiled path (limit: 1.3x the plain env)."""
 
 

@@ -1,4 +1,5 @@
-"""Reproduce paper 003's Table I and Figs. 9 and 11, and Neural-Fly's figure-8 benchmark, in simulation.
+"""Reproduce Hentzen et al.'s (2019) Table I and Figs. 9 and 11, and Neural-Fly's figure-8 benchmark, in
+simulation.
 
     quad-wrench reproduce hentzen [--config configs/reproduce_hentzen.yaml] [--only table1 fig11 fig9 figure8]
 
@@ -31,7 +32,8 @@ from quad_wrench_env.agents.evaluate import Episode, episode_metrics, run_episod
 
 
 class TimedPolicy:
-    """Records the wall time of every ``act`` call (paper 003 Fig. 9: time per controller iteration)."""
+    """Records the wall time of every ``act`` call (Hentzen et al. 2019 Fig. 9: time per controller
+    iteration)."""
 
     def __init__(self, policy: Any) -> None:
         self.policy = policy

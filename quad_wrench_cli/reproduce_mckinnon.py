@@ -1,4 +1,5 @@
-"""Reproduce paper 000's Figs. 3, 4, 6 and 7 in simulation: PNG figures and a markdown table.
+"""Reproduce McKinnon & Schoellig's (2016) Figs. 3, 4, 6 and 7 in simulation: PNG figures and a markdown
+table.
 
     quad-wrench reproduce mckinnon [--config configs/reproduce_mckinnon.yaml] [--only fig3 fig4] [--seeds 0 1]
 
@@ -61,7 +62,7 @@ def rise_time(t: np.ndarray, signal: np.ndarray, start: float, before: float, st
 
 
 PAPER_SD = np.array((0.05, 0.02, 0.02))
-"""Paper 000's real-flight standard deviations of (f_z, tau_x, tau_y) (Sec. III)."""
+"""McKinnon & Schoellig's (2016) real-flight standard deviations of (f_z, tau_x, tau_y) (Sec. III)."""
 
 
 def fig3(config: dict, out: Path) -> list[str]:

@@ -1,9 +1,9 @@
-"""Reproduce paper 001's Figs. 4-6 with IDA-PBC (quad_wrench_env/agents/ida_pbc.py) on the observer's
-estimate, and the wall-pressing check of ForceExertion-v0: PNG figures and a markdown report.
+"""Reproduce Yüksel et al.'s (2014) Figs. 4-6 with IDA-PBC (quad_wrench_env/agents/ida_pbc.py) on the
+observer's estimate, and the wall-pressing check of ForceExertion-v0: PNG figures and a markdown report.
 
     quad-wrench reproduce yuksel [--config configs/reproduce_yuksel.yaml] [--only fig4 fig5 fig6 wall]
 
-Figs. 4 and 6 fly ``yuksel1kg`` (paper 001's m = 1 kg, J = diag(0.13, 0.13, 0.22)) in free air (the
+Figs. 4 and 6 fly ``yuksel1kg`` (Yüksel et al.'s (2014) m = 1 kg, J = diag(0.13, 0.13, 0.22)) in free air (the
 FanTracking env with its fan off and a large arena) under the paper's scheduled wrench, drag-free as
 in the paper and once with the default drag. Fig. 5 slides the tool's tip along a rough ceiling
 (ForceExertion, ``surface="ceiling"``) with a compliant and a stiff parameter set. ``wall`` presses on
@@ -167,9 +167,9 @@ def fig4(config: dict, out: Path) -> list[str]:
 
 # -- Fig. 5: sliding along a rough ceiling ------------------------------------------------------------------
 def fig5(config: dict, out: Path) -> list[str]:
-    """Paper 001 Fig. 5 as it describes it: a constant high-level input, here IDA-PBC's position mode with
-    its set-point ``press`` m beyond the ceiling (the reshaped spring ``K_x,z·press`` pushes the tip up)
-    and moving along x at ``speed``, over ridges; the sets differ in inertia and damping along the
+    """Yüksel et al. 2014 Fig. 5 as they describe it: a constant high-level input, here IDA-PBC's position
+    mode with its set-point ``press`` m beyond the ceiling (the reshaped spring ``K_x,z·press`` pushes the tip
+    up) and moving along x at ``speed``, over ridges; the sets differ in inertia and damping along the
     thrust (QC1 compliant, QC2 stiff; the same ``K_x,z``)."""
     setup = config["fig5"]
     lines = [

@@ -1,5 +1,5 @@
-"""Tune paper 003's position controllers once, the same way for both (its Sec. V-F: "an overdamped
-position step response with minimum rise time").
+"""Tune Hentzen et al.'s (2019) position controllers once, the same way for both (their Sec. V-F: "an
+overdamped position step response with minimum rise time").
 
     quad-wrench reproduce tune-hentzen [--config configs/tune_hentzen.yaml] [--only pid mpc]
 

@@ -1,6 +1,7 @@
 """The vehicle's own flight firmware: velocity -> attitude -> body rates -> motor speeds.
 
-What PX4 is to paper 003's vehicle and the AR.Drone firmware to paper 000's: a cascade of
+What PX4 is to the vehicle of Hentzen et al. 2019 and the AR.Drone firmware to that of McKinnon & Schoellig
+2016: a cascade of
 
 * a velocity loop (2-DOF PI, world frame, stiffer vertically where thrust acts directly) giving a
   desired acceleration, hence a thrust vector whose tilt is limited to ``max_tilt`` (the integrator
@@ -8,8 +9,8 @@ What PX4 is to paper 003's vehicle and the AR.Drone firmware to paper 000's: a c
 * an attitude loop (proportional on the geometric error ``e_R = ½·vee(R_dᵀR - RᵀR_d)``),
 * a body-rate loop (PI with inertia scaling and the gyroscopic term ``ω × Jω``; the integrator stops
   while the mixer saturates), and
-* the mixer (eqs. 1, 8-10 of paper 000, nominal coefficients) with saturation handling that gives up
-  yaw torque before thrust, roll and pitch, then clips speeds to the motors' range.
+* the mixer (eqs. 1, 8-10 of McKinnon & Schoellig 2016, nominal coefficients) with saturation handling that
+  gives up yaw torque before thrust, roll and pitch, then clips speeds to the motors' range.
 
 Gains follow from the vehicle: the rate-loop bandwidth is set by the motor time constant ``τ_m``
 (``k_rate = 0.7/τ_m`` gives a damping ratio of 0.6 for the loop ``k/(s(τ_m s + 1))``; the integrator,

@@ -1,11 +1,11 @@
 """Quaternions, rotation matrices and attitude helpers.
 
-Conventions (see ``shared/design/ARCHITECTURE.md``):
+Conventions (``docs/architecture.md``, "Conventions"):
 
 * quaternions are Hamilton, scalar first ``[w, x, y, z]`` and rotate body -> world;
 * this is the ONE module that converts to and from PyBullet's ``[x, y, z, w]`` order;
-* ``R = rotation_matrix(q)`` maps body vectors to world vectors, i.e. it is the matrix that paper 000
-  eq. (7) calls ``R^T``.
+* ``R = rotation_matrix(q)`` maps body vectors to world vectors, i.e. it is the matrix that
+  McKinnon & Schoellig 2016 eq. (7) calls ``R^T``.
 
 The functions are written for single vectors on the hot path of the simulation (plain numpy, no
 per-call object construction); the tests check them against ``scipy.spatial.transform.Rotation``.
@@ -109,7 +109,8 @@ def quat_from_euler_zyx(roll, pitch, yaw) -> np.ndarray:
 
 
 def rotation_matrix(q: np.ndarray) -> np.ndarray:
-    """Body -> world rotation matrix of the unit quaternion ``q`` (paper 000 eq. 7, its ``R^T``)."""
+    """Body -> world rotation matrix of the unit quaternion ``q`` (McKinnon & Schoellig 2016,
+    eq. 7, its ``R^T``)."""
     w, x, y, z = q
     xx, yy, zz = x * x, y * y, z * z
     xy, xz, yz = x * y, x * z, y * z
@@ -130,7 +131,8 @@ def quat_from_matrix(matrix: np.ndarray) -> np.ndarray:
 
 
 def quat_from_mrp(rho: np.ndarray) -> np.ndarray:
-    """Error quaternion of Modified Rodrigues Parameters ``ρ = tan(θ/4)·e`` (paper 000 eq. 17).
+    """Error quaternion of Modified Rodrigues Parameters ``ρ = tan(θ/4)·e`` (McKinnon &
+    Schoellig 2016, eq. 17).
 
     Works row-wise on (N, 3) arrays too.
     """
@@ -140,8 +142,8 @@ def quat_from_mrp(rho: np.ndarray) -> np.ndarray:
 
 
 def mrp_from_quat(q: np.ndarray) -> np.ndarray:
-    """MRPs ``ρ = q_v/(1 + q_0)`` of a unit quaternion (paper 000 eq. 16), taking the sign with
-    ``q_0 >= 0`` first so that ``|ρ| <= 1`` (the rotation of at most π). Row-wise on (N, 4)."""
+    """MRPs ``ρ = q_v/(1 + q_0)`` of a unit quaternion (McKinnon & Schoellig 2016 eq. 16), taking the sign
+    with ``q_0 >= 0`` first so that ``|ρ| <= 1`` (the rotation of at most π). Row-wise on (N, 4)."""
     w = q[..., :1]
     return q[..., 1:] * (np.copysign(1.0, w) / (1.0 + np.abs(w)))
 

@@ -1,12 +1,12 @@
 """The vehicles' true rotors: motor lag, per-rotor thrust coefficients and rotor drag.
 
 This is the truth the physics uses, for N vehicles at once. Thrust ``c_i = k_i·Ω_i²`` and reaction
-torque ``p_i·Ω_i²`` follow paper 000 eqs. (1), (8)-(10) with per-rotor ``k_i = k·(1 + ε_i)``,
-``ε_i ~ N(0, spread²)`` drawn once per episode (PHYSICS.md), so the nominal mixer that estimators use
-is not the truth. Each motor follows a first-order lag towards its commanded speed, integrated
-exactly over a physics step, with separate time constants for spinning up and down, and its command
-is limited to the motor's speed range. Linear rotor drag ("H-force") acts at each hub against the
-in-plane airspeed: ``F = -k_d·Ω_i·v_⊥``.
+torque ``p_i·Ω_i²`` follow McKinnon & Schoellig 2016 eqs. (1), (8)-(10) with per-rotor
+``k_i = k·(1 + ε_i)``, ``ε_i ~ N(0, spread²)`` drawn once per episode (``docs/physics.md``, "Rotors"), so
+the nominal mixer that estimators use is not the truth. Each motor follows a first-order lag towards its
+commanded speed, integrated exactly over a physics step, with separate time constants for spinning up and
+down, and its command is limited to the motor's speed range. Linear rotor drag ("H-force") acts at each hub
+against the in-plane airspeed: ``F = -k_d·Ω_i·v_⊥``.
 """
 
 from __future__ import annotations

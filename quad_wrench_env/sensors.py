@@ -1,14 +1,15 @@
 """What a real vehicle measures: a motion-capture pose and its own motor speeds.
 
-* Motion capture (paper 000 Sec. II-B): position and attitude every physics step (200 Hz, T = 5 ms),
-  with additive zero-mean Gaussian noise on the position (``position_noise``, m) and a small random
-  rotation on the attitude (rotation vector with ``attitude_noise`` rad per axis, applied in the
+* Motion capture (McKinnon & Schoellig 2016, Sec. II-B): position and attitude every physics step
+  (200 Hz, T = 5 ms), with additive zero-mean Gaussian noise on the position (``position_noise``, m) and a
+  small random rotation on the attitude (rotation vector with ``attitude_noise`` rad per axis, applied in the
   body frame), optionally ``latency_steps`` physics steps old.
 * Optionally (``state_estimator: true``) an onboard state estimator's velocity and body rates with
-  Gaussian noise, as paper 003's vehicle has (its EKF measures them; paper 000's UKF does not).
-* Motor speeds (paper 000 Sec. II-A): quantized to ``motor_speed_bits`` bits over [0, max speed], as
-  the AR.Drone reports them; the estimators get thrust and torque from these through the *nominal*
-  mixer, while the world uses the true per-rotor coefficients.
+  Gaussian noise, as the vehicle of Hentzen et al. 2019 has (their EKF measures them; the UKF of
+  McKinnon & Schoellig 2016 does not).
+* Motor speeds (McKinnon & Schoellig 2016, Sec. II-A): quantized to ``motor_speed_bits`` bits over
+  [0, max speed], as the AR.Drone reports them; the estimators get thrust and torque from these through the
+  *nominal* mixer, while the world uses the true per-rotor coefficients.
 
 Every random draw comes from the vehicle's own Generator (the env's ``np_random``), drawn in blocks
 (:class:`quad_wrench_env.engine.noise.NoiseBlocks`) and handed in.
@@ -26,7 +27,8 @@ from quad_wrench_env.rotations import quat_exp, quat_multiply_rows
 
 @dataclass
 class SensorConfig:
-    """Noise of the motion-capture system and resolution of the motor-speed readings (PHYSICS.md)."""
+    """Noise of the motion-capture system and resolution of the motor-speed readings
+    (``docs/physics.md``, "Sensors")."""
 
     position_noise: float = 5e-4
     attitude_noise: float = 2e-3

@@ -1,7 +1,7 @@
 """Vehicle parameters, the papers' presets and the X-configuration mixer.
 
-The mixer is paper 000 eqs. (1) and (8)-(10). Motor ``i`` sits at ``(x_i, y_i) = l·(±1, ±1)`` in the
-body frame (x forward, y left, z up), numbered as in paper 000 Fig. 2:
+The mixer is McKinnon & Schoellig 2016 eqs. (1) and (8)-(10). Motor ``i`` sits at ``(x_i, y_i) = l·(±1, ±1)``
+in the body frame (x forward, y left, z up), numbered as in McKinnon & Schoellig 2016 Fig. 2:
 
 ====== ============ ============ ===========================
 motor  x_i          y_i          spin (reaction torque)
@@ -14,7 +14,7 @@ motor  x_i          y_i          spin (reaction torque)
 
 so that ``tau_x = l(c1 + c2 - c3 - c4)`` (eq. 8), ``tau_y = l(-c1 + c2 + c3 - c4)`` (eq. 9) and
 ``tau_z = p1Ω1² - p2Ω2² + p3Ω3² - p4Ω4²`` (eq. 10), with ``c_i = k_i Ω_i²`` (eq. 1).
-Parameters and their sources are in ``shared/design/PHYSICS.md``.
+Parameters and their sources are in ``docs/physics.md`` ("Vehicles").
 """
 
 from __future__ import annotations
@@ -28,7 +28,7 @@ import numpy as np
 from quad_wrench_env.config import check_numbers
 
 GRAVITY = 9.81
-"""Standard gravity used everywhere in the project (m/s², paper 000's ``g``)."""
+"""Standard gravity used everywhere in the project (m/s², McKinnon & Schoellig's (2016) ``g``)."""
 
 MOTOR_X = np.array((1.0, -1.0, -1.0, 1.0))
 MOTOR_Y = np.array((1.0, 1.0, -1.0, -1.0))
@@ -44,7 +44,7 @@ class VehicleParams:
     mass: float
     inertia: tuple[float, float, float]
     arm: float
-    """Rotor offset ``l`` from the body x and y axes (m), paper 000 Fig. 2."""
+    """Rotor offset ``l`` from the body x and y axes (m), McKinnon & Schoellig 2016 Fig. 2."""
     kf: float
     """Thrust coefficient ``k`` (N/(rad/s)²), eq. (1)."""
     km_over_kf: float
@@ -60,7 +60,7 @@ class VehicleParams:
     hull_height: float = 0.06
     min_rotor_speed: float = 0.0
     rotor_drag_decel: float = 0.2
-    """Hover deceleration per unit airspeed from linear rotor drag (1/s), PHYSICS.md."""
+    """Hover deceleration per unit airspeed from linear rotor drag (1/s); ``docs/physics.md``, "Rotors"."""
 
     def __post_init__(self) -> None:
         owner = f"vehicle '{self.name}'"
@@ -108,8 +108,8 @@ class VehicleParams:
     def max_angular_acceleration(self) -> float:
         """Roll/pitch torque authority at hover thrust (rad/s²): two rotors up and two down by the
         same ``ΔΩ²`` (the most that keeps both pairs within their speed range) give ``4·l·k·ΔΩ²``,
-        over the larger of ``J_x`` and ``J_y``: ~178 rad/s² for ``ardrone2`` (about y; 237 about x,
-        PHYSICS.md's figure), ~19 for ``yuksel1kg``."""
+        over the larger of ``J_x`` and ``J_y``: ~178 rad/s² for ``ardrone2`` (about y; 237 about x),
+        ~19 for ``yuksel1kg`` (``docs/physics.md``, "Vehicles")."""
         hover = self.hover_rotor_speed**2
         margin = min(self.max_rotor_speed**2 - hover, hover - self.min_rotor_speed**2)
         return 4.0 * self.arm * self.kf * margin / max(self.inertia[0], self.inertia[1])

@@ -1,4 +1,5 @@
-"""Paper 000's admittance fan tracker with the true and the UKF-estimated wrench (Sec. V, Fig. 7)."""
+"""McKinnon & Schoellig's (2016) admittance fan tracker with the true and the UKF-estimated wrench (Sec. V,
+Fig. 7)."""
 
 from __future__ import annotations
 

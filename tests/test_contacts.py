@@ -239,12 +239,12 @@ def test_the_approach_shaping_telescopes_to_the_potential_difference(make_env):
     ("vehicle", "params", "target"), [("yuksel1kg", "default", 0.5), ("ardrone2", "ardrone2", 0.75)]
 )
 def test_ida_pbc_presses_the_wall_with_the_target_force(make_env, vehicle, params, target):
-    """Paper 001's IDA-PBC on the observer's estimate (15 s, the issue's episode): after touching, the
-    tip presses with the observed target to within 10 % over the last 5 s (the issue's acceptance) and
+    """Yüksel et al.'s (2014) IDA-PBC on the observer's estimate (15 s, the issue's episode): after touching,
+    the tip presses with the observed target to within 10 % over the last 5 s (the issue's acceptance) and
     never loses contact;
     holding the position across f* keeps it from sliding down the wall (without it, yuksel1kg's seed 2
     slid 1.1 m in 6 s and crashed). ardrone2's tool pushes on a 0.36 m lever against a yaw inertia of
-    4.8e-3 kg·m², which buckles in ~0.13 s: with the default set's slow yaw, or with paper 001's
+    4.8e-3 kg·m², which buckles in ~0.13 s: with the default set's slow yaw, or with Yüksel et al.'s (2014)
     unscaled observer gains (a 170 rad/s torque observer on this vehicle), every episode crashed the
     hull into the wall; its own set (configs/ida_pbc.yaml) and the scaled gains hold it, though the
     tilt creeps to its set-point over ~12 s against the tip's friction (the force reaches 0.64 N at
@@ -265,7 +265,7 @@ def test_ida_pbc_presses_the_wall_with_the_target_force(make_env, vehicle, param
 
 @pytest.mark.slow
 def test_the_stiff_set_keeps_the_tip_on_a_rough_ceiling_longer():
-    """Paper 001 Fig. 5 (quad-wrench reproduce yuksel has the figure): IDA-PBC's set-point 0.125 m
+    """Yüksel et al. 2014 Fig. 5 (quad-wrench reproduce yuksel has the figure): IDA-PBC's set-point 0.125 m
     beyond a ceiling with 1 cm ridges, moving along it at 0.08 m/s; QC2 (stiff along the thrust) stays
     in contact a larger fraction of the time than QC1 (compliant), over 3 seeds."""
     from dataclasses import replace

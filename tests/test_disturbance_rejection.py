@@ -1,4 +1,4 @@
-"""QuadWrench/DisturbanceRejection-v0 and paper 003's PID controller: the references against their
+"""QuadWrench/DisturbanceRejection-v0 and Hentzen et al.'s (2019) PID controller: the references against their
 formulas, the jet's speed where it crosses the path, each vehicle's own disturbance, the options,
 the metrics, and the PID's force feed-forward with the true wrench."""
 
@@ -66,7 +66,7 @@ def test_references_follow_the_papers_paths(make_env):
     np.testing.assert_allclose(cruise, [[0.0, 0.0, -0.5]], atol=1e-12)
     position, velocity = _reference(env, np.linspace(0.0, 15.0, 1501), "table_pass")
     hull_bottom = position[:, 2] - 0.5 * env.unwrapped.vehicle.hull_height
-    np.testing.assert_allclose(hull_bottom, tp.table_height + 0.08, atol=1e-12)  # paper 003: 8 cm
+    np.testing.assert_allclose(hull_bottom, tp.table_height + 0.08, atol=1e-12)  # Hentzen et al. 2019: 8 cm
     assert position[0, 0] < 3.0 and position[-1, 0] > 4.0  # both edges of the table, x = 3 and 4
     assert np.max(velocity[:, 0]) == pytest.approx(0.3, abs=1e-12)
     t = np.linspace(2.0, 15.0, 200)  # after the ease-in φ = t - 1 (φ̇ eases 0 -> 1 over 2 s)
@@ -191,9 +191,9 @@ def _hover_under_push(agent_params: dict, seconds: float):
 
 
 def test_pid_with_the_true_force_cancels_a_constant_push():
-    """Paper 003 eq. (3) with the oracle: the feed-forward ``-f/m`` cancels the push, so the position
-    stays within 1 mm of the reference (the wrench also holds the drag of the vehicle's own motion, so
-    the cancellation is exact up to the attitude loop's lag); without compensation and without an
+    """Hentzen et al. 2019 eq. (3) with the oracle: the feed-forward ``-f/m`` cancels the push, so the
+    position stays within 1 mm of the reference (the wrench also holds the drag of the vehicle's own motion,
+    so the cancellation is exact up to the attitude loop's lag); without compensation and without an
     integrator the PD settles at ``e = f/(m·k_p)`` (m·k_p·e = f), and with the integrator only slowly."""
     gains = {"k_p_xy": 4.0, "k_d_xy": 4.0, "k_i_xy": 0.0}
     compensated = _hover_under_push({**gains, "compensation": True}, 6.0)
@@ -249,8 +249,8 @@ GAINS = {"pid": {"bandwidth": 3.5}, "mpc": {"position_weight": [1298.89, 1298.89
 @pytest.mark.parametrize("agent", ["pid", "mpc"])
 @pytest.mark.parametrize("vehicle", ["ardrone2", "crazyflie2", "hummingbird", "yuksel1kg"])
 def test_both_controllers_fly_the_figure8_on_every_preset(vehicle, agent):
-    """Paper 003's controllers, tuned once on ``hummingbird``, fly Neural-Fly's figure-8 in still air
-    (UKF) on every preset for 8 s (past the ease-in and the loop's fastest climb, 1.5 m/s) without
+    """Hentzen et al.'s (2019) controllers, tuned once on ``hummingbird``, fly Neural-Fly's figure-8 in still
+    air (UKF) on every preset for 8 s (past the ease-in and the loop's fastest climb, 1.5 m/s) without
     ending early and within 10 cm on average (they reach 1-3 cm; an unstable loop leaves metres)."""
     env = gym.make(ENV_ID, vehicle=vehicle, episode_seconds=8.0)
     try:

@@ -1,5 +1,5 @@
 """The disturbances beyond the fan: Dryden turbulence, the 1-cosine gust, a fixed jet, the ground
-effect over the ground and tables (PHYSICS.md), each against its formula, its compiled kernels and,
+effect over the ground and tables (``docs/physics.md``), each against its formula, its compiled kernels and,
 through the env, the numbers ``info`` reports."""
 
 from __future__ import annotations
@@ -167,7 +167,7 @@ def _jet_field(points: np.ndarray) -> np.ndarray:
 
 
 def _jet_scales(x: float) -> tuple[float, float]:
-    """Half-width b and centre-line speed u_c at distance x: written out from PHYSICS.md."""
+    """Half-width b and centre-line speed u_c at distance x: written out from ``docs/physics.md``, "Fan"."""
     b = math.sqrt((JET.diameter / 2) ** 2 + (JET.spread * x) ** 2)
     return b, JET.speed * min(1.0, JET.diameter / (math.sqrt(2.0) * b))
 

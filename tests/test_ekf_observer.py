@@ -1,4 +1,4 @@
-"""The EKF of paper 003 and the nonlinear observer of paper 001."""
+"""The EKF of Hentzen et al. 2019 and the nonlinear observer of Yüksel et al. 2014."""
 
 from __future__ import annotations
 

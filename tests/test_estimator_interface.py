@@ -1,4 +1,5 @@
-"""Every estimator honours the interface of ARCHITECTURE.md (one conformance test for all)."""
+"""Every estimator honours the interface of ``docs/architecture.md``, "Contracts" (one conformance test
+for all)."""
 
 from __future__ import annotations
 
@@ -81,7 +82,8 @@ def test_unknown_estimator_and_settings_are_named():
 @pytest.mark.parametrize("euler", [(0.0, 0.0, np.pi), (0.1, -0.2, 2.0), (0.0, 0.24, np.pi)])
 def test_a_vehicle_held_still_gives_the_wrench_that_balances_its_inputs(name, euler):
     """At rest at any attitude, the external wrench must cancel gravity, thrust and motor torque:
-    f = m g e_z - R c_t e_z and tau = -R tau_m (zero accelerations in paper 000 eqs. 4 and 12)."""
+    f = m g e_z - R c_t e_z and tau = -R tau_m (zero accelerations in McKinnon & Schoellig 2016,
+    eqs. 4 and 12)."""
     vehicle = make_vehicle("ardrone2")
     est = make_estimator(name, vehicle, 0.005)
     q = quat_from_euler_zyx(*euler)

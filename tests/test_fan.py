@@ -1,4 +1,5 @@
-"""The moving jet and the loads it causes on the body (PHYSICS.md, paper 000 Fig. 6)."""
+"""The moving jet and the loads it causes on the body (``docs/physics.md``, "Fan"; McKinnon & Schoellig
+2016, Fig. 6)."""
 
 from __future__ import annotations
 
@@ -37,7 +38,7 @@ def test_field_is_symmetric_about_the_axis_and_blows_along_x():
 
 
 U0, D, C = 10.0, 0.75, 0.42
-"""FanConfig's defaults: outlet speed and diameter, spread (PHYSICS.md)."""
+"""FanConfig's defaults: outlet speed and diameter, spread (``docs/physics.md``, "Fan")."""
 
 
 def _half_width(x):
@@ -58,7 +59,7 @@ def test_jet_carries_the_outlets_momentum_flux_beyond_the_core(x):
 
 
 def test_centreline_speed_at_the_vehicle_is_paper_scale():
-    """PHYSICS.md: u_c ≈ 5.1 m/s and b ≈ 1.04 m at 2.3 m; U0 on the axis inside the core."""
+    """``docs/physics.md``, "Fan": u_c ≈ 5.1 m/s and b ≈ 1.04 m at 2.3 m; U0 on the axis inside the core."""
     jet = _still_jet()
     u = _field(jet, np.array([[0.5, 0.0, 1.0], [2.3, 0.0, 1.0]]))[:, 0]
     assert u[0] == pytest.approx(U0)

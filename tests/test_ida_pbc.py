@@ -1,5 +1,5 @@
-"""Paper 001's IDA-PBC controller (quad_wrench_env/agents/ida_pbc.py): the wrench action it drives, its
-reading of eqs. (39)-(47), its closed loop against the target dynamics (32), and its plumbing."""
+"""Yüksel et al.'s (2014) IDA-PBC controller (quad_wrench_env/agents/ida_pbc.py): the wrench action it drives,
+its reading of eqs. (39)-(47), its closed loop against the target dynamics (32), and its plumbing."""
 
 from __future__ import annotations
 
@@ -34,8 +34,8 @@ P = np.diag((1.0, -1.0, -1.0))
 
 
 def _env_kwargs(**overrides):
-    """FanTracking as a free-flight test bench: yuksel1kg (paper 001's m = 1 kg, J = diag(0.13, 0.13,
-    0.22)), wrench action, no fan, drag-free as in the paper's Sec. V, nominal rotors, a roomy arena."""
+    """FanTracking as a free-flight test bench: yuksel1kg (Yüksel et al.'s (2014) m = 1 kg, J = diag(0.13,
+    0.13, 0.22)), wrench action, no fan, drag-free as in the paper's Sec. V, nominal rotors, a roomy arena."""
     return {
         "vehicle": "yuksel1kg", "action_type": "wrench", "estimator": "oracle",
         "fan": {"enabled": False, "height": 5.0},
@@ -46,8 +46,8 @@ def _env_kwargs(**overrides):
 
 
 def _forward_map(vehicle, speeds: np.ndarray) -> np.ndarray:
-    """Paper 000 eqs. (1), (8)-(10), written out for the X configuration (motors 1 front-left, 2 back-left,
-    3 back-right, 4 front-right; 1 and 3 react about +z): ``[c_t, τ_x, τ_y, τ_z]``."""
+    """McKinnon & Schoellig 2016 eqs. (1), (8)-(10), written out for the X configuration (motors 1 front-left,
+    2 back-left, 3 back-right, 4 front-right; 1 and 3 react about +z): ``[c_t, τ_x, τ_y, τ_z]``."""
     k, l, p = vehicle.kf, vehicle.arm, vehicle.km_over_kf * vehicle.kf
     w1, w2, w3, w4 = speeds**2
     return np.array(
@@ -274,8 +274,8 @@ def test_closed_loop_with_the_true_wrench_follows_the_target_dynamics(make_env, 
 
 
 def test_balance_with_the_observer_meets_the_acceptance(make_env):
-    """Sec. V-C with paper 001's observer (c = 5 and 0.5): a constant 1 N push along x from the start
-    and 1 N along -z from 1 s, ``f* = -f̂_e`` (QC4). Over 3-4.5 s (the force estimate settles as
+    """Sec. V-C with Yüksel et al.'s (2014) observer (c = 5 and 0.5): a constant 1 N push along x from the
+    start and 1 N along -z from 1 s, ``f* = -f̂_e`` (QC4). Over 3-4.5 s (the force estimate settles as
     e^{-5t}: e^{-10} after 2 s) the mean acceleration is below 0.05 m/s² and the exerted force
     ``f_ne = ρ R e₃ - m g e₃`` (true rotor thrust and attitude) within 10 % of ``|f_e|`` of ``-f_e``
     on every axis (the issue's acceptance)."""
@@ -326,8 +326,8 @@ def test_actions_are_float32_within_bounds(make_env):
 
 def test_policy_scales_are_the_action_scales(make_env):
     """The thrust and body torque the policy computed come back out of the action through the env's
-    own action map and the independent forward map (paper 000 eqs. 1, 8-10), to 1e-5 relative (the
-    action is float32: 6e-8 relative, times scales of order 1)."""
+    own action map and the independent forward map (McKinnon & Schoellig 2016 eqs. 1, 8-10), to 1e-5 relative
+    (the action is float32: 6e-8 relative, times scales of order 1)."""
     env = make_env(
         **_env_kwargs(estimator="observer", external_wrench=[[0.0, 9.0, 0.5, 0.2, -0.3, 0.2, -0.1, 0.0]])
     )

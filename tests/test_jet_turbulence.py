@@ -1,7 +1,7 @@
 """The fixed jet's turbulence (quad_wrench_env/disturbances/jet.py): the intensity and length scale asked
 for, on the numpy reference and the compiled kernels; off by default; DisturbanceRejection's keys.
 
-The expected numbers are written here from the jet's definition (PHYSICS.md: Gaussian profile,
+The expected numbers are written here from the jet's definition (``docs/physics.md``, "Fan": Gaussian profile,
 ``u_c = U0·min(1, D/(√2·b))``, ``b = sqrt((D/2)² + (c·x)²)``) and the statistics of a first-order
 (AR(1)) process sampled every ``dt`` with ``a = exp(-dt·u/L)``: the variance of its sample variance is
 ``2σ⁴(1 + a²)/(N(1 - a²))`` and the variance of its sample autocorrelation at lag k is Bartlett's

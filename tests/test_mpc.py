@@ -1,4 +1,5 @@
-"""Paper 003's MPC position controller (Sec. IV-D, eqs. 1, 2, 4) solved with OSQP, and its guidance.
+"""Hentzen et al.'s (2019) MPC position controller (Sec. IV-D, eqs. 1, 2, 4) solved with OSQP, and its
+guidance.
 
 Tolerances: OSQP stops when every constraint row is met to ``eps_abs + eps_rel·scale`` (1e-6 each,
 ``scale`` the size of the row's terms: a thrust bound ~10 N, a dynamics row ~1), so a bound holds to

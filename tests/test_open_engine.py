@@ -131,8 +131,8 @@ def test_a_task_and_a_wind_field_written_outside_the_engine_fly_on_both_backends
     """The test's task brings its own observation block (after the engine's, named in obs_layout),
     termination (named in info), reward term and info; its crosswind pushes the vehicle along +y
     and shows in wrench_true (drag of a 2 m/s wind on the hovering vehicle: body drag ρ/2·C_dA·v²
-    plus rotor drag, which decelerates a hovering vehicle at ``rotor_drag_decel`` per m/s, PHYSICS.md)
-    and in wind_velocity."""
+    plus rotor drag, which decelerates a hovering vehicle at ``rotor_drag_decel`` per m/s,
+    ``docs/physics.md``, "Rotors") and in wind_velocity."""
     env = HoldEnv(backend=backend, estimator="oracle")
     try:
         layout = env.obs_layout

@@ -1,7 +1,7 @@
-"""Paper 003's PID (``quad_wrench_env/agents/pid.py``) against hand computations (issue 33): its integral
-term held within the documented bound g·tan 30° through a long saturation and unwinding at once afterwards,
-eq. (3) term by term, and the gains of one bandwidth with their cap. The observations are written by
-hand into a real env's layout; the integral term is read from the public ``desired_acceleration``
+"""Hentzen et al.'s (2019) PID (``quad_wrench_env/agents/pid.py``) against hand computations (issue 33): its
+integral term held within the documented bound g·tan 30° through a long saturation and unwinding at once
+afterwards, eq. (3) term by term, and the gains of one bandwidth with their cap. The observations are written
+by hand into a real env's layout; the integral term is read from the public ``desired_acceleration``
 (eq. (3) minus its proportional, derivative and feed-forward parts, computed here)."""
 
 from __future__ import annotations

@@ -2,11 +2,11 @@
 
 * A rigid body integrated by scipy (Newton-Euler, body-frame Euler equation with ``ω × Jω``,
   quaternion kinematics) against the World (PyBullet) for tumbling and spinning bodies.
-* Each action type's meaning from first principles (signs, scales, motor layout of paper 000
+* Each action type's meaning from first principles (signs, scales, motor layout of McKinnon & Schoellig 2016
   eqs. 8-10), on a vehicle hovering in still air.
-* The fan's transit delay against a numerical integral of the centre-line speed of PHYSICS.md.
+* The fan's transit delay against a numerical integral of the centre-line speed of ``docs/physics.md``, "Fan".
 
-Every formula here is written from the docs (PHYSICS.md, the module docstrings), not imported from
+Every formula here is written from the docs (``docs/physics.md``, the module docstrings), not imported from
 the package: only the vehicle's parameters and the objects under test come from it.
 """
 
@@ -164,7 +164,8 @@ SUBSTEPS = 4  # physics steps per policy step (200 Hz / 50 Hz)
 HOVER_THRUST = MASS * GRAVITY
 L, K, P_OVER_K = VEHICLE.arm, VEHICLE.kf, VEHICLE.km_over_kf
 MOTOR_XY = np.array(((L, L), (-L, L), (-L, -L), (L, -L)))
-"""Paper 000 Fig. 2: 1 front-left, 2 back-left, 3 back-right, 4 front-right (body x forward, y left)."""
+"""McKinnon & Schoellig 2016, Fig. 2: 1 front-left, 2 back-left, 3 back-right, 4 front-right (body x
+forward, y left)."""
 SPIN = np.array((1.0, -1.0, 1.0, -1.0))
 """Reaction torque about body +z per p·Ω²: 1 and 3 spin about -z (torque +pΩ²), 2 and 4 the other way."""
 
@@ -324,8 +325,8 @@ def test_wrench_action_is_thrust_and_body_torque(make_env, axis, sign):
 @pytest.mark.parametrize("motor", [0, 1, 2, 3])
 def test_motors_action_follows_the_motor_layout(make_env, motor):
     """Raising motor i alone (motors action: speed (a + 1)/2·max speed) rolls, pitches and yaws the
-    body with the signs of r × F and the reaction torque (paper 000 eqs. 8-10: motor 1 front-left, 2
-    back-left, 3 back-right, 4 front-right; 1 and 3 reaction +pΩ²), by the amounts of the lag.
+    body with the signs of r × F and the reaction torque (McKinnon & Schoellig 2016 eqs. 8-10: motor 1
+    front-left, 2 back-left, 3 back-right, 4 front-right; 1 and 3 reaction +pΩ²), by the amounts of the lag.
     Catches a renumbered or mirrored motor layout, swapped spin directions, a wrong speed scale."""
     env = _hovering(make_env, "motors")
     hover = math.sqrt(HOVER_THRUST / (4.0 * K))
@@ -346,8 +347,8 @@ def test_motors_action_follows_the_motor_layout(make_env, motor):
 @pytest.mark.parametrize("x", [0.5, 1.5, 2.3, 4.0])
 def test_transit_time_is_the_integral_of_the_inverse_centreline_speed(x):
     """``FanJet.transit_time(x) = ∫₀ˣ dξ/u_c(ξ)`` with u_c = U0·min(1, D/(√2·b)), b = sqrt((D/2)² + (cx)²)
-    written here (PHYSICS.md), by adaptive quadrature split at the core's end x_c = D/(2c) ≈ 0.89 m
-    (the kink), to 1e-9 relative (quad's error estimate is ~1e-14 here). Catches a wrong
+    written here (``docs/physics.md``, "Fan"), by adaptive quadrature split at the core's end
+    x_c = D/(2c) ≈ 0.89 m (the kink), to 1e-9 relative (quad's error estimate is ~1e-14 here). Catches a wrong
     antiderivative beyond the core (a missing asinh term, a factor √2), a core of the wrong length,
     a delay that ignores the slowing of the jet."""
     u0, d, c = 10.0, 0.75, 0.42  # FanConfig's defaults

@@ -156,7 +156,7 @@ def test_ukf_tracks_a_constant_wrench_in_manoeuvring_flight(monkeypatch, mutatio
 
 @pytest.mark.parametrize("mutation", [None, "gyroscopic sign flipped"])
 def test_ekf_tracks_a_constant_wrench_in_manoeuvring_flight(monkeypatch, mutation):
-    """Catches a wrong motion model of paper 003's EKF away from hover. Its covariance is
+    """Catches a wrong motion model of Hentzen et al.'s (2019) EKF away from hover. Its covariance is
     overconfident in this flight (torque errors up to 5.7 of its σ: forward-Euler Euler-angle
     kinematics), so the bounds are on 0.1 s running means: torque within 0.008 N·m, less than the
     2 max|ω × Jω| ≈ 0.018 N·m a flipped gyroscopic sign costs (seen: 0.0054 correct, 0.016 flipped);
@@ -172,7 +172,7 @@ def test_ekf_tracks_a_constant_wrench_in_manoeuvring_flight(monkeypatch, mutatio
 
 @pytest.mark.parametrize("mutation", [None, "ω × Jω dropped", "Coriolis dropped"])
 def test_observer_tracks_a_constant_wrench_in_manoeuvring_flight(monkeypatch, mutation):
-    """Catches a wrong Coriolis term C(η, η̇) η̇ of paper 001's observer away from hover. Fed the
+    """Catches a wrong Coriolis term C(η, η̇) η̇ of Yüksel et al.'s (2014) observer away from hover. Fed the
     onboard estimator's velocity and body rates (0.01 noise; the observer's finite differences of
     noisy poses are far noisier), its 0.1 s running-mean torque error stays within 0.005 N·m: the
     rate noise passes as c_τ σ_ω |T⁻ᵀ| ≈ 0.005 N·m per step, 0.0011 over 20 steps, times 4
@@ -184,7 +184,8 @@ def test_observer_tracks_a_constant_wrench_in_manoeuvring_flight(monkeypatch, mu
     if mutation == "Coriolis dropped":
         rate = observer_module.euler_kinematics_rate
         monkeypatch.setattr(observer_module, "euler_kinematics_rate", lambda *a: 0.0 * rate(*a))
-    # paper 001's printed gains (unscaled: on this light vehicle a fast observer, whose lag hides nothing)
+    # Yüksel et al.'s (2014) printed gains (unscaled: on this light vehicle a fast observer, whose lag hides
+    # nothing)
     wrenches = fly_reference("observer", seed=0, motion=True, c_force=5.0, c_torque=0.5)[0]
     errors = _errors(wrenches, window=20).max(axis=0)
     assert (errors[3:].max() < 0.005) != bool(mutation), errors
@@ -263,7 +264,7 @@ def test_kalman_filters_rise_as_their_noise_settings_predict(name):
     """Catches a force random walk, thrust noise or position noise not entering the filter as its
     settings say (a Q or G scaled, squared twice, per second instead of per step): the rise time of
     the force estimate after a 0.5 N step lies within RISE_BAND of the linear steady-state filter's
-    with the same settings. Note: the defaults predict ~0.17 s, faster than paper 000's ~1 s
+    with the same settings. Note: the defaults predict ~0.17 s, faster than McKinnon & Schoellig's (2016) ~1 s
     (a force walk of ~4e-4 N per step gives ~1.4 s)."""
     predicted = predicted_rise_time(NOISE)
     measured = measured_rise_time(name, STEP_AT + 1.0)
@@ -282,11 +283,11 @@ def test_a_ukf_with_a_100x_smaller_force_walk_rises_outside_the_band():
 
 
 def test_observer_rises_as_exp_minus_c_t_over_m():
-    """Catches a wrong force gain or discretisation of paper 001's observer: its force error decays
-    as exp(-c t/m) (eq. 8), a 10-90 % rise of ln 9 m/c = 0.44 s with the default c (paper 001's 5 N·s/m
-    per kg); the band RISE_BAND around it. Fed the onboard velocity (a finite-difference low-pass
+    """Catches a wrong force gain or discretisation of Yüksel et al.'s (2014) observer: its force error decays
+    as exp(-c t/m) (eq. 8), a 10-90 % rise of ln 9 m/c = 0.44 s with the default c (Yüksel et al.'s (2014)
+    5 N·s/m per kg); the band RISE_BAND around it. Fed the onboard velocity (a finite-difference low-pass
     would add its 0.05 s lag)."""
-    predicted = math.log(9.0) * MASS / (5.0 * MASS / 1.0)  # paper 001's c = 5 N·s/m per kg
+    predicted = math.log(9.0) * MASS / (5.0 * MASS / 1.0)  # Yüksel et al.'s (2014) c = 5 N·s/m per kg
     measured = measured_rise_time("observer", STEP_AT + 1.0, motion=True)
     assert RISE_BAND[0] * predicted < measured < RISE_BAND[1] * predicted, (measured, predicted)
 

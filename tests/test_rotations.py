@@ -99,7 +99,8 @@ def test_mrp_is_tan_quarter_angle(v):
 
 @given(unit_quaternions, small_vectors)
 def test_error_quaternion_composition_is_the_identity(q, v):
-    """q_i = q ⊗ δq, δq = q⁻¹ ⊗ q_i, and back through MRPs (PHYSICS.md, Hamilton body error)."""
+    """q_i = q ⊗ δq, δq = q⁻¹ ⊗ q_i, and back through MRPs (``docs/physics.md``, "The unscented filter":
+    Hamilton body error)."""
     dq = r.quat_from_mrp(r.mrp_from_quat(r.quat_exp(v)))
     qi = r.quat_multiply(q, dq)
     recovered = r.quat_multiply(r.quat_conjugate(q), qi)

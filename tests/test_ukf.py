@@ -1,4 +1,5 @@
-"""The unscented wrench estimator of paper 000: its algebra, its shortcuts and its accuracy."""
+"""The unscented wrench estimator of McKinnon & Schoellig 2016: its algebra, its shortcuts and its
+accuracy."""
 
 from __future__ import annotations
 
@@ -154,7 +155,7 @@ def test_one_hour_of_flight_keeps_the_filter_sound():
 
 
 def test_zero_wrench_in_hover_is_estimated_without_bias():
-    """Tolerances: a fifth of paper 000's static accuracy (0.05 N, 0.02 N·m)."""
+    """Tolerances: a fifth of McKinnon & Schoellig's (2016) static accuracy (0.05 N, 0.02 N·m)."""
     ukf = UnscentedWrenchEstimator(make_vehicle("ardrone2"), DT)
     estimates = np.array(_hover_measurements(ukf, 30.0, seed=3))[2000:]
     assert np.abs(estimates[:, :3].mean(axis=0)).max() < 0.01

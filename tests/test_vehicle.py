@@ -1,4 +1,4 @@
-"""Presets and the mixer of paper 000 eqs. (1), (8)-(10)."""
+"""Presets and the mixer of McKinnon & Schoellig 2016 eqs. (1), (8)-(10)."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Paper 000's fan tracker (Sec. V): an admittance controller on the estimated yaw torque.
+"""McKinnon & Schoellig's (2016) fan tracker (Sec. V): an admittance controller on the estimated yaw torque.
 
 ``ẏ_cmd = k_p·τ̂_z^e`` moves the vehicle sideways towards the jet's centre, since the yaw torque of the
 jet's drag is anti-symmetric about the axis (Fig. 6). x, z and yaw are held by proportional position
@@ -12,8 +12,8 @@ Gain: near the axis ``τ_z ≈ s·(y - y_axis)``, so the lateral loop is ``ẏ =
 ``k_p = -λ/s`` gives it the rate ``λ`` (1/s). The slope ``s`` depends on the vehicle's drag (area,
 hull and rotor positions) and on the jet at the stand-off, so each preset has its own
 (:data:`TORQUE_SLOPES`); one ``λ`` then serves every preset. ``λ = 2.1/s`` is the rate of the gain
-that paper 000's setting used here before (k_p = -20 m/s per N·m on the v0 jet, whose slope for
-``ardrone2`` was 0.107 N·m/m), and it keeps the largest command, ``k_p·max τ_z``, near 0.7 m/s on
+that McKinnon & Schoellig's (2016) setting used here before (k_p = -20 m/s per N·m on the v0 jet, whose slope
+for ``ardrone2`` was 0.107 N·m/m), and it keeps the largest command, ``k_p·max τ_z``, near 0.7 m/s on
 every preset.
 """
 

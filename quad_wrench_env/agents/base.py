@@ -1,4 +1,5 @@
-"""The interface every agent implements (ARCHITECTURE.md: ``policy.reset(env)``, ``policy.act(obs)``)."""
+"""The interface every agent implements: ``policy.reset(env)``, ``policy.act(obs)`` (``docs/architecture.md``,
+"Contracts")."""
 
 from __future__ import annotations
 

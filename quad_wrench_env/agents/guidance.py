@@ -1,11 +1,11 @@
-"""Guidance helpers shared by the position controllers of paper 003 (Sec. IV-B to IV-D).
+"""Guidance helpers shared by the position controllers of Hentzen et al. 2019 (Sec. IV-B to IV-D).
 
 * :class:`ReferenceExtrapolator` turns the reference position and velocity that the observation
   carries into a reference over a prediction horizon, with the reference acceleration estimated by
   differencing the observed reference velocity between policy steps (the MPC's state and input
   references, and the PID controller's feed-forward acceleration).
 * :func:`attitude_from_acceleration` maps a desired acceleration to the collective thrust and the roll
-  and pitch that produce it (paper 003 Sec. IV-A: "the desired acceleration vector is transformed
+  and pitch that produce it (Hentzen et al. 2019 Sec. IV-A: "the desired acceleration vector is transformed
   into a collective thrust and a reference attitude"), for the project's Euler convention
   ``R = Rz(ψ)·Ry(θ)·Rx(φ)`` (:func:`quad_wrench_env.rotations.quat_from_euler_zyx`).
 """

@@ -1,8 +1,8 @@
 """Hold a pose with proportional feedback on the estimated position and heading (velocity action).
 
 The vehicle's autopilot flies velocity; this policy closes the position loop around it, as the
-ground station of paper 000 did for its hover experiments (Figs. 3, 4 and 6). The pose held is the
-one at the start of the episode unless references are given.
+ground station of McKinnon & Schoellig 2016 did for their hover experiments (Figs. 3, 4 and 6). The pose held
+is the one at the start of the episode unless references are given.
 """
 
 from __future__ import annotations

@@ -1,10 +1,10 @@
-"""Paper 001's IDA-PBC controller (Yüksel et al., Secs. III-IV) fed by the estimated external wrench.
+"""The IDA-PBC controller of Yüksel et al. 2014 (Secs. III-IV), fed by the estimated external wrench.
 
 The controller reshapes the quadrotor into a port-Hamiltonian target system (eq. 32) of desired
 inertia ``M_d = diag(m_d I, N)`` (eq. 33), potential ``V_d`` (eq. 35) and dissipation ``R_d``, and
 (Sec. IV) lets the force the vehicle exerts, ``f_ne``, converge to a desired ``f*`` even under a
 constant external torque. The external wrench comes from the observation's ``force`` and ``torque``
-blocks (world frame), so any estimator feeds it (paper 001 uses its own observer, Sec. II:
+blocks (world frame), so any estimator feeds it (Yüksel et al. 2014 use their own observer, Sec. II:
 ``estimator="observer"``); the command goes out through the env's ``wrench`` action.
 
 Frames
@@ -87,8 +87,8 @@ external force is counterbalanced; ``"auto"`` is ``"force"`` when the observatio
 ``target_force``, else ``"position"``.
 
 Choices beyond the printed equations (each a switch; the paper's form is the other setting). On
-paper 001's Fig. 6 profile with the observer (QC4, seeds 0-2) the printed form leaves 0.06-0.09 N of
-error in ``f_ne`` along z in every phase and up to 0.8 N in the torque phases; with these choices the
+Yüksel et al.'s (2014) Fig. 6 profile with the observer (QC4, seeds 0-2) the printed form leaves 0.06-0.09 N
+of error in ``f_ne`` along z in every phase and up to 0.8 N in the torque phases; with these choices the
 force-only phases stay within 0.03 N and the torque phases within 0.16 N:
 
 * ``force_map_yaw="measured"``: (40)-(41) use the measured heading rather than (45)'s ψ_ss. They
@@ -167,7 +167,7 @@ class IDAPBCParams:
     """``f*`` (N, world) in ``"force"`` mode when the observation has no ``target_force`` block."""
     hold_across: bool = True
     """In ``"force"`` mode, hold ``reference`` across ``f*`` with the position-mode law (32), projected
-    on the plane normal to ``f*`` (a hybrid force/position extension, not in paper 001): without it
+    on the plane normal to ``f*`` (a hybrid force/position extension, not in Yüksel et al. 2014): without it
     nothing regulates the position along the surface, and a small bias (the rotors' 2 % thrust
     spread, friction) lets a vehicle pressing on a wall slide down it at ~0.3 m/s until it crashes."""
     reference: Vector3 | None = None
@@ -175,7 +175,7 @@ class IDAPBCParams:
     plus ``reference_offset``."""
     reference_offset: Vector3 = (0.0, 0.0, 0.0)
     """Added to the start position when ``reference`` is None (m, world): e.g. a set-point beyond a
-    surface, so that the reshaped spring ``K_x`` presses the tool on it (paper 001 Fig. 5)."""
+    surface, so that the reshaped spring ``K_x`` presses the tool on it (Yüksel et al. 2014 Fig. 5)."""
     reference_velocity: Vector3 = (0.0, 0.0, 0.0)
     """The set-point moves at this velocity (m/s, world), and the damping acts on the velocity error:
     a tool sliding along a surface."""
@@ -283,7 +283,8 @@ def rotation_zyx(roll: float, pitch: float, yaw: float) -> np.ndarray:
 
 
 def euler_rate_map(roll: float, pitch: float) -> np.ndarray:
-    """``T(η)`` of ``ω = T η̇`` (body rates from ZYX Euler rates; paper 001 Sec. II, corrected (2, 2))."""
+    """``T(η)`` of ``ω = T η̇`` (body rates from ZYX Euler rates; Yüksel et al. 2014
+    Sec. II, corrected (2, 2))."""
     sr, cr, sp, cp = math.sin(roll), math.cos(roll), math.sin(pitch), math.cos(pitch)
     return np.array(((1.0, 0.0, -sp), (0.0, cr, sr * cp), (0.0, -sr, cr * cp)))
 

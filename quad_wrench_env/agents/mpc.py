@@ -1,6 +1,6 @@
-"""Paper 003's MPC position controller (Sec. IV-D), as a linearised QP solved by OSQP.
+"""Hentzen et al.'s (2019) MPC position controller (Sec. IV-D), as a linearised QP solved by OSQP.
 
-Model (paper 003 eqs. 1-2 with the attitude identified as a first-order system, Sec. IV-D a)), world
+Model (Hentzen et al. 2019 eqs. 1-2 with the attitude identified as a first-order system, Sec. IV-D a)), world
 z up, state ``x = [p, v, φ, θ]`` (8) and input ``u = [T_ref, φ_ref, θ_ref]`` (3, plus the slack ``ε``
 when the soft constraint is on)::
 
@@ -11,7 +11,7 @@ yaw is flown by a separate proportional yaw-rate command) and the estimated exte
 held constant over the horizon (``f̂ = 0`` without ``compensation``: the MPC then does not know the
 force and, having no integrator, settles with an offset of ``f/k`` for a position stiffness ``k``).
 
-The optimal control problem (paper 003 eq. 4): quadratic cost on the state error and the input error
+The optimal control problem (Hentzen et al. 2019 eq. 4): quadratic cost on the state error and the input error
 with a terminal cost, input bounds ``T_min <= T <= T_max``, ``|φ_ref|, |θ_ref| <= tilt_max``, 2 s
 horizon at 0.1 s. The nonlinear model is linearised once per solve about the current attitude (or
 the equilibrium one, ``linearization``) and the equilibrium thrust, discretised exactly (matrix
@@ -72,14 +72,15 @@ class MPCGains:
     """Settings of :class:`PositionMPC` and :class:`MPCPolicy` (key prefix ``mpc.``)."""
 
     horizon_seconds: float = 2.0
-    """Prediction horizon (s; paper 003 Sec. IV-D d))."""
+    """Prediction horizon (s; Hentzen et al. 2019 Sec. IV-D d))."""
     step_seconds: float = 0.1
     """Discretisation interval (s); the horizon has ``round(horizon_seconds/step_seconds)`` steps."""
     attitude_time_constant: float | None = None
     """``τ`` (s) of the first-order attitude model; None derives it from the vehicle's autopilot,
     ``1/attitude_p`` (:meth:`quad_wrench_env.autopilot.AutopilotGains.for_vehicle`)."""
     position_weight: tuple[float, float, float] = (80.0, 80.0, 120.0)
-    """Cost on the position error (1/m², per step), x, y, z (the magnitudes of paper 003's ref. [4])."""
+    """Cost on the position error (1/m², per step), x, y, z (the magnitudes of ref. [4] of
+    Hentzen et al. 2019)."""
     velocity_weight: tuple[float, float, float] = (4.0, 4.0, 6.0)
     """Cost on the velocity error (s²/m², per step); larger values slow the response to a step."""
     attitude_weight: float = 1.0
@@ -97,9 +98,10 @@ class MPCGains:
     max_thrust: float = 1.8
     """Upper thrust bound in hover thrusts; the policy lowers it to what the action can express (2)."""
     compensation: bool = False
-    """Put the estimated external force into the model and the input reference (paper 003 Sec. IV-D a))."""
+    """Put the estimated external force into the model and the input reference (Hentzen et al. 2019,
+    Sec. IV-D a))."""
     slack: bool = False
-    """Add the soft cross-track constraint with its slack input (paper 003 Sec. IV-D c))."""
+    """Add the soft cross-track constraint with its slack input (Hentzen et al. 2019 Sec. IV-D c))."""
     cross_track_limit: float = 0.05
     """``e_max`` (m) of the soft constraint on the x and y position errors."""
     slack_weight_linear: float | None = None
@@ -160,7 +162,7 @@ def thrust_direction(roll: float, pitch: float, yaw: float) -> np.ndarray:
 def model_derivative(
     state: np.ndarray, inputs: np.ndarray, yaw: float, force: np.ndarray, mass: float, tau: float
 ) -> np.ndarray:
-    """``ẋ = f(x, u)`` of the nonlinear model (module docstring; paper 003 eqs. 1-2)."""
+    """``ẋ = f(x, u)`` of the nonlinear model (module docstring; Hentzen et al. 2019 eqs. 1-2)."""
     thrust, roll_ref, pitch_ref = inputs[:NU]
     roll, pitch = state[6], state[7]
     accel = thrust / mass * thrust_direction(roll, pitch, yaw) + force / mass - np.array((0.0, 0.0, GRAVITY))
@@ -197,7 +199,7 @@ def linearize(
 
 
 class PositionMPC:
-    """The QP of paper 003 eq. (4) for one vehicle, set up once in OSQP and re-solved warm.
+    """The QP of Hentzen et al. 2019 eq. (4) for one vehicle, set up once in OSQP and re-solved warm.
 
     After :meth:`solve`: ``predicted_states`` (N+1, 8, row 0 the current state), ``predicted_inputs``
     (N, 3: thrust N, roll and pitch references rad), ``slack_values`` (N, zeros without slack),
@@ -400,8 +402,8 @@ def attitude_time_constant(vehicle: VehicleParams) -> float:
 
 
 class MPCPolicy:
-    """Paper 003's MPC position controller flying the ``attitude`` action: roll and pitch references
-    and collective thrust from :class:`PositionMPC`, yaw held at ``gains.yaw`` by a proportional
+    """Hentzen et al.'s (2019) MPC position controller flying the ``attitude`` action: roll and pitch
+    references and collective thrust from :class:`PositionMPC`, yaw held at ``gains.yaw`` by a proportional
     yaw-rate command. The observation must carry ``reference_position`` and ``reference_velocity``;
     the reference acceleration is their difference between policy steps
     (:class:`quad_wrench_env.agents.guidance.ReferenceExtrapolator`).

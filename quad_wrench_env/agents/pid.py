@@ -1,4 +1,4 @@
-"""Paper 003's PID position controller with disturbance feed-forward (Hentzen et al. 2019, Sec. IV-C).
+"""The PID position controller with disturbance feed-forward of Hentzen et al. 2019 (Sec. IV-C).
 
 Eq. (3), per world axis ``i``::
 
@@ -7,8 +7,8 @@ Eq. (3), per world axis ``i``::
 with ``e_p = p_ref - p̂`` and ``e_v = v_ref - v̂`` from the observation's estimated state and reference
 blocks, and ``f̂_ext`` the observation's estimated external force, used only with ``compensation``.
 ``a_ref`` is the reference acceleration, estimated from the observed reference velocity
-(:class:`~quad_wrench_env.agents.guidance.ReferenceExtrapolator`), as the guidance module of paper 003
-provides it. ``a_des`` becomes a collective thrust and a roll and pitch
+(:class:`~quad_wrench_env.agents.guidance.ReferenceExtrapolator`), as the guidance module of
+Hentzen et al. 2019 provides it. ``a_des`` becomes a collective thrust and a roll and pitch
 (:func:`~quad_wrench_env.agents.guidance.attitude_from_acceleration`), flown by the autopilot through the
 ``attitude`` action; the heading is held at ``yaw_reference``.
 
@@ -60,7 +60,7 @@ class PIDGains:
     bandwidth: float | None = None
     """λ (1/s): when given, the six gains above follow from it (module docstring)."""
     compensation: bool = False
-    """Subtract ``f̂_ext/m`` (paper 003 eq. (3)'s feed-forward)."""
+    """Subtract ``f̂_ext/m`` (the feed-forward of Hentzen et al. 2019, eq. (3))."""
     feedforward: bool = True
     """Add the reference acceleration estimated from the observed reference velocity."""
 

@@ -1,4 +1,4 @@
-"""Quadratic aerodynamic drag of the body, spread over points (PHYSICS.md, "Drag").
+"""Quadratic aerodynamic drag of the body, spread over points (``docs/physics.md``, "Body drag").
 
 ``F_j = ½·ρ·(C_d A / N)·|v_rel,j|·v_rel,j`` with ``v_rel,j = w(p_j) - (v + ω × r_j)``: each of the N drag
 points (rotor hubs and points on the hull ring) carries an equal share of the body's drag area, so

@@ -1,4 +1,5 @@
-"""Dryden turbulence (MIL-F-8785C, low altitude) on a mean wind (PHYSICS.md, paper 003's gusts).
+"""Dryden turbulence (MIL-F-8785C, low altitude) on a mean wind, for the wind gusts of Hentzen et al. 2019
+(``docs/physics.md``, "Dryden turbulence").
 
 At altitude h (ft): ``L_w = h``, ``L_u = L_v = h/(0.177 + 0.000823·h)^1.2``, ``σ_w = 0.1·W20`` and
 ``σ_u = σ_v = σ_w/(0.177 + 0.000823·h)^0.4`` (W20: the wind speed at 20 ft). Each component is a

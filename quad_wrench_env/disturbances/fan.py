@@ -1,6 +1,7 @@
-"""A fan at ``(0, y_f(t), z_f)`` blowing along +x whose jet moves along y (paper 000 Sec. V, Figs. 6-7).
+"""A fan at ``(0, y_f(t), z_f)`` blowing along +x whose jet moves along y (McKinnon & Schoellig
+2016, Sec. V, Figs. 6-7).
 
-Velocity field (PHYSICS.md, "Fan"): a round turbulent jet with Gaussian radial profile
+Velocity field (``docs/physics.md``, "Fan"): a round turbulent jet with Gaussian radial profile
 ``u = u_c·exp(-(r/b)²)``, ``b(x) = sqrt((D/2)² + (c·x)²)``, where ``r`` is the distance from the jet
 axis, and a centre-line speed that conserves the outlet's axial momentum flux: the profile carries
 ``ρ·u_c²·π·b²/2``, the outlet ``ρ·U0²·π·D²/4``, so ``u_c(x) = U0·min(1, D/(√2·b(x)))``. The core, where
@@ -8,7 +9,7 @@ axis, and a centre-line speed that conserves the outlet's axial momentum flux: t
 ``t_transit(x) = ∫₀ˣ dξ/u_c(ξ)`` earlier (closed form in :meth:`FanJet.transit_time`), so the axis
 there sits at the fan's *retarded* position ``y_f(t - t_transit(x))``. Turbulence multiplies the
 local mean speed by ``I·n(t)`` in each component, ``n`` a unit-variance Ornstein-Uhlenbeck process
-with time scale ``b/u_c`` at the vehicle (:func:`advance_turbulence`; paper 003's fixed jet,
+with time scale ``b/u_c`` at the vehicle (:func:`advance_turbulence`; Hentzen et al.'s (2019) fixed jet,
 :mod:`.jet`, takes the same model with a length scale of its own).
 Before ``t = 0`` the fan rests where its motion starts.
 """
@@ -175,23 +176,23 @@ def _default_motions() -> dict[str, dict]:
 
 @dataclass
 class FanConfig:
-    """Fan and jet parameters (PHYSICS.md defaults)."""
+    """Fan and jet parameters (defaults: ``docs/physics.md``, "Fan")."""
 
     enabled: bool = True
     """False switches the air off (the fan still moves and is reported), e.g. for hover tests."""
     outlet_diameter: float = 0.75
-    """``D`` (m): a large drum fan (PHYSICS.md estimate)."""
+    """``D`` (m): a large drum fan (an estimate, ``docs/physics.md``, "Fan")."""
     outlet_speed: float = 10.0
     """``U0`` (m/s): with ``D``, about 5.1 m/s on the axis 2.3 m away."""
     height: float = 1.0
     spread: float = 0.42
-    """Jet growth ``c`` in ``b(x)``; 0.113 is free-jet theory, 0.42 fits paper 000 Fig. 6."""
+    """Jet growth ``c`` in ``b(x)``; 0.113 is free-jet theory, 0.42 fits McKinnon & Schoellig 2016 Fig. 6."""
     turbulence_intensity: float = 0.15
     motion: str = RANDOM
     """The motion of every episode: a name of :data:`MOTIONS`, or ``"random"`` (the task draws one
     per episode)."""
     motions: dict[str, dict] = field(default_factory=_default_motions)
-    """Parameters of each named motion (paper 000's cases by default)."""
+    """Parameters of each named motion (McKinnon & Schoellig's (2016) cases by default)."""
 
     def __post_init__(self) -> None:
         check_numbers("fan", self, ("outlet_diameter", "outlet_speed", "spread"))

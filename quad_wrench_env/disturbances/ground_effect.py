@@ -1,4 +1,5 @@
-"""Ground effect, rotor by rotor (PHYSICS.md; paper 003's table pass).
+"""Ground effect, rotor by rotor (``docs/physics.md``, "Ground effect"; the table pass of Hentzen et al.
+2019).
 
 Cheeseman-Bennett: a rotor of radius R at height z above a surface gives ``T_IGE/T_OGE =
 1/(1 - (R/4z)²)``, capped at 1.4 (the formula diverges at ``z = R/4``). The height of each rotor is
@@ -17,7 +18,7 @@ from quad_wrench_env.disturbances.base import CompiledForm
 from quad_wrench_env.kernels import njit
 
 CAP = 1.4
-"""Largest thrust ratio in ground effect (PHYSICS.md)."""
+"""Largest thrust ratio in ground effect (``docs/physics.md``, "Ground effect")."""
 
 
 def surface_below(points: np.ndarray, tops: np.ndarray) -> np.ndarray:

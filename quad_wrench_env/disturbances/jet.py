@@ -1,9 +1,9 @@
-"""A fixed, strong horizontal jet: paper 003's gust fan, which the vehicle descends through (centre
-speed 3, 10 or 12 m/s; Hentzen et al. 2019, Sec. V-F). The fan's jet model (:mod:`.fan`: Gaussian
+"""A fixed, strong horizontal jet: Hentzen et al.'s (2019) gust fan, which the vehicle descends through
+(centre speed 3, 10 or 12 m/s; Sec. V-F). The fan's jet model (:mod:`.fan`: Gaussian
 profile, momentum-conserving centre-line speed, half-width ``b = sqrt((D/2)² + (c·x)²)``) from a fixed
 outlet at ``position`` blowing along ``direction``, without motion.
 
-Turbulence is off by default (paper 003 gives none). With ``turbulence_intensity`` I > 0 it is the
+Turbulence is off by default (Hentzen et al. 2019 give none). With ``turbulence_intensity`` I > 0 it is the
 fan's model (McKinnon & Schoellig 2016's fan, :mod:`.fan`): the local mean velocity ``u·d`` becomes
 ``u·(d + I·n(t))``, ``n`` a unit-variance Ornstein-Uhlenbeck process per vehicle and world axis
 (:func:`~quad_wrench_env.disturbances.fan.advance_turbulence`) of time scale ``L/u_c``, ``u_c`` the
@@ -45,7 +45,7 @@ class JetConfig:
     direction: tuple[float, float, float] = (0.0, 1.0, 0.0)
     """Where it blows (normalised here)."""
     speed: float = 10.0
-    """Outlet (core) speed ``U0`` (m/s): paper 003 uses 3, 10 and 12."""
+    """Outlet (core) speed ``U0`` (m/s): Hentzen et al. 2019 use 3, 10 and 12."""
     diameter: float = 0.5
     """Outlet diameter ``D`` (m)."""
     spread: float = 0.42

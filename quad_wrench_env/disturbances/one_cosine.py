@@ -1,5 +1,5 @@
-"""A 1-cosine gust (PHYSICS.md): ``V(t) = (V_m/2)·(1 - cos(π·(t - t0)/t_g))`` for
-``0 <= t - t0 <= t_g``, then ``V_m`` (``hold``) or back down the same way over another ``t_g`` (a
+"""A 1-cosine gust (``docs/physics.md``, "1-cosine gust"): ``V(t) = (V_m/2)·(1 - cos(π·(t - t0)/t_g))``
+for ``0 <= t - t0 <= t_g``, then ``V_m`` (``hold``) or back down the same way over another ``t_g`` (a
 bump); uniform in space, ``V_m`` a vector (m/s, world frame). Each vehicle has its own peak, start
 and duration (:attr:`OneCosineGust.shape`; the config's unless a task draws them per episode)."""
 

@@ -1,9 +1,9 @@
 """A mass hung from a point of the body, attached or released at given times.
 
-Paper 000 Sec. III hangs a 53 g test mass below the centre of mass and under one rotor (Figs. 3-4);
-paper 003 cuts a 0.1 kg weight in flight. The mass hangs on a short string, quasi-statically: its
-weight ``m_p·g`` pulls straight down at the attachment point, and the torque about the centre of
-mass comes out of ``r × F`` like every other point load.
+McKinnon & Schoellig 2016 (Sec. III) hang a 53 g test mass below the centre of mass and under one rotor
+(Figs. 3-4); Hentzen et al. 2019 cut a 0.1 kg weight in flight. The mass hangs on a short string,
+quasi-statically: its weight ``m_p·g`` pulls straight down at the attachment point, and the torque about
+the centre of mass comes out of ``r × F`` like every other point load.
 """
 
 from __future__ import annotations

@@ -1,4 +1,5 @@
-"""A scheduled external wrench, as in paper 001's Fig. 4 and paper 000's Fig. 5 simulations.
+"""A scheduled external wrench, as in the simulations of Yüksel et al. 2014 (Fig. 4) and McKinnon &
+Schoellig 2016 (Fig. 5).
 
 Each segment ``[start, end, f_x, f_y, f_z, τ_x, τ_y, τ_z]`` (s, N, N·m, world frame) adds its force
 at the centre of mass and its torque as a couple: opposite forces ``±(τ × u)/(2a)`` at the points

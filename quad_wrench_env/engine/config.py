@@ -1,4 +1,4 @@
-"""Settings shared by every QuadWrench environment (defaults from PHYSICS.md)."""
+"""Settings shared by every QuadWrench environment (the physical defaults: ``docs/physics.md``)."""
 
 from __future__ import annotations
 
@@ -36,13 +36,14 @@ class ArenaConfig:
 @dataclass
 class ToolConfig:
     """A rigid, massless tool fixed to the body: a rod from the centre of mass to a spherical tip, the
-    one part of the vehicle allowed to touch the scene (paper 001 Sec. V, Fig. 5)."""
+    one part of the vehicle allowed to touch the scene (Yüksel et al. 2014 Sec. V, Fig. 5)."""
 
     enabled: bool = False
     offset: tuple[float, float, float] | None = None
     """The tip's centre in the body frame (m); None puts it 0.1 m beyond the hull ahead and above,
     ``(half length + 0.1, 0, half height + 0.1)``, so that it touches a wall ahead or a ceiling above
-    before the hull does. Paper 001's ceiling tool is ``(0.2, 0, 0.2)`` (its NED d read with z up)."""
+    before the hull does. The ceiling tool of Yüksel et al. 2014 is ``(0.2, 0, 0.2)`` (its NED
+    d read with z up)."""
     tip_radius: float = 0.015
     friction: float = 0.5
     """The tip's friction coefficient (Bullet multiplies it with the surface's)."""
@@ -72,7 +73,8 @@ class EnvConfig:
     policy_hz: int = 50
     episode_seconds: float = 30.0
     kf_spread: float = 0.02
-    """Standard deviation of the per-rotor thrust-coefficient error ``ε_i`` (PHYSICS.md)."""
+    """Standard deviation of the per-rotor thrust-coefficient error ``ε_i`` (``docs/physics.md``,
+    "Rotors")."""
     sensors: SensorConfig = field(default_factory=SensorConfig)
     payload: PayloadConfig = field(default_factory=PayloadConfig)
     external_wrench: list[list[float]] = field(default_factory=list)

@@ -1,11 +1,11 @@
 """N vehicles of one configuration flown in one PyBullet world: the core every env runs.
 
-One physics step (ARCHITECTURE.md) for all N at once: the autopilot turns the actions into motor
-commands, the true rotors lag towards them, the wind fields, the body's drag, the rotor modifiers and
-the point loads give forces at body points whose resultants PyBullet integrates; then the wind
-fields advance, the sensors measure and the estimators step. Every component holds arrays with a
-leading vehicle axis, so a single env is a fleet of one and a vector env a fleet of N running the
-same code: the same seeds give the same numbers either way. Each vehicle has its own generator (its
+One physics step (``docs/architecture.md``, "One physics step, data flowing one way") for all N at
+once: the autopilot turns the actions into motor commands, the true rotors lag towards them, the wind fields,
+the body's drag, the rotor modifiers and the point loads give forces at body points whose resultants PyBullet
+integrates; then the wind fields advance, the sensors measure and the estimators step. Every component holds
+arrays with a leading vehicle axis, so a single env is a fleet of one and a vector env a fleet of N running
+the same code: the same seeds give the same numbers either way. Each vehicle has its own generator (its
 env's ``np_random``), time and episode.
 
 The fleet knows components only through their seams (:mod:`quad_wrench_env.disturbances.base`,

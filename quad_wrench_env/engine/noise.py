@@ -1,5 +1,6 @@
 """Per-vehicle random draws taken in blocks, so that N vehicles stepped together see exactly the
-noise each would see flown alone (ARCHITECTURE.md: randomness only from the env's ``np_random``)."""
+noise each would see flown alone (randomness only from the env's ``np_random``: ``docs/architecture.md``,
+"Conventions")."""
 
 from __future__ import annotations
 

@@ -61,7 +61,7 @@ class RigidBodyState:
     rotation: np.ndarray
     """(N, 3, 3) body -> world rotation matrices."""
     body_rates: np.ndarray
-    """(N, 3) angular velocity in the body frame (rad/s), paper 000's ``omega``."""
+    """(N, 3) angular velocity in the body frame (rad/s), McKinnon & Schoellig's (2016) ``omega``."""
 
     @classmethod
     def from_motion(

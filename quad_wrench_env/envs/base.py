@@ -1,8 +1,8 @@
 """The single-vehicle environment every QuadWrench task shares.
 
-One control step (ARCHITECTURE.md): the normalised action is clipped to [-1, 1] and turned into
-motor-speed commands by the autopilot at every physics step; the true rotors, the wind fields and
-the body's drag give forces at body points whose resultant PyBullet integrates; the estimator is
+One control step (``docs/architecture.md``, "Contracts"): the normalised action is clipped to [-1, 1]
+and turned into motor-speed commands by the autopilot at every physics step; the true rotors, the wind fields
+and the body's drag give forces at body points whose resultant PyBullet integrates; the estimator is
 stepped at the physics (motion-capture) rate; the observation holds the estimator's belief, never the
 truth, which goes to ``info``. The physics is a :class:`~quad_wrench_env.engine.fleet.Fleet` of one
 vehicle, the same code the vector env runs for N.
@@ -128,11 +128,12 @@ def clip_actions(action: Any, shape: tuple[int, ...]) -> np.ndarray:
 
 
 def info_entries(fleet: Fleet, task: Task, vehicle: int | None = None) -> dict[str, Any]:
-    """The info of every vehicle, each entry with a leading vehicle axis (ARCHITECTURE.md keys); with
-    ``vehicle``, that vehicle's entries alone (Python floats for its scalars). Copies, never views
-    of the fleet's state. ``wrench_cov`` is the estimator's 6x6 covariance of ``wrench_est``, in its
-    frame (the world's; zeros for the oracle); an estimator that carries none (NaN: the observer)
-    leaves it out, as a NaN in ``info`` would break Gymnasium's determinism check."""
+    """The info of every vehicle, each entry with a leading vehicle axis (the keys of
+    ``docs/architecture.md``, "Contracts"; ``docs/tasks.md`` has them in full); with ``vehicle``, that
+    vehicle's entries alone (Python floats for its scalars). Copies, never views of the fleet's state.
+    ``wrench_cov`` is the estimator's 6x6 covariance of ``wrench_est``, in its frame (the world's; zeros for
+    the oracle); an estimator that carries none (NaN: the observer) leaves it out, as a NaN in ``info`` would
+    break Gymnasium's determinism check."""
     state = fleet.state
     covariance = fleet.estimator.wrench_covariances()
     entries = {

@@ -1,8 +1,9 @@
-"""What every wrench estimator returns and the interface it implements (ARCHITECTURE.md).
+"""What every wrench estimator returns and the interface it implements (``docs/architecture.md``,
+"Contracts").
 
 Estimators see only what a real vehicle sees: the thrust and body torque that the *nominal* mixer
 computes from the measured motor speeds, and the measured pose. Force and torque are in the world
-frame (paper 000 Fig. 1), SI units.
+frame (McKinnon & Schoellig 2016 Fig. 1), SI units.
 """
 
 from __future__ import annotations

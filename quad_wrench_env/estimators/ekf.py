@@ -1,4 +1,4 @@
-"""The extended Kalman disturbance estimator of Hentzen et al. (paper 003, Sec. III-A).
+"""The extended Kalman disturbance estimator of Hentzen et al. (2019, Sec. III-A).
 
 State (Sec. III-A-a), 18 components:
 
@@ -17,7 +17,7 @@ with the analytic Jacobian :meth:`ExtendedFilterBank.transition_jacobian` (the t
 against finite differences) and the standard EKF equations (Sec. III-A-e). Measurements (Sec.
 III-A-c): the motion-capture pose as Euler angles (the same data the UKF gets, for a fair
 comparison), plus velocity and body rates when the env's sensors provide them (a state estimator,
-as on paper 003's vehicle). The yaw innovation is wrapped to [-π, π). The process noise uses the
+as on Hentzen et al.'s (2019) vehicle). The yaw innovation is wrapped to [-π, π). The process noise uses the
 same settings as the UKF (:class:`~quad_wrench_env.estimators.noise.FilterNoise`): thrust and
 motor-torque noise enter v and ω through ``T/m`` and ``T/J``. The external torque is estimated in
 the body frame, as in the paper, and reported in the world frame (``R η_ext``), like every estimator.
@@ -71,7 +71,7 @@ def euler_rate_matrix(roll: np.ndarray, pitch: np.ndarray, out: np.ndarray | Non
 
 
 class ExtendedFilterBank(FilterBank, EulerAttitudes):
-    """N Euler-angle EKFs with random-walk external force and torque (paper 003), stepped together.
+    """N Euler-angle EKFs with random-walk external force and torque (Hentzen et al. 2019), stepped together.
 
     State arrays: ``x`` (N, 18) and ``P`` (N, 18, 18).
     """
@@ -277,7 +277,7 @@ class ExtendedFilterBank(FilterBank, EulerAttitudes):
 
 
 class ExtendedWrenchEstimator(BankOfOne):
-    """Paper 003's EKF for one vehicle: a bank of one filter."""
+    """Hentzen et al.'s (2019) EKF for one vehicle: a bank of one filter."""
 
     name = "ekf"
 

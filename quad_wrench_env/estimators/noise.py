@@ -12,11 +12,11 @@ from quad_wrench_env.config import check_numbers
 class FilterNoise:
     """Standard deviations of a wrench filter's noise models: its only tuning knobs.
 
-    Process noise is per step of ``dt`` (paper 000 eqs. 4, 5, 12, 14; paper 003's random walks);
-    measurement noise (``G`` in paper 000 Sec. II-B, ``R`` in paper 003) is that of the motion
-    capture, and the env sets it from its sensor config unless given here. Initial standard
-    deviations describe the belief at ``reset``. The UKF and the EKF share these, so that they
-    can be compared with the same variance settings (paper 003 Sec. V-C).
+    Process noise is per step of ``dt`` (McKinnon & Schoellig 2016 eqs. 4, 5, 12, 14; the random walks of
+    Hentzen et al. 2019); measurement noise (``G`` in McKinnon & Schoellig 2016 Sec. II-B, ``R`` in
+    Hentzen et al. 2019) is that of the motion capture, and the env sets it from its sensor config unless
+    given here. Initial standard deviations describe the belief at ``reset``. The UKF and the EKF share these,
+    so that they can be compared with the same variance settings (Hentzen et al. 2019 Sec. V-C).
     """
 
     thrust: float = 0.05
@@ -51,7 +51,7 @@ def mrp_std(angle_std: float) -> float:
 @dataclass
 class EKFNoise(FilterNoise):
     """:class:`FilterNoise` plus the noise of the optional velocity and body-rate measurements that
-    an onboard state estimator provides on paper 003's vehicle."""
+    an onboard state estimator provides on Hentzen et al.'s (2019) vehicle."""
 
     velocity: float = 0.01
     """m/s"""

@@ -1,4 +1,4 @@
-"""The nonlinear wrench observer of Yüksel et al. (paper 001, Sec. II, eqs. 9-15).
+"""The nonlinear wrench observer of Yüksel et al. (2014, Sec. II, eqs. 9-15).
 
 In generalised coordinates ``q = (x, η)`` (position, ZYX Euler angles) the dynamics read
 ``w_e = B(q) q̈ + C(q, q̇) q̇ + g - G(q) ū`` (eqs. 1-3), with ``B = diag(m I, 𝕁(η))``,
@@ -11,20 +11,20 @@ needs no acceleration, and its error obeys ``ė = -L e`` (eq. 8): ``exp(-c t / m
 The project's frames are used: z up (the paper's NED flips the signs of g and of the thrust),
 ``g = m g₀ e_z`` and ``G ū = (ρ R e_z, Tᵀ τ̄)`` with the body torque τ̄ mapped to generalised forces
 by ``Tᵀ``. The Coriolis term is evaluated as ``C(η, η̇) η̇ = Tᵀ (J Ṫ η̇ + ω × J ω)``, which is what
-the Lagrangian with ``𝕁 = TᵀJT`` gives. Separate gains ``c_force`` and ``c_torque``: paper 001's
-5 N·s/m and 0.5 N·m·s/rad are for its 1 kg vehicle (J_x = 0.13 kg·m²); by default they are scaled to
+the Lagrangian with ``𝕁 = TᵀJT`` gives. Separate gains ``c_force`` and ``c_torque``: Yüksel et al.'s (2014)
+5 N·s/m and 0.5 N·m·s/rad are for their 1 kg vehicle (J_x = 0.13 kg·m²); by default they are scaled to
 the vehicle's mass and roll inertia, so that the error time constants ``m/c`` (0.2 s) and ``J/c``
-(0.26 s) are paper 001's on every vehicle (unscaled, a 0.003 kg·m² ardrone2 would get a 170 rad/s
-torque observer that passes the measurement noise straight through). The force part is integrated
+(0.26 s) are those of Yüksel et al. 2014 on every vehicle (unscaled, a 0.003 kg·m² ardrone2 would get a
+170 rad/s torque observer that passes the measurement noise straight through). The force part is integrated
 exactly (``L = c/m`` is scalar), the torque part with backward Euler (``L = c 𝕁⁻¹`` is stiff for
 light vehicles).
 
 The velocities ``ẋ``, ``η̇`` come from the measured poses by finite differences, low-pass filtered
-with time constants ``velocity_time_constant`` and ``rate_time_constant`` (paper 000 Sec. IV: the
-observer needs filtering under noise); measured velocity and body rates are used instead when the
+with time constants ``velocity_time_constant`` and ``rate_time_constant`` (McKinnon & Schoellig 2016 Sec. IV:
+the observer needs filtering under noise); measured velocity and body rates are used instead when the
 env provides them. The torque estimate ``τ̂_gen`` is in generalised (Euler) coordinates; it is
 reported in the world frame like every estimator's: ``R T⁻ᵀ τ̂_gen``. The observer carries no
-covariance (paper 001 gives none: its error dynamics ``ė = -L e`` are deterministic): it reports NaN,
+covariance (Yüksel et al. 2014 give none: its error dynamics ``ė = -L e`` are deterministic): it reports NaN,
 not an invented one.
 
 :class:`ObserverBank` runs N observers as one batched computation (every array carries a leading
@@ -56,18 +56,20 @@ from quad_wrench_env.rotations import (
 from quad_wrench_env.vehicle import GRAVITY, PRESETS, VehicleParams
 
 PAPER_001_VEHICLE = "yuksel1kg"
-"""The preset of paper 001's vehicle (1 kg, J_x = 0.13 kg·m²), for which its gains 5 and 0.5 were chosen."""
+"""The preset of the vehicle of Yüksel et al. 2014 (1 kg, J_x = 0.13 kg·m²), for which their gains 5 and
+0.5 were chosen."""
 
 
 @dataclass
 class ObserverGains:
-    """Observer gains (paper 001) and the measurement filters (paper 000 Sec. IV)."""
+    """Observer gains (Yüksel et al. 2014) and the measurement filters (McKinnon & Schoellig 2016 Sec. IV)."""
 
     c_force: float | None = None
-    """N·s/m; None: paper 001's 5 N·s/m times ``m / 1 kg`` (the force error's time constant ``m/c``
-    is then paper 001's 0.2 s)."""
+    """N·s/m; None: Yüksel et al.'s (2014) 5 N·s/m times ``m / 1 kg`` (the force error's time constant ``m/c``
+    is then Yüksel et al.'s (2014) 0.2 s)."""
     c_torque: float | None = None
-    """N·m·s/rad; None: paper 001's 0.5 times ``J_x / 0.13 kg·m²`` (time constant ``J_x/c`` = 0.26 s)."""
+    """N·m·s/rad; None: Yüksel et al.'s (2014) 0.5 times ``J_x / 0.13 kg·m²`` (time constant
+    ``J_x/c`` = 0.26 s)."""
     velocity_time_constant: float = 0.05
     """s; first-order low-pass on the finite-difference velocity (0 = none)."""
     rate_time_constant: float = 0.05
@@ -84,7 +86,8 @@ class ObserverGains:
         )
 
     def for_vehicle(self, vehicle: VehicleParams) -> tuple[float, float]:
-        """``(c_force, c_torque)`` on ``vehicle``: the given gains, or paper 001's scaled to it."""
+        """``(c_force, c_torque)`` on ``vehicle``: the given gains, or those of Yüksel et al. 2014 scaled
+        to it."""
         paper = PRESETS[PAPER_001_VEHICLE]
         c_force = self.c_force if self.c_force is not None else 5.0 * vehicle.mass / paper.mass
         c_torque = self.c_torque if self.c_torque is not None else 0.5 * vehicle.inertia[0] / paper.inertia[0]
@@ -92,7 +95,8 @@ class ObserverGains:
 
 
 def euler_kinematics(roll: np.ndarray, pitch: np.ndarray) -> np.ndarray:
-    """(n, 3, 3) ``T(η)`` with ``ω = T η̇`` (body rates from ZYX Euler-angle rates), paper 001 Sec. II."""
+    """(n, 3, 3) ``T(η)`` with ``ω = T η̇`` (body rates from ZYX Euler-angle rates), Yüksel et al.
+    2014, Sec. II."""
     sr, cr = np.sin(roll), np.cos(roll)
     sp, cp = np.sin(pitch), np.cos(pitch)
     out = np.zeros((len(roll), 3, 3))
@@ -124,7 +128,7 @@ def _apply_transposed(matrices: np.ndarray, vectors: np.ndarray) -> np.ndarray:
 
 
 class ObserverBank(FilterBank, EulerAttitudes):
-    """N momentum-type observers without acceleration (paper 001 eqs. 9-15), stepped together."""
+    """N momentum-type observers without acceleration (Yüksel et al. 2014 eqs. 9-15), stepped together."""
 
     name = "observer"
 
@@ -273,7 +277,7 @@ class ObserverBank(FilterBank, EulerAttitudes):
 
 
 class NonlinearWrenchObserver(BankOfOne):
-    """Paper 001's observer for one vehicle: a bank of one."""
+    """Yüksel et al.'s (2014) observer for one vehicle: a bank of one."""
 
     name = "observer"
 

@@ -1,4 +1,4 @@
-"""The unscented external force and torque estimator of McKinnon & Schoellig (paper 000, Sec. II).
+"""The unscented external force and torque estimator of McKinnon & Schoellig (2016, Sec. II).
 
 State ``s = (q, ω, x, ẋ, τ_e, f_e)`` (eq. list of Sec. II-C): attitude quaternion (Hamilton, body ->
 world), body rates, position, velocity, and the external torque and force in the world frame. The
@@ -9,8 +9,9 @@ attitude mean is a unit quaternion; its uncertainty is a 3-vector of MRPs ``δρ
 
 Process noise (eq. 18) stacks ``η = (η_τm, η_τe, η_ct, η_fe)``, 12 terms, for an extended state of
 ``L = 30``. Sigma points come from the Cholesky factor of the block-diagonal extended covariance
-(eqs. 19-22) with weights ``κ/(L+κ)`` and ``1/(2(L+κ))`` (eq. 28 as corrected in
-``shared/papers/README.md``: they sum to one).
+(eqs. 19-22) with weights ``κ/(L+κ)`` and ``1/(2(L+κ))`` (eq. 28 as printed gives
+``½·κ/(L+κ)`` for the second, corrected here so that they sum to one; ``docs/physics.md``, "The unscented
+filter").
 
 Prediction (eqs. 2-5, 11-14), for each sigma point, with thrust ``c_t`` and motor torque ``τ_m``
 from the nominal mixer and the quantized motor speeds:
@@ -79,7 +80,7 @@ _WRENCH_BLOCK = np.ix_(np.r_[15:18, 12:15], np.r_[15:18, 12:15])
 
 
 class UnscentedFilterBank(FilterBank):
-    """N unscented wrench filters of one vehicle model, stepped together (paper 000, Sec. II).
+    """N unscented wrench filters of one vehicle model, stepped together (McKinnon & Schoellig 2016, Sec. II).
 
     State arrays: ``quaternions`` (N, 4), ``rests`` (N, 15) = (ω, x, ẋ, τ_e, f_e) at their mean, and
     ``covariances`` (N, 18, 18) of the error state.
@@ -150,7 +151,8 @@ class UnscentedFilterBank(FilterBank):
         self.covariances[index] = self.P0
 
     def _kernel(self, thrusts, body_torques, positions, quaternions, velocities, body_rates):
-        """Paper 000's filter measures the pose only: ``velocities`` and ``body_rates`` are unused."""
+        """The filter of McKinnon & Schoellig 2016 measures the pose only: ``velocities`` and
+        ``body_rates`` are unused."""
         return self._step_kernel, (
             self.quaternions, self.rests, self.covariances, self.reinitialisations,
             thrusts, body_torques, positions, quaternions, self.kernel_constants,
@@ -287,8 +289,8 @@ class UnscentedFilterBank(FilterBank):
 
 
 class UnscentedWrenchEstimator(BankOfOne):
-    """USQUE-based external wrench estimator of one vehicle (paper 000): a bank of one filter.
-    Paper 000's filter measures the pose only: ``step`` ignores ``velocity`` and ``body_rates``."""
+    """USQUE-based external wrench estimator of one vehicle (McKinnon & Schoellig 2016): a bank of one filter.
+    Their filter measures the pose only: ``step`` ignores ``velocity`` and ``body_rates``."""
 
     name = "ukf"
 

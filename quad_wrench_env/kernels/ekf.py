@@ -1,5 +1,6 @@
 """The step of a bank of extended Kalman wrench filters, compiled: the arithmetic of
-:class:`quad_wrench_env.estimators.ekf.ExtendedFilterBank` (paper 003 Sec. III-A), filter by filter."""
+:class:`quad_wrench_env.estimators.ekf.ExtendedFilterBank` (Hentzen et al. 2019, Sec. III-A),
+filter by filter."""
 
 from __future__ import annotations
 

@@ -1,5 +1,6 @@
 """The step of a bank of nonlinear wrench observers, compiled: the arithmetic of
-:class:`quad_wrench_env.estimators.observer.ObserverBank` (paper 001 eqs. 9-15), vehicle by vehicle."""
+:class:`quad_wrench_env.estimators.observer.ObserverBank` (Yüksel et al. 2014, eqs. 9-15),
+vehicle by vehicle."""
 
 from __future__ import annotations
 

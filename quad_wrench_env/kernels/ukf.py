@@ -1,6 +1,6 @@
 """The step of a bank of unscented wrench filters, compiled: the filter of
-:class:`quad_wrench_env.estimators.ukf.UnscentedFilterBank` (paper 000 eqs. 18-37), filter by filter,
-with its shortcuts (noise-only sigma points as ``B Q Bᵀ``, correction as a Kalman update) and two
+:class:`quad_wrench_env.estimators.ukf.UnscentedFilterBank` (McKinnon & Schoellig 2016 eqs. 18-37), filter by
+filter, with its shortcuts (noise-only sigma points as ``B Q Bᵀ``, correction as a Kalman update) and two
 more rewrites that are exact in real arithmetic (``tests/test_backends.py`` holds the kernel to the
 numpy reference, which does neither, to 1e-9):
 

@@ -1,6 +1,6 @@
 """``QuadWrench/DisturbanceRejection-v0``: follow a reference path while a disturbance acts.
 
-The experiments of paper 003 (Hentzen et al. 2019, Sec. V-E and V-F) and the wind-tunnel figure-8 of
+The experiments of Hentzen et al. 2019 (Sec. V-E and V-F) and the wind-tunnel figure-8 of
 Neural-Fly (O'Connell et al., Science Robotics 2022), in one room (world frame, z up, m):
 
 - a gust fan at ``(2.0, -1.0, 1.4)`` blowing along +y across the vertical line ``x = 2, y = 0``;
@@ -15,13 +15,13 @@ scenario      what happens (parameters in :class:`JetCrossing`, :class:`TablePas
               :class:`Figure8`)
 ============  ================================================================================
 jet_crossing  hover at ``(2, 0, 2.2)`` for 1 s, descend at 0.5 m/s to 0.6 m through the fan's
-              horizontal stream (centre speed ``jet_speed`` where it crosses the path: paper 003
+              horizontal stream (centre speed ``jet_speed`` where it crosses the path: Hentzen et al. 2019
               flew 3, 10 and 12 m/s; drawn from ``jet_speeds`` unless given), then hover. The
               descent speed, the heights and the jet's size (0.6 m outlet 1 m from the path) are
               not in the paper: chosen here. The jet is steady unless ``jet_turbulence_intensity``
               is set (the fan's turbulence model)
 table_pass    hover at ``x = 2.5`` over ``y = 2``, fly along +x at 0.3 m/s with the hull's bottom 8 cm
-              above the table top across both edges, hover at ``x = 4.5`` (paper 003 Fig. 10-11)
+              above the table top across both edges, hover at ``x = 4.5`` (Hentzen et al. 2019 Fig. 10-11)
 gusts         hover at ``(2.5, 0, 1.5)`` in Dryden turbulence (``w20`` 4 m/s) and one horizontal
               1-cosine bump of random direction, peak in [2, 6] m/s, start in [3, 10] s, rise in
               [0.5, 2] s
@@ -30,8 +30,8 @@ figure8       ``x = 2.5 + 1.25 sin φ``, ``z = 1.5 + 0.75 sin 2φ`` at ``y = 0``
               drawn unless given) with light turbulence (``w20`` 1 m/s)
 ============  ================================================================================
 
-Default vehicle ``hummingbird`` (paper 003's 700 g class); every preset flies it. Default action
-``attitude`` (collective thrust, roll, pitch, yaw rate: what paper 003's controllers output).
+Default vehicle ``hummingbird`` (Hentzen et al.'s (2019) 700 g class); every preset flies it. Default action
+``attitude`` (collective thrust, roll, pitch, yaw rate: what Hentzen et al.'s (2019) controllers output).
 
 Observation (float32, 31; ``env.unwrapped.obs_layout`` names the slices): the 25 of FanTracking
 (estimated position, velocity, attitude, body rates, estimated force and torque, last action), then
@@ -53,7 +53,7 @@ FanTracking (crash, flip, out of the arena); truncated after ``episode_seconds``
 
 Reset options: ``scenario``, ``jet_speed`` (m/s; implies ``jet_crossing``), ``wind_speed`` (m/s;
 implies ``figure8``). ``info`` adds ``reference_position`` (3,), ``reference_velocity`` (3,) and
-``tracking_error`` (m). The harness reports ``max_horizontal_deviation`` (paper 003 Table I),
+``tracking_error`` (m). The harness reports ``max_horizontal_deviation`` (Hentzen et al. 2019 Table I),
 ``mean_tracking_error`` and ``max_vertical_error`` (m).
 """
 
@@ -100,7 +100,7 @@ def _check_speeds(owner: str, speeds: tuple[float, ...]) -> tuple[float, ...]:
 
 @dataclass
 class JetCrossing:
-    """Paper 003 Sec. V-F: a vertical descent through a strong horizontal jet."""
+    """Hentzen et al. 2019 Sec. V-F: a vertical descent through a strong horizontal jet."""
 
     jet_speeds: tuple[float, ...] = (3.0, 10.0, 12.0)
     """Centre speeds (m/s) where the jet crosses the path; one is drawn when ``jet_speed`` is not given."""
@@ -118,7 +118,8 @@ class JetCrossing:
     jet_spread: float = 0.42
     jet_turbulence_intensity: float = 0.0
     """The jet's turbulence intensity ``I`` (1): each component's sd over the local mean speed, the fan's
-    model (:mod:`~quad_wrench_env.disturbances.jet`); 0, the default, is none (paper 003 gives none)."""
+    model (:mod:`~quad_wrench_env.disturbances.jet`); 0, the default, is none (Hentzen et al.
+    2019 give none)."""
     jet_turbulence_length: float | None = None
     """Its length scale ``L`` (m), the time scale being ``L/u_c``; None: the jet's half-width where it
     crosses the path (0.52 m), as the fan's turbulence."""
@@ -141,21 +142,21 @@ class JetCrossing:
             )
 
     def outlet_speed(self, centre_speed: float) -> float:
-        """Outlet speed ``U0`` whose jet has ``centre_speed`` on its axis at the path (PHYSICS.md:
-        ``u_c(x) = U0·min(1, D/(√2·b(x)))``)."""
+        """Outlet speed ``U0`` whose jet has ``centre_speed`` on its axis at the path
+        (``docs/physics.md``, "Fan": ``u_c(x) = U0·min(1, D/(√2·b(x)))``)."""
         radius2 = (0.5 * self.jet_diameter) ** 2
         return centre_speed / float(centreline_speed(self.jet_distance, 1.0, radius2, self.jet_spread))
 
 
 @dataclass
 class TablePass:
-    """Paper 003 Sec. V-E: horizontal flight over a table's two edges at 0.3 m/s."""
+    """Hentzen et al. 2019 Sec. V-E: horizontal flight over a table's two edges at 0.3 m/s."""
 
     table_center: tuple[float, float] = (3.5, 2.0)
     table_size: tuple[float, float] = (1.0, 1.0)
     table_height: float = 0.7
     clearance: float = 0.08
-    """Gap (m) between the hull's bottom and the table top (paper 003: 8 cm)."""
+    """Gap (m) between the hull's bottom and the table top (Hentzen et al. 2019: 8 cm)."""
     speed: float = 0.3
     start_x: float = 2.5
     end_x: float = 4.5
@@ -178,7 +179,8 @@ class TablePass:
 
 @dataclass
 class Gusts:
-    """Hover in Dryden turbulence with one 1-cosine bump (PHYSICS.md, paper 003's gusts)."""
+    """Hover in Dryden turbulence with one 1-cosine bump (the wind gusts of Hentzen et al. 2019;
+    ``docs/physics.md``, "Dryden turbulence" and "1-cosine gust")."""
 
     position: tuple[float, float, float] = (2.5, 0.0, 1.5)
     w20: float = 4.0
@@ -478,8 +480,8 @@ class DisturbanceRejection(TaskDefaults):
 
     @staticmethod
     def metrics(trace: Mapping[str, np.ndarray]) -> dict[str, float]:
-        """Paper 003's Table I score, the largest horizontal distance from the reference (m), with the
-        mean distance (m) and the largest vertical error (m), over the whole episode."""
+        """Hentzen et al.'s (2019) Table I score, the largest horizontal distance from the reference (m), with
+        the mean distance (m) and the largest vertical error (m), over the whole episode."""
         error = np.asarray(trace["position"]) - np.asarray(trace["reference_position"])
         return {
             "max_horizontal_deviation": float(np.max(np.hypot(error[:, 0], error[:, 1]))),

@@ -1,7 +1,7 @@
 """``QuadWrench/FanTracking-v1``: stay in the centre of a fan's jet while the fan moves along y.
 
-The task of paper 000 Sec. V (Figs. 6-7). A fan at ``(0, y_f(t), height)`` blows along +x; the vehicle
-starts ``standoff_distance`` (2.3 m) in front of it at the fan's height, facing it (yaw = π), up to
+The task of McKinnon & Schoellig 2016 Sec. V (Figs. 6-7). A fan at ``(0, y_f(t), height)`` blows along +x; the
+vehicle starts ``standoff_distance`` (2.3 m) in front of it at the fan's height, facing it (yaw = π), up to
 ``max_initial_offset`` (0.8 m) to one side of the jet axis, and must keep that stand-off while it
 follows the jet sideways. The agent never observes the fan: only the estimated external force and
 torque tell it where the jet is.
@@ -12,8 +12,8 @@ draws the fan's motion family, its parameters and its start ``y0`` from the rang
 ``[-max_speed, max_speed]``; a sine of amplitude in ``[-max_amplitude, max_amplitude]`` and frequency in
 ``[min_frequency, max_frequency]``; piecewise constant velocities (``segments`` segments of
 ``[min_segment_seconds, max_segment_seconds]`` at speeds in ``[-max_speed, max_speed]``); then ``y0``
-uniform such that the fan stays within ``|y| <= y_range`` for the whole episode. Paper 000's cases
-are named motions with the parameters of ``fan.motions`` (``static``, ``constant_speed`` 0.1 m/s, the
+uniform such that the fan stays within ``|y| <= y_range`` for the whole episode. McKinnon & Schoellig's (2016)
+cases are named motions with the parameters of ``fan.motions`` (``static``, ``constant_speed`` 0.1 m/s, the
 ``sine`` of A = 0.5 m and period 30 s, ``piecewise``), each starting at ``y0`` (0 unless given).
 
 Observation (float32, 25; ``env.unwrapped.obs_layout`` names the slices; SI units, world frame unless
@@ -36,7 +36,7 @@ Action: ``Box(-1, 1, (4,), float32)``, meaning set by ``action_type`` (see
 :mod:`quad_wrench_env.engine.actions`); default ``velocity``: ``(v_x, v_y, v_z, yaw rate)``.
 
 Reward per step (terms in ``info["reward_terms"]``), with ``d`` the distance in the y-z plane from
-the jet axis at the vehicle's x (the retarded axis, PHYSICS.md):
+the jet axis at the vehicle's x (the retarded axis, ``docs/physics.md``, "Fan"):
 
 =========  ===========================================  ==========================================
 term       value                                        why
@@ -179,7 +179,7 @@ class FanTrackingConfig(EnvConfig):
     fan: FanConfig = field(default_factory=FanConfig)
     episodes: FanEpisodes = field(default_factory=FanEpisodes)
     standoff_distance: float = 2.3
-    """x (m) in front of the fan where the vehicle starts and must stay (paper 000 Fig. 7)."""
+    """x (m) in front of the fan where the vehicle starts and must stay (McKinnon & Schoellig 2016 Fig. 7)."""
     max_initial_offset: float = 0.8
     reward: FanTrackingReward = field(default_factory=FanTrackingReward)
 
@@ -323,8 +323,8 @@ class FanTracking(TaskDefaults):
     def metrics(
         trace: Mapping[str, np.ndarray], settle_time: float = 5.0, band: float = 0.15
     ) -> dict[str, float]:
-        """Paper 000 Fig. 7 scores: mean |y - y_axis| after ``settle_time`` (m), fraction of time within
-        ``band`` of the axis, time to first come within ``band`` (s; inf if never), and the mean
+        """McKinnon & Schoellig 2016 Fig. 7 scores: mean |y - y_axis| after ``settle_time`` (m), fraction of
+        time within ``band`` of the axis, time to first come within ``band`` (s; inf if never), and the mean
         |x - standoff_distance| after ``settle_time`` (m), so that tracking from closer to the fan,
         where the torque is stronger, does not pass for better tracking."""
         t = trace["time"]

@@ -1,6 +1,6 @@
 """``QuadWrench/ForceExertion-v0``: press a tool's tip on a wall or a ceiling with a target force.
 
-Aerial physical interaction after paper 001 (Yüksel et al. 2014, Secs. IV-V). The vehicle carries a
+Aerial physical interaction after Yüksel et al. 2014 (Secs. IV-V). The vehicle carries a
 rigid tool (``tool``; by default its spherical tip 0.1 m beyond the hull, ahead and above) and starts
 ``start_gap`` (5 cm) from a surface with its tip, at rest, facing +x:
 
@@ -17,7 +17,7 @@ Both surfaces are in every episode's room; ``surface`` (config, or ``reset(optio
 should exert *on* the surface, along the surface's normal into it (+x on the wall, +z on the
 ceiling), of magnitude drawn per episode in ``target_range`` times the vehicle's weight (0.05-0.1 m·g:
 0.5-1 N on the 1 kg ``yuksel1kg``), or ``reset(options={"target_force": N})``. A constant push along
-+x (``push``, N; paper 001 Fig. 6) may act on the centre of mass (option ``push``, 0 by default).
++x (``push``, N; Yüksel et al. 2014 Fig. 6) may act on the centre of mass (option ``push``, 0 by default).
 
 Contact forces come from PyBullet's solver (:meth:`~quad_wrench_env.engine.world.World.add_contact_loads`)
 and are in ``wrench_true``; touching with the tip is allowed, touching with the hull is a crash.
@@ -103,7 +103,7 @@ class ForceExertionConfig(EnvConfig):
     wall_x: float = 4.5
     ceiling_height: float = 2.2
     roughness: float = 0.0
-    """Ridge height (m) of both surfaces (paper 001 Fig. 5's rough ceiling); 0 is flat."""
+    """Ridge height (m) of both surfaces (Yüksel et al. 2014 Fig. 5's rough ceiling); 0 is flat."""
     surface_friction: float = 0.5
     start_gap: float | tuple[float, float] = 0.05
     """Distance (m) from the tip to the surface at the start, or ``[low, high]``: drawn per episode (a
