@@ -66,7 +66,9 @@ class EnvConfig:
     vehicle_params: dict[str, Any] = field(default_factory=dict)
     """Fields of the vehicle preset to override, e.g. ``{"mass": 0.45}``."""
     estimator: str = "ukf"
-    estimator_params: dict[str, Any] = field(default_factory=dict)
+    estimator_params: dict[str, Any] | str = field(default_factory=dict)
+    """The estimator's settings by key (its noise or gains), or the name of a set of them:
+    ``"paper"`` (:data:`quad_wrench_env.estimators.NAMED_SETTINGS`)."""
     action_type: str = "velocity"
     action_limits: ActionLimits = field(default_factory=ActionLimits)
     physics_hz: int = 200

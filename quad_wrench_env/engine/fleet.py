@@ -33,7 +33,7 @@ from quad_wrench_env.engine.kernels import assemble_observations, termination_co
 from quad_wrench_env.engine.noise import NoiseBlocks
 from quad_wrench_env.engine.observation import ObservationLayout
 from quad_wrench_env.engine.world import RigidBodyState, Tool, World
-from quad_wrench_env.estimators import OracleBank, make_estimator_bank
+from quad_wrench_env.estimators import OracleBank, estimator_settings, make_estimator_bank
 from quad_wrench_env.kernels import resolve_backend
 from quad_wrench_env.rotations import cross, quat_from_matrix, rows_times
 from quad_wrench_env.rotors import Rotors
@@ -107,7 +107,7 @@ class Fleet:
             dt,
             count,
             backend=self.backend,
-            **{**measurement_noise, **cfg.estimator_params},
+            **{**measurement_noise, **estimator_settings(cfg.estimator, cfg.estimator_params)},
         )
         self.truth_fed = isinstance(self.estimator, OracleBank)
         self.mocap = MotionCapture(sensors, count)
