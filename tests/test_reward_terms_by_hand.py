@@ -22,7 +22,7 @@ BACKENDS = [
     pytest.param("numba", marks=pytest.mark.skipif(not NUMBA_AVAILABLE, reason="numba is not installed")),
 ]
 EFFORT_WEIGHT, CRASH_PENALTY = 0.01, 10.0  # both tasks' reward tables
-TRACKING_CAP, CONTACT_CAP = 1.0, 2.0  # m, N: the caps of the tracking and contact terms, and the alive term
+TRACKING_CAP, CONTACT_CAP = 5.0, 2.0  # m, N: the caps of the tracking and contact terms, and the alive term
 APPROACH_WEIGHT, DISCOUNT = 10.0, 0.99  # ForceExertion's shaping: Φ = -10·gap, γ = 0.99
 WALL_X, CEILING_HEIGHT, TIP_RADIUS, START_GAP = 4.5, 2.2, 0.015, 0.05  # ForceExertion's room (m)
 NORMALS = {"wall": np.array((1.0, 0.0, 0.0)), "ceiling": np.array((0.0, 0.0, 1.0))}

@@ -44,7 +44,7 @@ index  name                meaning
 =====  ==================  ======================================================
 
 Reward per step (terms in ``info["reward_terms"]``): ``tracking = -min(|p - p_ref|, c)`` (m),
-``alive = +c`` on every step that does not end the episode early (``c = tracking_cap``, 1 m), ``effort
+``alive = +c`` on every step that does not end the episode early (``c = tracking_cap``, 5 m), ``effort
 = -effort_weight·mean(a²)``, ``crash = -crash_penalty`` on an early end. ``tracking + alive`` lies in
 [0, c]: a step flown is never worth less than nothing, so ending an episode early never pays (with
 ``tracking = -|p - p_ref|`` alone a policy that crashed escaped the tracking cost, -10 against up to
@@ -245,10 +245,12 @@ class Figure8:
 class DisturbanceRejectionReward:
     effort_weight: float = 0.01
     crash_penalty: float = 10.0
-    tracking_cap: float = 1.0
+    tracking_cap: float = 5.0
     """m: the tracking term is ``-min(|p - p_ref|, tracking_cap)`` and ``alive = +tracking_cap`` per
     step flown, so a step is never worth less than nothing and ending an episode early never pays
-    (module docstring)."""
+    (module docstring). 5 m: about the farthest a vehicle gets from its path before it leaves the
+    arena, so the tracking term keeps its slope wherever the vehicle flies (with 1 m, a vehicle blown
+    more than 1 m off earned the same 0 per step wherever it was, and PPO's deviations grew)."""
 
     def __post_init__(self) -> None:
         check_numbers("reward", self, ("effort_weight", "crash_penalty"), positive=False)
