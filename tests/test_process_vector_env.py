@@ -118,3 +118,30 @@ def test_training_config_takes_env_processes() -> None:
         assert env.reset().shape == (4, *adapter.observation_space.shape)
     finally:
         env.close()
+
+
+def test_training_in_two_processes_gives_the_same_model(tmp_path):
+    """The vehicles' numbers are the same split or not, so a short PPO run learns the same weights."""
+    import torch
+    from stable_baselines3 import PPO
+
+    from quad_wrench_env.agents.sb3 import train
+
+    values = {
+        "env": {"estimator": "oracle", "action_type": "velocity", **SHORT},
+        "num_envs": 4,
+        "total_steps": 128,
+        "checkpoint_every_steps": 100000,
+        "hyperparameters": {"n_steps": 16, "batch_size": 32, "n_epochs": 2},
+        "evaluation": {"seeds": [900], "every_steps": 100000, "metric": "return"},
+    }
+    weights = []
+    for processes in (1, 2):
+        folder = train(
+            train_config(values, {"env_processes": processes}), tmp_path / f"p{processes}", progress=False
+        )
+        model = PPO.load(folder / "final" / "model.zip", device="cpu")
+        weights.append({k: v.clone() for k, v in model.policy.state_dict().items()})
+    assert weights[0].keys() == weights[1].keys()
+    for key in weights[0]:
+        assert torch.equal(weights[0][key], weights[1][key]), key
