@@ -74,11 +74,11 @@ def _observations_step(obs: np.ndarray, mean: np.ndarray, var: np.ndarray, count
         for i in range(1, n):
             total += obs[i]
         batch_mean = total / np.float32(n)
-        deviation = obs[0] - batch_mean
-        squares = deviation * deviation
-        for i in range(1, n):
-            deviation = obs[i] - batch_mean
-            squares += deviation * deviation
+        squares = np.zeros(d, np.float32)  # 0 + x is x: the same bits as numpy's first row
+        for i in range(n):
+            for j in range(d):
+                deviation = obs[i, j] - batch_mean[j]
+                squares[j] += deviation * deviation
         batch_var = squares / np.float32(n)
         count = _merge(mean, var, count, batch_mean, batch_var * np.float32(n), n)
     scale = np.sqrt(var + epsilon)
