@@ -86,7 +86,7 @@ def record(config: dict, seed: int, **env_kwargs: Any) -> Stream:
     env = gym.make(config["env_id"], estimator="oracle", fan={"enabled": False}, **env_kwargs)
     try:
         base = env.unwrapped
-        stream = Stream(base.dt)
+        stream = Stream(base.physics_dt)
         base.fleet.estimator = _Recorder(base.fleet.estimator, stream)
         run_episode(
             make_agent("hold", **config["hold"]), env, seed, {"offset_y": 0.0, "fan_motion": "static"}

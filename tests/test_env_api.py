@@ -105,6 +105,49 @@ def test_episode_is_30_s_at_50_hz(make_env):
     assert steps == 1500 and info["time"] == pytest.approx(30.0)
 
 
+def test_dt_is_the_control_period(make_env):
+    """Gymnasium's convention: ``env.dt`` is one ``step`` (1/50 s here), the physics step its own name;
+    one step advances ``info["time"]`` by ``dt``."""
+    env = make_env(fan={"enabled": False})
+    assert env.unwrapped.dt == pytest.approx(0.02) and env.unwrapped.physics_dt == pytest.approx(0.005)
+    _, info = env.reset(seed=0)
+    _, _, _, _, after = env.step(np.zeros(4, dtype=np.float32))
+    assert after["time"] - info["time"] == pytest.approx(env.unwrapped.dt)
+
+
+# The action table of quad_wrench_env/engine/actions.py's docstring, written out per type: the command
+# (SI units, in to_action's order) of action a for the default limits (1 m/s, 0.5 m/s, 1 rad/s, 30 deg).
+def _table_command(action_type, a, weight, arm, km_over_kf, max_speed):
+    if action_type == "velocity":
+        return (a[0] * 1.0, a[1] * 1.0, a[2] * 0.5, a[3] * 1.0)
+    if action_type == "attitude":
+        tilt = np.pi / 6.0
+        return (a[0] * tilt, a[1] * tilt, a[2] * 1.0, (1.0 + a[3]) * weight)
+    if action_type == "wrench":
+        return ((1.0 + a[0]) * weight, *(np.array(a[1:]) * 0.5 * weight * np.array((arm, arm, km_over_kf))))
+    return tuple((np.array(a) + 1.0) / 2.0 * max_speed)
+
+
+@pytest.mark.parametrize("action_type", ["velocity", "attitude", "wrench", "motors"])
+def test_action_scaling_is_the_documented_table_both_ways(make_env, action_type):
+    """``env.unwrapped.action_scaling`` (what agents use instead of rebuilding the scales) gives the
+    action table's command for an action and back, clipping commands beyond the range."""
+    env = make_env(vehicle="hummingbird", action_type=action_type)
+    scaling, vehicle = env.unwrapped.action_scaling, env.unwrapped.vehicle
+    weight = vehicle.mass * 9.81
+    rng = np.random.default_rng(3)
+    for a in rng.uniform(-1.0, 1.0, (20, 4)):
+        expected = _table_command(
+            action_type, a, weight, vehicle.arm, vehicle.km_over_kf, vehicle.max_rotor_speed
+        )
+        np.testing.assert_allclose(scaling.to_command(a), expected, rtol=1e-12)
+        np.testing.assert_allclose(scaling.to_action(expected), a.astype(np.float32), rtol=1e-6, atol=1e-7)
+    beyond = scaling.to_command(np.full(4, 3.0))
+    assert scaling.to_action(beyond).tolist() == [1.0] * 4
+    with pytest.raises(ValueError, match="4 entries"):
+        scaling.to_action((1.0, 2.0))
+
+
 def test_leaving_the_arena_ends_the_episode_with_a_reason(make_env):
     env = make_env(fan={"enabled": False})
     env.reset(seed=0, options={"offset_y": 0.0})

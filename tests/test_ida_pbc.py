@@ -25,7 +25,7 @@ from quad_wrench_env.agents.ida_pbc import (
     steady_yaw,
 )
 from quad_wrench_env.autopilot import Autopilot
-from quad_wrench_env.engine.actions import ActionLimits, ActionMap
+from quad_wrench_env.engine.actions import ActionLimits, ActionMap, ActionScaling
 from quad_wrench_env.vehicle import GRAVITY, Mixer, make_vehicle
 
 E_Z = np.array((0.0, 0.0, 1.0))
@@ -69,7 +69,7 @@ def test_wrench_action_mixer_round_trip():
     ``Ω = sqrt(Ω²)`` then ``Ω²`` loses a few ulps, ~1e-15 relative; 1e-9 leaves room."""
     vehicle = make_vehicle("yuksel1kg")
     autopilot = Autopilot(vehicle, dt=0.005)
-    action_map = ActionMap("wrench", autopilot, ActionLimits())
+    action_map = ActionMap(ActionScaling.for_vehicle("wrench", vehicle, ActionLimits()), autopilot)
     weight = vehicle.mass * GRAVITY
     scale = np.array((weight, *(0.5 * weight * np.array((vehicle.arm, vehicle.arm, vehicle.km_over_kf)))))
     reference = np.array([_forward_map(vehicle, np.sqrt(row)) for row in np.eye(4)]).T  # Ω² -> wrench
@@ -349,9 +349,9 @@ def test_wrong_action_type_and_missing_blocks_are_refused(make_env):
         IDAPBCPolicy().reset(make_env(vehicle="yuksel1kg", action_type="velocity"))
     env = make_env(**_env_kwargs())
     layout = {k: v for k, v in env.unwrapped.obs_layout.items() if k != "torque"}
-    stub = SimpleNamespace(
-        unwrapped=SimpleNamespace(cfg=env.unwrapped.cfg, vehicle=env.unwrapped.vehicle, obs_layout=layout)
-    )
+    base = env.unwrapped
+    view = {"cfg": base.cfg, "vehicle": base.vehicle, "action_scaling": base.action_scaling, "dt": base.dt}
+    stub = SimpleNamespace(unwrapped=SimpleNamespace(obs_layout=layout, **view))
     with pytest.raises(ValueError, match=r"observation blocks \['torque'\]"):
         IDAPBCPolicy().reset(stub)
 
@@ -393,7 +393,9 @@ def test_target_force_block_drives_the_force_mode():
         layout[name] = slice(start, start + width)
         start += width
     cfg = SimpleNamespace(action_type="wrench", policy_hz=50)
-    env = SimpleNamespace(unwrapped=SimpleNamespace(cfg=cfg, vehicle=vehicle, obs_layout=layout))
+    scaling = ActionScaling.for_vehicle("wrench", vehicle, ActionLimits())
+    base = SimpleNamespace(cfg=cfg, vehicle=vehicle, obs_layout=layout, action_scaling=scaling, dt=0.02)
+    env = SimpleNamespace(unwrapped=base)
     observation = np.zeros(start, dtype=np.float32)
     observation[layout["attitude"]] = (1.0, 0.0, 0.0, 0.0, 1.0, 0.0)
     observation[layout["target_force"]] = (2.0, -1.0, 0.5)

@@ -22,7 +22,7 @@ from quad_wrench_env.agents.base import Policy
 from quad_wrench_env.agents.guidance import ReferenceExtrapolator, attitude_from_acceleration
 from quad_wrench_env.agents.mpc import NU, NX, MPCGains, MPCPolicy, PositionMPC, linearize
 from quad_wrench_env.autopilot import AutopilotGains
-from quad_wrench_env.engine.actions import ActionLimits
+from quad_wrench_env.engine.actions import ActionLimits, ActionScaling
 from quad_wrench_env.rotations import quat_from_euler_zyx, rotation_matrix
 from quad_wrench_env.vehicle import GRAVITY, make_vehicle
 
@@ -210,7 +210,8 @@ class FakeEnv:
         self.unwrapped = self
         self.cfg = SimpleNamespace(action_type=action_type, action_limits=ActionLimits(), policy_hz=50)
         self.vehicle = make_vehicle(vehicle)
-        self.dt = 1.0 / 200.0
+        self.dt = 1.0 / 50.0  # the control period
+        self.action_scaling = ActionScaling.for_vehicle(action_type, self.vehicle, ActionLimits())
         self.obs_layout = dict(self.LAYOUT)
 
     def observation(self, position, roll=0.0, pitch=0.0, yaw=0.0, force=(0, 0, 0), reference=(0, 0, 1)):

@@ -14,6 +14,7 @@ import gymnasium as gym
 import numpy as np
 
 from quad_wrench_env.config import build
+from quad_wrench_env.engine.actions import ActionScaling
 from quad_wrench_env.rotations import wrap_angle
 
 
@@ -38,7 +39,7 @@ class PositionHoldPolicy:
         name = type(self).__name__.removesuffix("Policy").lower()
         self.gains = gains or build(self.gains_class, kwargs, prefix=f"{name}.")
         self._layout: dict[str, slice] = {}
-        self._scale = np.ones(4)
+        self._scaling: ActionScaling | None = None
         self._reference: np.ndarray | None = None
 
     def reset(self, env: gym.Env) -> None:
@@ -47,11 +48,8 @@ class PositionHoldPolicy:
             raise ValueError(
                 f"{type(self).__name__} needs action_type='velocity', the env has {base.cfg.action_type!r}"
             )
-        limits = base.cfg.action_limits
         self._layout = base.obs_layout
-        self._scale = np.array(
-            (limits.max_speed_xy, limits.max_speed_xy, limits.max_speed_z, limits.max_yaw_rate)
-        )
+        self._scaling = base.action_scaling
         reference = self.gains.reference
         self._reference = None if reference is None else np.array(reference, dtype=float)
 
@@ -68,5 +66,6 @@ class PositionHoldPolicy:
         return np.array((g.k_xy * error[0], g.k_xy * error[1], g.k_z * error[2], g.k_yaw * yaw_error))
 
     def act(self, observation: np.ndarray) -> np.ndarray:
-        command = self.velocity_command(observation)
-        return np.clip(command / self._scale, -1.0, 1.0).astype(np.float32)
+        if self._scaling is None:
+            raise RuntimeError("call reset(env) before act()")
+        return self._scaling.to_action(self.velocity_command(observation))

@@ -128,6 +128,7 @@ import gymnasium as gym
 import numpy as np
 
 from quad_wrench_env.config import build, check_numbers, config_path, load_yaml
+from quad_wrench_env.engine.actions import ActionScaling
 from quad_wrench_env.rotations import wrap_angle
 from quad_wrench_env.vehicle import GRAVITY
 
@@ -385,7 +386,7 @@ class IDAPBCPolicy:
         self._layout: dict[str, slice] = {}
         self._mass = 1.0
         self._inertia = np.ones(3)
-        self._torque_scale = np.ones(3)
+        self._scaling: ActionScaling | None = None
         self._dt = 0.02
         self._yaw_alpha = 1.0
         self._yaw_torque: float | None = None
@@ -440,9 +441,8 @@ class IDAPBCPolicy:
         vehicle = base.vehicle
         self._mass = float(vehicle.mass)
         self._inertia = np.array(vehicle.inertia, dtype=float)
-        weight = self._mass * GRAVITY
-        self._torque_scale = 0.5 * weight * np.array((vehicle.arm, vehicle.arm, vehicle.km_over_kf))
-        self._dt = 1.0 / base.cfg.policy_hz
+        self._scaling = base.action_scaling
+        self._dt = base.dt
         tau = self.params.yaw_torque_time_constant
         self._yaw_alpha = 1.0 if tau == 0.0 else 1.0 - math.exp(-self._dt / tau)
         self._yaw_torque = None
@@ -523,7 +523,7 @@ class IDAPBCPolicy:
             self._yaw_torque = demand if self._yaw_torque is None else self._yaw_torque
             self._yaw_torque += self._yaw_alpha * (demand - self._yaw_torque)
             torque[2] = self._yaw_torque
-        limit = self._torque_scale[2]
+        limit = self._scaling.torque[2]
         torque[2] = max(-limit, min(limit, torque[2]))
         if torque[2] != demand:
             # The yaw torque is filtered or saturates: keep the roll and pitch rows of (26) exact with
@@ -539,6 +539,8 @@ class IDAPBCPolicy:
     def act(self, observation: np.ndarray) -> np.ndarray:
         """Eqs. (25), (31), (39)-(47): the ``wrench`` action (float32, clipped to [-1, 1]) for this
         observation (its estimated state and wrench; the target force when the env has that block)."""
+        if self._scaling is None:
+            raise RuntimeError("call reset(env) before act()")
         p, layout = self.params, self._layout
         obs = np.asarray(observation, dtype=float)
         position, velocity = obs[layout["position"]], obs[layout["velocity"]]
@@ -587,8 +589,7 @@ class IDAPBCPolicy:
             f_star=f_star, rho=rho, eta_star=np.array((roll_star, pitch_star, psi)), eta_bar=eta_bar,
             body_torque=tau_body,
         )  # fmt: skip
-        action = np.concatenate(((rho / weight - 1.0,), tau_body / self._torque_scale))
-        return np.clip(action, -1.0, 1.0).astype(np.float32)
+        return self._scaling.to_action((rho, *tau_body))
 
 
 def load_param_set(name: str | None = None, path: str | Path | None = None) -> IDAPBCParams:

@@ -46,6 +46,7 @@ from scipy import sparse
 from quad_wrench_env.agents.guidance import ReferenceExtrapolator, attitude_from_acceleration
 from quad_wrench_env.autopilot import AutopilotGains
 from quad_wrench_env.config import build
+from quad_wrench_env.engine.actions import ActionScaling
 from quad_wrench_env.rotations import wrap_angle
 from quad_wrench_env.vehicle import GRAVITY, VehicleParams
 
@@ -423,9 +424,7 @@ class MPCPolicy:
         self.mpc: PositionMPC | None = None
         self.guidance = ReferenceExtrapolator()
         self._layout: dict[str, slice] = {}
-        self._hover = 1.0
-        self._tilt = 1.0
-        self._yaw_rate = 1.0
+        self._scaling: ActionScaling | None = None
         self._dt = 0.02
 
     def reset(self, env: gym.Env) -> None:
@@ -442,10 +441,8 @@ class MPCPolicy:
         self._layout = layout
         vehicle = base.vehicle
         limits = base.cfg.action_limits
-        self._dt = 1.0 / base.cfg.policy_hz  # env.unwrapped.dt is the physics step
-        self._hover = vehicle.mass * GRAVITY
-        self._tilt = math.radians(limits.max_tilt_deg)
-        self._yaw_rate = limits.max_yaw_rate
+        self._dt = base.dt
+        self._scaling = base.action_scaling
         g = self.gains
         tau = g.attitude_time_constant or attitude_time_constant(vehicle)
         settings = dataclasses.replace(
@@ -472,6 +469,4 @@ class MPCPolicy:
         reference = self.guidance.horizon(self.mpc.times)
         thrust, roll_ref, pitch_ref = self.mpc.solve(state, yaw, *reference, force=obs[layout["force"]])
         yaw_rate = self.gains.yaw_gain * wrap_angle(self.gains.yaw - yaw)
-        action = (roll_ref / self._tilt, pitch_ref / self._tilt, yaw_rate / self._yaw_rate,
-                  thrust / self._hover - 1.0)  # fmt: skip
-        return np.clip(np.array(action), -1.0, 1.0).astype(np.float32)
+        return self._scaling.to_action((roll_ref, pitch_ref, yaw_rate, thrust))

@@ -35,8 +35,8 @@ import numpy as np
 from quad_wrench_env.agents.guidance import ReferenceExtrapolator, attitude_from_acceleration
 from quad_wrench_env.autopilot import AutopilotGains
 from quad_wrench_env.config import build, check_numbers
+from quad_wrench_env.engine.actions import ActionScaling
 from quad_wrench_env.rotations import wrap_angle
-from quad_wrench_env.vehicle import GRAVITY
 
 
 @dataclass
@@ -97,8 +97,7 @@ class PIDPolicy:
         self._layout: dict[str, slice] = {}
         self._mass = 1.0
         self._dt = 0.02
-        self._tilt = 1.0
-        self._yaw_rate = 1.0
+        self._scaling: ActionScaling | None = None
 
     def reset(self, env: gym.Env) -> None:
         base = env.unwrapped
@@ -111,9 +110,8 @@ class PIDPolicy:
             )
         self._layout = base.obs_layout
         self._mass = base.vehicle.mass
-        self._dt = 1.0 / base.cfg.policy_hz
-        self._tilt = math.radians(base.cfg.action_limits.max_tilt_deg)
-        self._yaw_rate = base.cfg.action_limits.max_yaw_rate
+        self._dt = base.dt
+        self._scaling = base.action_scaling
         self._integral = np.zeros(3)
         self.reference.reset()
         if self.gains.bandwidth is not None:
@@ -139,12 +137,12 @@ class PIDPolicy:
         return desired
 
     def act(self, observation: np.ndarray) -> np.ndarray:
+        if self._scaling is None:
+            raise RuntimeError("call reset(env) before act()")
         body_x = observation[self._layout["attitude"]][:3]
         yaw = math.atan2(float(body_x[1]), float(body_x[0]))
         thrust, roll, pitch = attitude_from_acceleration(
             self.desired_acceleration(observation), yaw, self._mass
         )
         yaw_rate = self.gains.k_yaw * wrap_angle(self.gains.yaw_reference - yaw)
-        action = (roll / self._tilt, pitch / self._tilt, yaw_rate / self._yaw_rate,
-                  thrust / (self._mass * GRAVITY) - 1.0)  # fmt: skip
-        return np.clip(action, -1.0, 1.0).astype(np.float32)
+        return self._scaling.to_action((roll, pitch, yaw_rate, thrust))

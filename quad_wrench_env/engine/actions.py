@@ -23,7 +23,7 @@ import numpy as np
 from quad_wrench_env.autopilot import Autopilot
 from quad_wrench_env.config import check_numbers
 from quad_wrench_env.engine.world import RigidBodyState
-from quad_wrench_env.vehicle import GRAVITY
+from quad_wrench_env.vehicle import GRAVITY, VehicleParams
 
 ACTION_TYPES = ("velocity", "attitude", "wrench", "motors")
 
@@ -43,23 +43,90 @@ class ActionLimits:
             raise ValueError(f"action_limits.max_tilt_deg={self.max_tilt_deg} must be below 90")
 
 
+@dataclass(frozen=True)
+class ActionScaling:
+    """The public map between an env's normalised actions and the physical commands they stand for (the
+    table above), for agents that compute a command in SI units: ``env.unwrapped.action_scaling``.
+
+    ``to_action`` gives the action the env takes, clipped to [-1, 1] and float32; ``to_command`` the
+    command an action stands for. The scales are those the engine flies (:class:`ActionMap` reads them
+    from here), so an agent never rebuilds them from the config.
+    """
+
+    action_type: str
+    velocity: tuple[float, float, float]
+    """m/s of ``(v_x, v_y, v_z)`` per unit action (``velocity``)."""
+    yaw_rate: float
+    """rad/s per unit action (``velocity``, ``attitude``)."""
+    tilt: float
+    """rad of roll and pitch per unit action (``attitude``)."""
+    hover_thrust: float
+    """N: the collective thrust ``m g`` of action 0 (``attitude``, ``wrench``)."""
+    torque: tuple[float, float, float]
+    """N·m of body torque per unit action: ``(l, l, k_m/k_f)·m g / 2`` (``wrench``)."""
+    max_rotor_speed: float
+    """rad/s of action 1 (``motors``)."""
+
+    @classmethod
+    def for_vehicle(cls, action_type: str, vehicle: VehicleParams, limits: ActionLimits) -> ActionScaling:
+        if action_type not in ACTION_TYPES:
+            raise ValueError(f"unknown action_type {action_type!r}; allowed: {list(ACTION_TYPES)}")
+        hover_thrust = vehicle.mass * GRAVITY
+        torque = 0.5 * hover_thrust * np.array((vehicle.arm, vehicle.arm, vehicle.km_over_kf))
+        return cls(
+            action_type,
+            (limits.max_speed_xy, limits.max_speed_xy, limits.max_speed_z),
+            limits.max_yaw_rate,
+            math.radians(limits.max_tilt_deg),
+            hover_thrust,
+            tuple(float(t) for t in torque),
+            vehicle.max_rotor_speed,
+        )
+
+    def to_action(self, command: np.ndarray | tuple[float, ...]) -> np.ndarray:
+        """The (4,) float32 action in [-1, 1] for a command in SI units: ``(v_x, v_y, v_z, yaw rate)``
+        (velocity), ``(roll, pitch, yaw rate, thrust)`` (attitude), ``(thrust, τ_x, τ_y, τ_z)`` body frame
+        (wrench), four rotor speeds (motors); beyond the range it is clipped."""
+        c = np.asarray(command, dtype=float)
+        if c.shape != (4,):
+            raise ValueError(f"command {command!r} must have 4 entries, got shape {c.shape}")
+        if self.action_type == "velocity":
+            action = c / np.array((*self.velocity, self.yaw_rate))
+        elif self.action_type == "attitude":
+            action = np.array(
+                (c[0] / self.tilt, c[1] / self.tilt, c[2] / self.yaw_rate, c[3] / self.hover_thrust - 1.0)
+            )
+        elif self.action_type == "wrench":
+            action = np.concatenate(((c[0] / self.hover_thrust - 1.0,), c[1:] / np.array(self.torque)))
+        else:
+            action = 2.0 * c / self.max_rotor_speed - 1.0
+        return np.clip(action, -1.0, 1.0).astype(np.float32)
+
+    def to_command(self, action: np.ndarray) -> np.ndarray:
+        """The (4,) command in SI units (the order of :meth:`to_action`) that ``action`` stands for."""
+        a = np.asarray(action, dtype=float)
+        if self.action_type == "velocity":
+            return a * np.array((*self.velocity, self.yaw_rate))
+        if self.action_type == "attitude":
+            thrust = (1.0 + a[3]) * self.hover_thrust
+            return np.array((a[0] * self.tilt, a[1] * self.tilt, a[2] * self.yaw_rate, thrust))
+        if self.action_type == "wrench":
+            return np.concatenate((((1.0 + a[0]) * self.hover_thrust,), a[1:] * np.array(self.torque)))
+        return 0.5 * (a + 1.0) * self.max_rotor_speed
+
+
 class ActionMap:
     """Turns clipped normalised actions of N vehicles into motor-speed commands through the autopilot."""
 
-    def __init__(self, action_type: str, autopilot: Autopilot, limits: ActionLimits) -> None:
-        if action_type not in ACTION_TYPES:
-            raise ValueError(f"unknown action_type {action_type!r}; allowed: {list(ACTION_TYPES)}")
-        self.action_type = action_type
+    def __init__(self, scaling: ActionScaling, autopilot: Autopilot) -> None:
+        self.action_type = scaling.action_type
         self.autopilot = autopilot
-        vehicle = autopilot.vehicle
-        self._hover_thrust = vehicle.mass * GRAVITY
-        self._velocity_scale = np.array((limits.max_speed_xy, limits.max_speed_xy, limits.max_speed_z))
-        self._yaw_rate_scale = limits.max_yaw_rate
-        self._tilt_scale = math.radians(limits.max_tilt_deg)
-        self._torque_scale = (
-            0.5 * self._hover_thrust * np.array((vehicle.arm, vehicle.arm, vehicle.km_over_kf))
-        )
-        self._max_speed = vehicle.max_rotor_speed
+        self._hover_thrust = scaling.hover_thrust
+        self._velocity_scale = np.array(scaling.velocity)
+        self._yaw_rate_scale = scaling.yaw_rate
+        self._tilt_scale = scaling.tilt
+        self._torque_scale = np.array(scaling.torque)
+        self._max_speed = scaling.max_rotor_speed
 
     def kernel_parameters(self) -> tuple[int, np.ndarray]:
         """The action type's index in :data:`ACTION_TYPES` and the scales as the compiled kernel

@@ -25,7 +25,7 @@ import numpy as np
 from quad_wrench_env.autopilot import Autopilot, attitude_from_thrust
 from quad_wrench_env.disturbances.base import resultant
 from quad_wrench_env.disturbances.drag import QuadraticDrag
-from quad_wrench_env.engine.actions import ActionMap
+from quad_wrench_env.engine.actions import ActionMap, ActionScaling
 from quad_wrench_env.engine.compiled import CompiledStep
 from quad_wrench_env.engine.components import Components
 from quad_wrench_env.engine.config import EnvConfig
@@ -114,7 +114,9 @@ class Fleet:
         self.motor_sensor = MotorSpeedSensor(vehicle.max_rotor_speed, sensors.motor_speed_bits)
         self.autopilot = Autopilot(vehicle, dt, count=count)
         self._nominal_allocation_t = self.autopilot.mixer.allocation.T.copy()
-        self.actions = ActionMap(cfg.action_type, self.autopilot, cfg.action_limits)
+        self.action_scaling = ActionScaling.for_vehicle(cfg.action_type, vehicle, cfg.action_limits)
+        """The map between normalised actions and physical commands (public: agents read it)."""
+        self.actions = ActionMap(self.action_scaling, self.autopilot)
         self.rotors = Rotors(vehicle, dt, count)
         self.drag_points = vehicle.drag_points()
         self.drag = QuadraticDrag(vehicle.drag_area, len(self.drag_points))

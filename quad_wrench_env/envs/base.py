@@ -181,7 +181,12 @@ class QuadWrenchEnv(gym.Env, EzPickle):
         self.observation_space = self.fleet.layout.space(self.vehicle)
         self._history = ObservationHistory(self.fleet.layout, 1)
         self.action_space = spaces.Box(-1.0, 1.0, shape=(4,), dtype=np.float32)
-        self.dt = self.fleet.dt
+        self.action_scaling = self.fleet.action_scaling
+        """Normalised actions to physical commands and back (``engine.actions.ActionScaling``)."""
+        self.dt = 1.0 / cfg.policy_hz
+        """The control period (s): one ``step`` (Gymnasium's convention); see :attr:`physics_dt`."""
+        self.physics_dt = self.fleet.dt
+        """The physics (and estimator) step (s), ``1 / physics_hz``."""
         self._renderer = None
         self._started = False
         self._ended = False

@@ -279,6 +279,8 @@ class ProcessVectorEnv:
         self.single_observation_space = local.single_observation_space
         self.single_action_space = local.single_action_space
         self.obs_layout = local.obs_layout
+        self.action_scaling = local.action_scaling
+        self.dt, self.physics_dt = local.dt, local.physics_dt
         self.cfg = local.cfg
 
     @property

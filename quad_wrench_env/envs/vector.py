@@ -100,6 +100,9 @@ class QuadWrenchVectorEnv(VectorEnv):
         self.termination_reasons = termination_reasons(self.task)
         self.max_steps = round(cfg.episode_seconds * cfg.policy_hz)
         self.obs_layout = self.fleet.layout.slices
+        self.action_scaling = self.fleet.action_scaling
+        self.dt = 1.0 / cfg.policy_hz
+        self.physics_dt = self.fleet.dt
         self.single_observation_space = self.fleet.layout.space(self.vehicle)
         self.single_action_space = spaces.Box(-1.0, 1.0, shape=(4,), dtype=np.float32)
         self.observation_space = batch_space(self.single_observation_space, num_envs)
