@@ -24,6 +24,7 @@ from typing import Any, Protocol, runtime_checkable
 import numpy as np
 
 from quad_wrench_env.config import build_named
+from quad_wrench_env.registry import register, registered
 
 
 @runtime_checkable
@@ -58,6 +59,7 @@ def _check(part: Any, pairs: tuple[str, ...], positive: tuple[str, ...]) -> None
             raise ValueError(f"scene {part.name}: {key.name}={value!r} must be > 0 (m)")
 
 
+@register("scene", "table")
 @dataclass
 class Table:
     """A table: a box on the ground of ``size`` (m, x and y) and ``height`` (m) centred at ``center``."""
@@ -80,6 +82,7 @@ class Table:
         return (x - 0.5 * sx, x + 0.5 * sx, y - 0.5 * sy, y + 0.5 * sy, self.height)
 
 
+@register("scene", "wall")
 @dataclass
 class Wall:
     """A wall facing -x whose face is at ``x`` (m), ``width`` along y and ``height`` from the ground."""
@@ -108,6 +111,7 @@ class Wall:
         return None
 
 
+@register("scene", "ceiling")
 @dataclass
 class Ceiling:
     """A ceiling whose underside is at ``height`` (m), ``size`` (m, x and y) centred on ``center``."""
@@ -160,12 +164,9 @@ def _ridges(part: Any) -> list[tuple[float, float]]:
     return [(float(o), float(h)) for o, h in zip(offsets, heights, strict=True) if h > 1e-4]
 
 
-SCENE_KINDS: dict[str, type] = {"table": Table, "wall": Wall, "ceiling": Ceiling}
-
-
 def make_scene_part(spec: Mapping[str, Any], position: int = 0) -> ScenePart:
     """A scene part from its config ``{"kind": ..., **fields}``; bad kinds and keys are named."""
-    return build_named(spec, "kind", SCENE_KINDS, f"scene[{position}]")[1]
+    return build_named(spec, "kind", registered("scene"), f"scene[{position}]")[1]
 
 
 def surface_tops(parts: list[ScenePart]) -> np.ndarray:

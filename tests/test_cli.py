@@ -97,7 +97,7 @@ def test_list_json_holds_the_vehicle_presets_and_the_env_ids(capsys):
     data = json.loads(capsys.readouterr().out)
     assert set(data["vehicles"]) == {"ardrone2", "crazyflie2", "hummingbird", "yuksel1kg"}
     assert data["vehicles"]["yuksel1kg"]["mass_kg"] == 1.0
-    assert data["env_ids"] == [task.env_id for task in TASKS]
+    assert data["env_ids"] == list(TASKS)
     assert {"hold", "admittance", "pid", "mpc", "ida_pbc"} <= set(data["agents"])
     assert "ppo_fan_tracking" in data["policies"] and "QC1" in data["ida_pbc_sets"]
     assert "jet_crossing" in data["scenarios"] and "wall" in data["surfaces"]

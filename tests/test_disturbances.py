@@ -592,7 +592,7 @@ def test_bad_scene_entries_are_refused_by_name(entry, message):
     ],
 )
 def test_bad_wind_entries_are_refused_by_name(entry, message):
-    from quad_wrench_env.disturbances.registry import wind_config
+    from quad_wrench_env.disturbances.base import wind_config
 
     with pytest.raises(ValueError, match=message):
         wind_config(entry)

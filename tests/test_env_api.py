@@ -285,7 +285,7 @@ def test_an_estimator_bank_swapped_in_mid_episode_is_the_one_stepped():
         env.close()
 
 
-@pytest.mark.parametrize("env_id", [task.env_id for task in TASKS])
+@pytest.mark.parametrize("env_id", list(TASKS))
 def test_gymnasiums_own_checker_passes_on_a_headless_machine(env_id, monkeypatch):
     """``check_env`` makes the env in every declared render mode: ``human`` is declared only where a
     window can open, so the check passes with no display."""

@@ -257,15 +257,6 @@ def test_a_component_changed_between_episodes_is_read_again_by_the_compiled_step
             env.close()
 
 
-def test_a_wind_model_registered_elsewhere_first_does_not_hide_the_packages(monkeypatch):
-    from quad_wrench_env.disturbances import registry
-
-    monkeypatch.setattr(registry, "WIND_MODELS", {})
-    registry.wind_model("updraft", HoldConfig)(type("Updraft", (Crosswind,), {}))
-    assert registry.wind_config({"model": "dryden", "w20": 1.0})[0] == "dryden"
-    assert {"updraft", "dryden", "jet", "one_cosine"} <= set(registry.WIND_MODELS)
-
-
 def test_kernels_in_a_script_are_refused_with_a_reason():
     from quad_wrench_env.engine.compose import Slot
 

@@ -1,9 +1,9 @@
 """Policies that map an observation to an action, and the code that evaluates them.
 
 :func:`make_agent` builds an agent by the name used in ``configs/`` files: a classical controller of
-:data:`AGENTS`, a learned policy shipped with the package (:func:`shipped_agents`, under
-``quad_wrench_env/agents/policies/``), or the path of a user's own training run folder (``quad-wrench
-train``).
+:data:`AGENTS` (each registered where it is defined, ``@register("agent", name)``), a learned policy
+shipped with the package (:func:`shipped_agents`, under ``quad_wrench_env/agents/policies/``), or the
+path of a user's own training run folder (``quad-wrench train``).
 """
 
 from __future__ import annotations
@@ -11,17 +11,12 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from quad_wrench_env.agents.admittance import AdmittancePolicy
+from quad_wrench_env.agents import admittance, hover, ida_pbc, mpc, pid  # noqa: F401 (they register)
 from quad_wrench_env.agents.base import Policy
-from quad_wrench_env.agents.hover import PositionHoldPolicy
-from quad_wrench_env.agents.ida_pbc import IDAPBCPolicy
-from quad_wrench_env.agents.mpc import MPCPolicy
-from quad_wrench_env.agents.pid import PIDPolicy
+from quad_wrench_env.registry import registered
 
-AGENTS: dict[str, type] = {
-    "admittance": AdmittancePolicy, "hold": PositionHoldPolicy, "pid": PIDPolicy, "mpc": MPCPolicy,
-    "ida_pbc": IDAPBCPolicy,
-}  # fmt: skip
+AGENTS = registered("agent")
+"""The classical agents by name (the registry's live, read-only view)."""
 
 SHIPPED = Path(__file__).resolve().parent / "policies"
 """Shipped learned policies: one folder each, laid out as a run folder's ``config.yaml`` and ``best/``."""

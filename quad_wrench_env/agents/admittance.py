@@ -25,6 +25,7 @@ import gymnasium as gym
 import numpy as np
 
 from quad_wrench_env.agents.hover import HoldGains, PositionHoldPolicy
+from quad_wrench_env.registry import register
 
 TORQUE_SLOPES: dict[str, float] = {
     "ardrone2": 7.53e-2,
@@ -46,6 +47,7 @@ class AdmittanceGains(HoldGains):
     """``λ`` (1/s), the rate of the lateral loop near the axis, when ``k_p`` is None."""
 
 
+@register("agent", "admittance")
 class AdmittancePolicy(PositionHoldPolicy):
     """``ẏ_cmd = k_p·τ̂_z`` with x, z and yaw held by position feedback (velocity action)."""
 

@@ -1,7 +1,8 @@
 """One harness that runs any policy on any env id over a list of seeds and scores it.
 
 The harness is the only code that reads ``info`` (the truth), and only to score: the policy sees
-observations alone. Each task scores its own episodes (``Task.metrics``, found by env id).
+observations alone. Each task scores its own episodes (``Task.metrics``: the env's own task, or the
+registered task of an env id).
 """
 
 from __future__ import annotations
@@ -16,14 +17,11 @@ import numpy as np
 
 from quad_wrench_env.agents.base import Policy
 from quad_wrench_env.config import merged
-from quad_wrench_env.tasks import TASKS
+from quad_wrench_env.registry import registered
 
 TRACE_KEYS = ("time", "position", "wrench_true", "wrench_est", "wind_velocity")
 """``info`` entries recorded at every step of every task (plus ``reward`` and the task's own
 ``trace_keys``)."""
-
-TASKS_BY_ID: dict[str, type] = {task.env_id: task for task in TASKS}
-"""Each env id's task, whose ``metrics`` score its episodes (generated from the tasks)."""
 
 
 @dataclass
@@ -52,10 +50,12 @@ class Evaluation:
         return {k: float(np.mean([m[k] for m in self.per_seed])) for k in keys}
 
 
-def episode_metrics(env_id: str, episode: Episode) -> dict[str, float]:
+def episode_metrics(task: Any, episode: Episode) -> dict[str, float]:
     """The task's own scores of ``episode`` (its ``metrics``) and those of every task: the episode's
-    length, return and whether it ended early."""
-    task = TASKS_BY_ID.get(_canonical_id(env_id))
+    length, return and whether it ended early. ``task``: the env's (``env.unwrapped.task``) or an env
+    id, whose registered task scores (an id of no registered task: only the scores of every task)."""
+    if isinstance(task, str):
+        task = registered("task").get(_canonical_id(task))
     return {
         **(task.metrics(episode.trace) if task is not None else {}),
         "episode_seconds": float(episode.trace["time"][-1]),
@@ -135,11 +135,12 @@ def evaluate(
     if not seeds:
         raise ValueError("seeds must name at least one seed")
     env = gym.make(env_id, **flying_settings(policy, env_kwargs))
+    task = env.unwrapped.task
     try:
         episodes = [run_episode(policy, env, seed, options) for seed in seeds]
     finally:
         env.close()
-    return Evaluation(env_id, seeds, [episode_metrics(env_id, e) for e in episodes], episodes)
+    return Evaluation(env_id, seeds, [episode_metrics(task, e) for e in episodes], episodes)
 
 
 def write_report(out: Path, header: list[str], parts: Mapping[str, Callable[[], list[str]]]) -> str:
@@ -160,9 +161,9 @@ ENDED_EARLY_COLUMN = ("terminated_early", "ended early", "{:.0%}")
 def table_columns(env_id: str) -> tuple[tuple[str, str, str], ...]:
     """The columns of :func:`metrics_table` for ``env_id``: its task's ``metric_columns``, then whether
     an episode ended early."""
-    task = TASKS_BY_ID.get(_canonical_id(env_id))
+    task = registered("task").get(_canonical_id(env_id))
     if task is None:
-        raise ValueError(f"unknown env id {env_id!r}; allowed: {sorted(TASKS_BY_ID)}")
+        raise ValueError(f"unknown env id {env_id!r}; allowed: {sorted(registered('task'))}")
     return (*task.metric_columns, ENDED_EARLY_COLUMN)
 
 

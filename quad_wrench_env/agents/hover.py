@@ -15,6 +15,7 @@ import numpy as np
 
 from quad_wrench_env.config import build
 from quad_wrench_env.engine.actions import ActionScaling
+from quad_wrench_env.registry import register
 from quad_wrench_env.rotations import wrap_angle
 
 
@@ -28,6 +29,7 @@ class HoldGains:
     """``(x, y, z, yaw)`` to hold; None holds the pose at the start of the episode."""
 
 
+@register("agent", "hold")
 class PositionHoldPolicy:
     """``v_cmd = k·(p_ref - p̂)``, ``yaw_rate_cmd = k_yaw·wrap(ψ_ref - ψ̂)`` through the velocity action."""
 

@@ -129,6 +129,7 @@ import numpy as np
 
 from quad_wrench_env.config import build, check_numbers, config_path, load_yaml
 from quad_wrench_env.engine.actions import ActionScaling
+from quad_wrench_env.registry import register
 from quad_wrench_env.rotations import wrap_angle
 from quad_wrench_env.vehicle import GRAVITY
 
@@ -369,6 +370,7 @@ def limit_tilt(thrust_vector: np.ndarray, max_tilt: float, weight: float) -> np.
 
 
 # -- the policy -------------------------------------------------------------------------------------------
+@register("agent", "ida_pbc")
 class IDAPBCPolicy:
     """Eqs. (25), (31), (39)-(47) through the ``wrench`` action (module docstring)."""
 

@@ -47,6 +47,7 @@ from quad_wrench_env.agents.guidance import ReferenceExtrapolator, attitude_from
 from quad_wrench_env.autopilot import AutopilotGains
 from quad_wrench_env.config import build
 from quad_wrench_env.engine.actions import ActionScaling
+from quad_wrench_env.registry import register
 from quad_wrench_env.rotations import wrap_angle
 from quad_wrench_env.vehicle import GRAVITY, VehicleParams
 
@@ -402,6 +403,7 @@ def attitude_time_constant(vehicle: VehicleParams) -> float:
     return 1.0 / AutopilotGains.for_vehicle(vehicle).attitude_p
 
 
+@register("agent", "mpc")
 class MPCPolicy:
     """Hentzen et al.'s (2019) MPC position controller flying the ``attitude`` action: roll and pitch
     references and collective thrust from :class:`PositionMPC`, yaw held at ``gains.yaw`` by a proportional

@@ -36,6 +36,7 @@ from quad_wrench_env.agents.guidance import ReferenceExtrapolator, attitude_from
 from quad_wrench_env.autopilot import AutopilotGains
 from quad_wrench_env.config import build, check_numbers
 from quad_wrench_env.engine.actions import ActionScaling
+from quad_wrench_env.registry import register
 from quad_wrench_env.rotations import wrap_angle
 
 
@@ -78,6 +79,7 @@ def bandwidth_gains(bandwidth: float) -> tuple[float, float, float]:
     return bandwidth**2, 2.0 * bandwidth, 0.02 * bandwidth**3
 
 
+@register("agent", "pid")
 class PIDPolicy:
     """Eq. (3) with the disturbance feed-forward, through the ``attitude`` action (module docstring)."""
 

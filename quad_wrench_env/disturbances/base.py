@@ -34,12 +34,15 @@ rotor ``thrust``       ``hubs`` (N, 4, 3) world hub positions, ``rotation`` (N, 
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Protocol, runtime_checkable
+from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
+from quad_wrench_env.config import build_named
 from quad_wrench_env.kernels import njit
+from quad_wrench_env.registry import lookup, registered
 from quad_wrench_env.rotations import cross
 
 
@@ -145,3 +148,16 @@ def resultant(offsets: np.ndarray, forces: np.ndarray) -> tuple[np.ndarray, np.n
     Both arrays are (..., P, 3) in the world frame; returns ``(Σ F_j, Σ r_j × F_j)``, each (..., 3).
     """
     return forces.sum(axis=-2), cross(offsets, forces).sum(axis=-2)
+
+
+def wind_config(spec: Mapping[str, Any], position: int = 0) -> tuple[str, Any]:
+    """The model name and built config of one ``wind`` entry (``{"model": name, **fields}``; the models
+    are the registry's ``"wind"`` entries, each with its ``config_class``), bad names and keys named."""
+    configs = {name: cls.config_class for name, cls in registered("wind").items()}
+    return build_named(spec, "model", configs, f"wind[{position}]")
+
+
+def make_wind(spec: Mapping[str, Any], count: int, position: int = 0) -> WindField:
+    """The wind field of one ``wind`` entry for ``count`` vehicles."""
+    name, config = wind_config(spec, position)
+    return lookup("wind", name)(config, count)

@@ -23,8 +23,8 @@ import numpy as np
 
 from quad_wrench_env.config import check_numbers
 from quad_wrench_env.disturbances.base import CompiledForm
-from quad_wrench_env.disturbances.registry import wind_model
 from quad_wrench_env.kernels import njit
+from quad_wrench_env.registry import register
 
 FEET = 0.3048
 """m per ft."""
@@ -57,10 +57,11 @@ class DrydenConfig:
         return np.array((sigma_u, sigma_u, sigma_w)), np.array((length_u, length_u, h * FEET))
 
 
-@wind_model("dryden", DrydenConfig)
+@register("wind", "dryden")
 class DrydenGust:
     """The Dryden field of N vehicles: a :class:`~quad_wrench_env.disturbances.base.WindField`."""
 
+    config_class = DrydenConfig
     name = "dryden"
     noise_width = 3
     compiled = CompiledForm(

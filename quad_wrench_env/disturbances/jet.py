@@ -24,7 +24,7 @@ import numpy as np
 from quad_wrench_env.config import check_numbers
 from quad_wrench_env.disturbances.base import STILL, CompiledForm
 from quad_wrench_env.disturbances.fan import advance_turbulence, centreline_speed, half_width
-from quad_wrench_env.disturbances.registry import wind_model
+from quad_wrench_env.registry import register
 
 _KERNELS = "quad_wrench_env.disturbances.jet_kernels"
 STEADY = CompiledForm(_KERNELS, (("velocity", "fixed_jet_velocity"), STILL), table="speed_scale")
@@ -73,11 +73,12 @@ class JetConfig:
             check_numbers("wind.jet", self, ("turbulence_length",))
 
 
-@wind_model("jet", JetConfig)
+@register("wind", "jet")
 class Jet:
     """The same fixed jet for every vehicle, each with its own turbulence: a
     :class:`~quad_wrench_env.disturbances.base.WindField`."""
 
+    config_class = JetConfig
     name = "jet"
     noise_width = 0
     """Normal draws per vehicle and physics step: 3 for a turbulent jet (set per instance)."""

@@ -12,8 +12,8 @@ import numpy as np
 
 from quad_wrench_env.config import check_numbers
 from quad_wrench_env.disturbances.base import STILL, CompiledForm, Steady
-from quad_wrench_env.disturbances.registry import wind_model
 from quad_wrench_env.kernels import njit
+from quad_wrench_env.registry import register
 
 
 @dataclass
@@ -43,11 +43,12 @@ def gust_shape(
     return 0.5 * (1.0 - np.cos(math.pi * phase))
 
 
-@wind_model("one_cosine", OneCosineConfig)
+@register("wind", "one_cosine")
 class OneCosineGust(Steady):
     """The gust of N vehicles, each at its own time: a
     :class:`~quad_wrench_env.disturbances.base.WindField`."""
 
+    config_class = OneCosineConfig
     name = "one_cosine"
     compiled = CompiledForm(
         "quad_wrench_env.disturbances.one_cosine",

@@ -5,10 +5,9 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
-from quad_wrench_env.disturbances.base import PointLoad, RotorModifier, WindField
+from quad_wrench_env.disturbances.base import PointLoad, RotorModifier, WindField, make_wind
 from quad_wrench_env.disturbances.ground_effect import GroundEffect
 from quad_wrench_env.disturbances.payload import Payload
-from quad_wrench_env.disturbances.registry import make_wind
 from quad_wrench_env.disturbances.wrench_profile import WrenchProfile
 from quad_wrench_env.engine.config import EnvConfig
 from quad_wrench_env.scene import ScenePart, make_scene_part, surface_tops

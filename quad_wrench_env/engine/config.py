@@ -7,8 +7,8 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from quad_wrench_env.config import check_numbers
+from quad_wrench_env.disturbances.base import wind_config
 from quad_wrench_env.disturbances.payload import PayloadConfig
-from quad_wrench_env.disturbances.registry import wind_config
 from quad_wrench_env.disturbances.wrench_profile import validate_segments
 from quad_wrench_env.engine.actions import ActionLimits
 from quad_wrench_env.kernels import resolve_backend

@@ -1,6 +1,7 @@
-"""The env classes of every task, generated from :data:`quad_wrench_env.tasks.TASKS`: for a task
+"""The env classes of every registered task (:func:`quad_wrench_env.registry.register`): for a task
 ``Name``, ``NameEnv`` (single vehicle) and ``NameVectorEnv`` (``gym.make_vec``'s vector entry point),
-attributes of this module, so that they pickle by reference and their entry points are strings."""
+attributes of this module made on first use, so that they pickle by reference and their entry points
+(:func:`quad_wrench_env.registry.env_entry_points`) are strings."""
 
 from __future__ import annotations
 
@@ -8,12 +9,7 @@ from typing import Any
 
 from quad_wrench_env.envs.base import QuadWrenchEnv
 from quad_wrench_env.envs.vector import QuadWrenchVectorEnv
-from quad_wrench_env.tasks import TASKS
-
-
-def entry_points(task: type) -> tuple[str, str]:
-    """The single and the vector entry point of ``task``'s env id."""
-    return f"{__name__}:{task.__name__}Env", f"{__name__}:{task.__name__}VectorEnv"
+from quad_wrench_env.registry import registered
 
 
 def env_classes(task: type) -> tuple[type, type]:
@@ -35,9 +31,11 @@ def env_classes(task: type) -> tuple[type, type]:
     return single, vector
 
 
-ENV_CLASSES: dict[str, tuple[Any, Any]] = {}
-"""Env id -> (single env class, vector env class)."""
-for _task in TASKS:
-    _single, _vector = env_classes(_task)
-    globals()[_single.__name__], globals()[_vector.__name__] = _single, _vector
-    ENV_CLASSES[_task.env_id] = (_single, _vector)
+def __getattr__(name: str) -> Any:
+    """``<Task>Env`` or ``<Task>VectorEnv`` of a registered task, made once and kept here."""
+    for task in registered("task").values():
+        if name in (f"{task.__name__}Env", f"{task.__name__}VectorEnv"):
+            single, vector = env_classes(task)
+            globals()[single.__name__], globals()[vector.__name__] = single, vector
+            return globals()[name]
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -15,6 +15,7 @@ from quad_wrench_env.estimators.noise import EKFNoise, FilterNoise
 from quad_wrench_env.estimators.observer import NonlinearWrenchObserver, ObserverBank, ObserverGains
 from quad_wrench_env.estimators.oracle import OracleEstimator
 from quad_wrench_env.estimators.ukf import UnscentedFilterBank, UnscentedWrenchEstimator
+from quad_wrench_env.registry import lookup, register, registered
 from quad_wrench_env.vehicle import VehicleParams
 
 MEASUREMENT_NOISE_KEYS = ("position", "attitude", "velocity", "body_rate")
@@ -56,19 +57,21 @@ def _oracle_settings(noise: dict[str, Any]) -> None:
         raise ValueError(f"the oracle takes no noise settings, got {unknown}")
 
 
-REGISTRY: dict[str, EstimatorEntry] = {
-    "ukf": EstimatorEntry(_ukf_noise, UnscentedWrenchEstimator, UnscentedFilterBank),
-    "ekf": EstimatorEntry(_ekf_noise, ExtendedWrenchEstimator, ExtendedFilterBank),
-    "observer": EstimatorEntry(_observer_gains, NonlinearWrenchObserver, ObserverBank),
-    "oracle": EstimatorEntry(
+register("estimator", "ukf", EstimatorEntry(_ukf_noise, UnscentedWrenchEstimator, UnscentedFilterBank))
+register("estimator", "ekf", EstimatorEntry(_ekf_noise, ExtendedWrenchEstimator, ExtendedFilterBank))
+register("estimator", "observer", EstimatorEntry(_observer_gains, NonlinearWrenchObserver, ObserverBank))
+register(
+    "estimator",
+    "oracle",
+    EstimatorEntry(
         _oracle_settings,
         lambda vehicle, dt, settings, backend: OracleEstimator(),
         lambda vehicle, dt, settings, count, backend: OracleBank(count),
     ),
-}
-"""Every estimator, by name: adding one is one entry here."""
-ESTIMATORS = tuple(REGISTRY)
-"""Names accepted by :func:`make_estimator` and :func:`make_estimator_bank`."""
+)
+ESTIMATORS = registered("estimator")
+"""Every estimator's :class:`EstimatorEntry` by name (the registry's live, read-only view): the names
+:func:`make_estimator` and :func:`make_estimator_bank` accept. Adding one is one ``register`` call."""
 
 NAMED_SETTINGS: dict[str, dict[str, dict[str, Any]]] = {
     "ukf": {"paper": {"force_walk": 5e-4, "torque_walk": 4e-5}},
@@ -103,11 +106,10 @@ def estimator_settings(name: str, params: Mapping[str, Any] | str) -> dict[str, 
 
 
 def _entry(name: str, dt: float) -> EstimatorEntry:
-    if name not in REGISTRY:
-        raise ValueError(f"unknown estimator {name!r}; allowed: {list(ESTIMATORS)}")
+    entry = lookup("estimator", name)
     if not (math.isfinite(dt) and dt > 0):
         raise ValueError(f"estimator time step dt={dt!r} must be a finite number > 0")
-    return REGISTRY[name]
+    return entry
 
 
 def make_estimator(
@@ -140,7 +142,6 @@ __all__ = [
     "ESTIMATORS",
     "MEASUREMENT_NOISE_KEYS",
     "NAMED_SETTINGS",
-    "REGISTRY",
     "EKFNoise",
     "Estimator",
     "EstimatorBank",

@@ -73,6 +73,7 @@ from quad_wrench_env.disturbances.jet import Jet, JetConfig
 from quad_wrench_env.disturbances.one_cosine import OneCosineConfig, OneCosineGust
 from quad_wrench_env.engine.components import Components
 from quad_wrench_env.engine.config import EnvConfig
+from quad_wrench_env.registry import register
 from quad_wrench_env.scene import Table
 from quad_wrench_env.tasks.base import TaskDefaults
 from quad_wrench_env.vehicle import VehicleParams
@@ -291,6 +292,7 @@ def _speed_option(options: Mapping[str, Any], key: str) -> float | None:
     return float(value)
 
 
+@register("task")
 class DisturbanceRejection(TaskDefaults):
     """Follow each scenario's reference path under its disturbance (module docstring), N vehicles."""
 

@@ -77,6 +77,7 @@ from quad_wrench_env.disturbances.jet_kernels import jet_speed, motion_y, transi
 from quad_wrench_env.engine.components import Components
 from quad_wrench_env.engine.config import EnvConfig
 from quad_wrench_env.kernels import njit, resolve_backend
+from quad_wrench_env.registry import register
 from quad_wrench_env.tasks.base import TaskDefaults
 from quad_wrench_env.vehicle import VehicleParams
 
@@ -189,6 +190,7 @@ class FanTrackingConfig(EnvConfig):
         check_numbers("env", self, ("max_initial_offset",), positive=False)
 
 
+@register("task")
 class FanTracking(TaskDefaults):
     """Track the centre of a moving fan's jet from the estimated wrench (see the module docstring),
     for N vehicles, each in front of a fan of its own."""

@@ -58,6 +58,7 @@ from quad_wrench_env.disturbances.base import CompiledForm
 from quad_wrench_env.engine.components import Components
 from quad_wrench_env.engine.config import EnvConfig, ToolConfig
 from quad_wrench_env.kernels import njit
+from quad_wrench_env.registry import register
 from quad_wrench_env.scene import Ceiling, Wall
 from quad_wrench_env.tasks.base import TaskDefaults
 from quad_wrench_env.vehicle import GRAVITY, VehicleParams
@@ -136,6 +137,7 @@ class ForceExertionConfig(EnvConfig):
             raise ValueError(f"push={self.push!r} must be a finite force (N)")
 
 
+@register("task")
 class ForceExertion(TaskDefaults):
     """Press the tool's tip on a wall or a ceiling with the observed target force (module docstring)."""
 
