@@ -11,8 +11,9 @@ case by case. Exit code 1 and the differing cases when any differ.
 
 The cases, through public names only (so that both revisions run them): every registered task x
 vehicle preset x estimator, a single env and a 3-vehicle vector env (seeded random actions, autoreset,
-60 control steps each); every action type on each task; the classical agents and the shipped learned
-policies through the harness (one held-out seed). Not part of CI: it takes minutes.
+60 control steps each); every action type on each task; each task on the numpy backend; the
+classical agents and the shipped learned policies through the harness (one held-out seed). Not part
+of CI: it takes minutes.
 """
 
 from __future__ import annotations
@@ -117,6 +118,8 @@ def dump(path: Path) -> None:
                 hashes[f"vector {case}"] = _fly_vector(env_id, vehicle=vehicle, estimator=estimator)
         for action_type in ("velocity", "attitude", "wrench", "motors"):
             hashes[f"single {env_id} action {action_type}"] = _fly_single(env_id, action_type=action_type)
+        hashes[f"single {env_id} numpy backend"] = _fly_single(env_id, backend="numpy")
+        hashes[f"vector {env_id} numpy backend"] = _fly_vector(env_id, backend="numpy")
         for name, params, action_type in agents:
             result = evaluate(make_agent(name, **params), env_id, [2000], action_type=action_type)
             hashes[f"agent {env_id} {name}"] = scored(result)

@@ -3,6 +3,7 @@ integrated here, a step in external force, and what the env actually feeds them.
 
 from __future__ import annotations
 
+import copy
 import functools
 import math
 
@@ -301,7 +302,7 @@ def _spied_env(estimator: str, **kwargs):
     original = fleet.estimator.step
 
     def spy(*args):
-        truth = fleet.state
+        truth = copy.deepcopy(fleet.state)  # the fleet's state is updated in place
         calls.append(
             ([None if a is None else np.array(a, copy=True) for a in args], fleet.rotors.speeds.copy(), truth)
         )

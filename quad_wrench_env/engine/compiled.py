@@ -4,13 +4,12 @@ the step :mod:`.compose` writes for them.
 The numbers the kernels need are packed here once from the fleet's own components
 (:func:`~quad_wrench_env.engine.kernels.physics_constants`, then each component's
 ``kernel_parameters``), so the kernels read exactly the parameters the numpy reference uses. The
-per-vehicle arrays the kernels fill (true state, time, applied loads, measurements, air at the
-centres) are views of one flat buffer (:func:`~quad_wrench_env.engine.kernels.step_views`) that the
-fleet adopts as its own ``state``, ``time``, ``wrench_true`` and ``wind_velocity``. The state the
-components keep (autopilot setpoints and integrators, rotor speeds and allocations, each component's
-declared state, e.g. the fan's turbulence) becomes views of the same buffer, which the components go on
-owning and updating in place, so both paths can be mixed and compared at any step; the mixer's
-saturation flags, the components' per-vehicle tables and the noise blocks stay arrays of their own.
+kernels work on the fleet's own step buffer (:attr:`Fleet.buffer`, whose views are the fleet's
+``state``, ``time``, ``wrench_true`` and ``wind_velocity``, the autopilot's and the rotors' state and
+each component's declared state, e.g. the fan's turbulence), so both paths update the same numbers in
+place; the mixer's saturation flags, the components' per-vehicle tables and the noise blocks are arrays
+of their own. The fleet calls :meth:`CompiledStep.rebind` after every reset and
+:meth:`CompiledStep.bind_estimator` when its estimator bank is replaced.
 
 Every kernel is called in its compiled form on arguments bound once per episode
 (:func:`~quad_wrench_env.kernels.bind`). A fleet of one vehicle (the single env) meets PyBullet with
@@ -26,14 +25,12 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from quad_wrench_env.engine.compose import Slot, compose, scratch_width
+from quad_wrench_env.engine.compose import Slot, compose
 from quad_wrench_env.engine.kernels import (
     STEP_WIDTH,
     component_parameters,
     physics_constants,
-    step_views,
 )
-from quad_wrench_env.engine.world import RigidBodyState
 from quad_wrench_env.estimators.bank import FilterBank
 from quad_wrench_env.kernels import bind, specialised
 
@@ -66,13 +63,12 @@ class CompiledStep:
         components = fleet.components.ordered()
         self._components = [component for _, component in components]
         numbers = [c.kernel_parameters() for c in self._components]
+        states = {id(owner): name for owner, name in fleet.component_states}
         self.constants = component_parameters(engine, numbers)
         ends = len(self.constants) - sum(len(n) for n in numbers) + np.cumsum([0] + [len(n) for n in numbers])
         self._bounds = list(zip(ends[:-1].tolist(), ends[1:].tolist(), strict=True))
         """Where each component's numbers sit in :attr:`constants`."""
-        widths = [
-            0 if c.compiled.state is None else getattr(c, c.compiled.state).shape[1] for _, c in components
-        ]
+        widths = [getattr(c, states[id(c)]).shape[1] if id(c) in states else 0 for _, c in components]
         slots = [
             Slot(kind, c.compiled, width, fleet.noise_columns.get(id(c), (0, 0)))
             for (kind, c), width in zip(components, widths, strict=True)
@@ -81,43 +77,23 @@ class CompiledStep:
         self._step = compose(slots, STEP_WIDTH, points, noise_width)
         self.single = count == 1
         """A fleet of one vehicle: it meets PyBullet with tuples (module docstring)."""
-        self.buffer = np.zeros(count * (STEP_WIDTH + sum(widths) + scratch_width(points, noise_width)))
+        self.buffer = fleet.buffer
         self.actions = np.zeros((count, 4))
         """The policy step's (N, 4) clipped normalised actions, copied in (bound to the kernel)."""
-        (
-            self.time, position, quaternion, velocity, angular_velocity, rotation, body_rates,
-            self.forces, self.torques, self.loads, self.thrusts, self.body_torques,
-            self.measured_position, self.measured_quaternion, motion, self.truth, *engine_state,
-            self.wind_velocity,
-        ) = step_views(self.buffer, count)  # fmt: skip
-        rotors = fleet.rotors
-        owners = [(ap, "yaw_setpoint"), (ap, "velocity_integral"), (ap, "rate_integral"), (rotors, "speeds"),
-                  (rotors, "allocations"), (None, "rotor_wrench")]  # fmt: skip
-        views = list(engine_state)
-        start = STEP_WIDTH
-        for (_, component), width in zip(components, widths, strict=True):
-            if width:
-                owners.append((component, component.compiled.state))
-                views.append(self.buffer[start * count : (start + width) * count].reshape(count, width))
-                start += width
-        for (owner, name), view in zip(owners, views, strict=True):
-            if owner is not None:  # the components' state is theirs, kept here (updated in place)
-                view[...] = getattr(owner, name)
-                setattr(owner, name, view)
+        f = fleet.fields
+        self.forces, self.torques, self.loads, self.truth = f["forces"], f["torques"], f["loads"], f["truth"]
+        self.thrusts, self.body_torques = f["thrusts"], f["body_torques"]
+        self.measured_position, self.measured_quaternion = f["measured_position"], f["measured_quaternion"]
+        motion = f["motion"]
         self._table_owners = [(c, c.compiled.table) for _, c in components if c.compiled.table]
-        self.state = RigidBodyState(position, quaternion, velocity, angular_velocity, rotation, body_rates)
+        self.state = fleet.state
         self.velocity_measured = motion[:, :3] if sensors.state_estimator else None
         self.body_rates_measured = motion[:, 3:] if sensors.state_estimator else None
-        self.time[:] = fleet.time
-        fleet.time = self.time
-        self._bound: object | None = None
-        """The estimator bank :attr:`estimate` is bound to."""
 
-    def _adopt(self) -> None:
-        """Take over the state the fleet read after a reset (into the kernels' own arrays) and bind
-        the kernels' arguments, all of them arrays updated in place from then on (the components'
-        numbers and tables are read again: a reset may have changed them)."""
-        fleet, mine = self.fleet, self.state
+    def rebind(self) -> None:
+        """After a reset: read the components' numbers and tables again (a task may change them per
+        episode) and bind the kernels' arguments, all of them arrays updated in place from then on."""
+        fleet = self.fleet
         for component, (start, stop) in zip(self._components, self._bounds, strict=True):
             numbers = self.constants[start:stop]  # a task may change a component per episode
             fresh = component.kernel_parameters()
@@ -127,11 +103,6 @@ class CompiledStep:
                     f"{numbers.size} to {fresh.size}; per-episode data of varying size belongs in its table"
                 )
             numbers[:] = fresh
-        for name in ("position", "quaternion", "velocity", "angular_velocity", "rotation", "body_rates"):
-            getattr(mine, name)[:] = getattr(fleet.state, name)
-        self.loads[:] = fleet.wrench_true
-        self.wind_velocity[:] = fleet.wind_velocity
-        fleet.state, fleet.wrench_true, fleet.wind_velocity = mine, self.loads, self.wind_velocity
         tables = [getattr(owner, name) for owner, name in self._table_owners]
         one, world, step = self.single, fleet.world, self._step
         self._before = bind(
@@ -149,15 +120,15 @@ class CompiledStep:
         tuples of floats for one vehicle, a float array of rows for more)."""
         self._centre_wind = bind(step.centre_wind, fleet.count, self.buffer, self.constants, *tables)
         """The air at the centres of mass, after a policy step's last physics step."""
-        self._bind_estimator()
+        self.bind_estimator()
 
-    def _bind_estimator(self) -> None:
+    def bind_estimator(self) -> None:
         """Bind :attr:`estimate` to the fleet's estimator bank (again whenever it is swapped)."""
         measured = (
             self.thrusts, self.body_torques, self.measured_position, self.measured_quaternion,
             self.velocity_measured, self.body_rates_measured,
         )  # fmt: skip
-        estimator = self._bound = self.fleet.estimator
+        estimator = self.fleet.estimator
         self.estimate = (
             estimator.bind_step(*measured)
             if isinstance(estimator, FilterBank)
@@ -168,10 +139,6 @@ class CompiledStep:
     def physics_steps(self, actions: np.ndarray, count: int) -> None:
         """``count`` physics steps with (N, 4) clipped normalised actions."""
         fleet = self.fleet
-        if fleet.state is not self.state:
-            self._adopt()
-        if fleet.estimator is not self._bound:
-            self._bind_estimator()
         self.actions[:] = actions
         world, noise, estimator, truth_fed = fleet.world, fleet.noise, fleet.estimator, fleet.truth_fed
         before, read, after_kernel, after = self._before, self.read_world, self._after_kernel, self._after

@@ -28,8 +28,15 @@ from quad_wrench_env.disturbances.drag import QuadraticDrag
 from quad_wrench_env.engine.actions import ActionMap, ActionScaling
 from quad_wrench_env.engine.compiled import CompiledStep
 from quad_wrench_env.engine.components import Components
+from quad_wrench_env.engine.compose import scratch_width
 from quad_wrench_env.engine.config import EnvConfig
-from quad_wrench_env.engine.kernels import assemble_observations, termination_codes
+from quad_wrench_env.engine.kernels import (
+    STEP_FIELDS,
+    STEP_WIDTH,
+    assemble_observations,
+    step_views,
+    termination_codes,
+)
 from quad_wrench_env.engine.noise import NoiseBlocks
 from quad_wrench_env.engine.observation import ObservationLayout
 from quad_wrench_env.engine.world import RigidBodyState, Tool, World
@@ -101,7 +108,8 @@ class Fleet:
             measured += [("velocity", sensors.velocity_noise), ("body_rate", sensors.body_rate_noise)]
         measurement_noise = {key: value for key, value in measured if value > 0}
         self.backend = self._backend(cfg, components)
-        self.estimator = make_estimator_bank(
+        self.compiled: CompiledStep | None = None
+        self._estimator = make_estimator_bank(
             cfg.estimator,
             vehicle,
             dt,
@@ -109,7 +117,7 @@ class Fleet:
             backend=self.backend,
             **{**measurement_noise, **estimator_settings(cfg.estimator, cfg.estimator_params)},
         )
-        self.truth_fed = isinstance(self.estimator, OracleBank)
+        self.truth_fed = isinstance(self._estimator, OracleBank)
         self.mocap = MotionCapture(sensors, count)
         self.motor_sensor = MotorSpeedSensor(vehicle.max_rotor_speed, sensors.motor_speed_bits)
         self.autopilot = Autopilot(vehicle, dt, count=count)
@@ -132,13 +140,9 @@ class Fleet:
         self.noise = NoiseBlocks(count, column + width)
         self.world = World(vehicle, dt, count, gui=gui, scene=components.scene, tool=make_tool(cfg, vehicle))
         self._flip_cos = math.cos(math.radians(cfg.flip_tilt_deg))
-        self.time = np.zeros(count)
-        self.state: RigidBodyState | None = None
-        self.wrench_true = np.zeros((count, 6))
+        self._own_buffer()
         self.contact_force = np.zeros((count, 3))
         """(N, 3) force of the scene on each tool's tip in the last physics step (world frame, N)."""
-        self.wind_velocity = np.zeros((count, 3))
-        """(N, 3) air velocity at each centre of mass (world frame), after the last step or reset."""
         self.compiled = CompiledStep(self) if self.backend == "numba" else None
         """The physics step on the compiled kernels, or None (the numpy reference)."""
         arena = cfg.arena
@@ -152,6 +156,64 @@ class Fleet:
         self.revision = 0
         """Counts the changes of the fleet's state (steps and resets): a key for what tasks cache."""
         self._estimates: tuple[int, np.ndarray, np.ndarray] = (-1, np.empty(0), np.empty(0))
+
+    def _own_buffer(self) -> None:
+        """The fleet's step buffer, made once: every per-vehicle array of the step (:data:`STEP_FIELDS`,
+        then the components' declared states, then the compiled step's scratch space) is a view of it,
+        on both backends. The fleet's ``time``, ``state``, ``wrench_true`` and ``wind_velocity``, the
+        autopilot's and the rotors' state and each component's ``CompiledForm.state`` array become
+        those views here, their numbers copied in; from then on everything updates them in place."""
+        count, components = self.count, self.components.ordered()
+        states = [(c, c.compiled.state) for _, c in components if c.compiled is not None and c.compiled.state]
+        widths = [getattr(owner, name).shape[1] for owner, name in states]
+        points, noise_width = len(self.drag_points), self.noise.buffer.shape[2]
+        self.buffer = np.zeros(count * (STEP_WIDTH + sum(widths) + scratch_width(points, noise_width)))
+        """The flat step buffer (:func:`~quad_wrench_env.engine.kernels.step_views` cuts its fields)."""
+        self.fields = dict(
+            zip((name for name, _ in STEP_FIELDS), step_views(self.buffer, count), strict=True)
+        )
+        """Each :data:`STEP_FIELDS` array by name: views of :attr:`buffer`."""
+        self.component_states = []
+        """``(component, attribute)`` of each component's state in the buffer, in step order."""
+        ap, rotors, start = self.autopilot, self.rotors, STEP_WIDTH
+        owners = [(ap, "yaw_setpoint"), (ap, "velocity_integral"), (ap, "rate_integral"), (rotors, "speeds"),
+                  (rotors, "allocations")]  # fmt: skip
+        views = [self.fields[name] for _, name in owners]
+        for (owner, name), width in zip(states, widths, strict=True):
+            owners.append((owner, name))
+            views.append(self.buffer[start * count : (start + width) * count].reshape(count, width))
+            self.component_states.append((owner, name))
+            start += width
+        for (owner, name), view in zip(owners, views, strict=True):
+            view[...] = getattr(owner, name)
+            setattr(owner, name, view)
+        f = self.fields
+        self.time = f["time"]
+        self.state = RigidBodyState(
+            f["position"],
+            f["quaternion"],
+            f["velocity"],
+            f["angular_velocity"],
+            f["rotation"],
+            f["body_rates"],
+        )
+        """The true states (zeros until the first reset)."""
+        self.wrench_true = f["loads"]
+        """(N, 6) everything the environment does to each vehicle beyond gravity and its nominal rotors."""
+        self.wind_velocity = f["wind_velocity"]
+        """(N, 3) air velocity at each centre of mass (world frame), after the last step or reset."""
+
+    @property
+    def estimator(self):
+        """The estimator bank the physics step feeds; assigning another (e.g. a recorder wrapping it)
+        makes the compiled step feed that one."""
+        return self._estimator
+
+    @estimator.setter
+    def estimator(self, bank) -> None:
+        self._estimator = bank
+        if self.compiled is not None:
+            self.compiled.bind_estimator()
 
     @staticmethod
     def _backend(cfg: EnvConfig, components: Components) -> str:
@@ -198,11 +260,13 @@ class Fleet:
     def refresh(self, index: np.ndarray) -> None:
         """Read the true states after the vehicles ``index`` were reset (their external wrenches and
         air velocities now, the others' unchanged) and hand the truth to a truth-fed estimator."""
-        self.state = self.world.state()
+        self.state.assign(self.world.state())
         selected = self.state.select(index)
         self.wrench_true[index] = self.external_loads(selected, index)
         self.wind_velocity[index] = self.air_at(selected.position[:, None, :], index)[:, 0]
         self._feed_truth()
+        if self.compiled is not None:
+            self.compiled.rebind()
         self.revision += 1
 
     def equilibrium(self, index: int, position: np.ndarray, yaw: float) -> tuple[np.ndarray, np.ndarray]:
@@ -250,11 +314,11 @@ class Fleet:
         for wind in self.components.winds:
             start, stop = self.noise_columns[id(wind)]
             wind.advance(self.dt, after.position, after.velocity, normals[:, start:stop])
-        self.state = after
-        self.wrench_true = loads
+        self.state.assign(after)
+        self.wrench_true[...] = loads
         if self.world.tool is not None:
             self.world.add_contact_loads(self.wrench_true, self.contact_force, after.position, after.rotation)
-        self.wind_velocity = self.air_at(after.position[:, None, :], slice(None))[:, 0]
+        self.wind_velocity[...] = self.air_at(after.position[:, None, :], slice(None))[:, 0]
         self._feed_truth()
         measured_speeds = self.motor_sensor.measure(self.rotors.speeds)
         nominal = rows_times(measured_speeds * measured_speeds, self._nominal_allocation_t)

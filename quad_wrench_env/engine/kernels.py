@@ -42,7 +42,7 @@ STEP_FIELDS: tuple[tuple[str, int], ...] = (
 """The engine's per-vehicle arrays (widths per vehicle), in the order :func:`step_views` cuts them out
 of one flat buffer of ``n`` vehicles (field ``k`` from ``n·start_k``): one array argument instead of
 twenty-three, as numba's cost per call grows with the number of array arguments (about 35 ns each).
-The autopilot's and the rotors' state (yaw set-point to allocations) are views the components adopt;
+The autopilot's and the rotors' state (yaw set-point to allocations) are views the fleet gives them;
 the components' own states follow at :data:`STEP_WIDTH`."""
 
 STEP_WIDTH = sum(width for _, width in STEP_FIELDS)
