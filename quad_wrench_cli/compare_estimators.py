@@ -137,7 +137,7 @@ def step_metrics(t: np.ndarray, est: np.ndarray, true: np.ndarray, segments: lis
 def fig5(config: dict, out: Path) -> list[str]:
     c = config["fig5"]
     lines = [
-        "## Paper 000 Fig. 5: changing wrench, low and high noise (mean over seeds)",
+        "## McKinnon & Schoellig 2016 Fig. 5: changing wrench, low and high noise (mean over seeds)",
         "",
         "| case | estimator | RMSE force [N] | RMSE torque [N·m] | rise time [s] | sd force [N] | "
         "sd torque [N·m] |",
@@ -182,7 +182,7 @@ def fig5(config: dict, out: Path) -> list[str]:
             true,
             traces,
             out / f"fig5_{case}.png",
-            f"Paper 000 Fig. 5, {case} ({c['vehicle']}, seed {config['seeds'][0]})",
+            f"McKinnon & Schoellig 2016 Fig. 5, {case} ({c['vehicle']}, seed {config['seeds'][0]})",
         )
     return [*lines, "", *ratios]
 
@@ -190,8 +190,8 @@ def fig5(config: dict, out: Path) -> list[str]:
 def fig4_yuksel(config: dict, out: Path) -> list[str]:
     c = config["fig4_yuksel"]
     lines = [
-        "## Paper 001 Fig. 4 profile on yuksel1kg (worst settled error over segments and components, "
-        "relative to the applied value; pass = within 10 %)",
+        "## Yüksel et al. 2014 Fig. 4 profile on yuksel1kg (worst settled error over segments and "
+        "components, relative to the applied value; pass = within 10 %)",
         "",
         "| kf spread | estimator | seed | worst settled error / applied | pass |",
         "|---|---|---|---|---|",
@@ -230,7 +230,7 @@ def fig4_yuksel(config: dict, out: Path) -> list[str]:
                     true,
                     traces,
                     out / "fig4_yuksel.png",
-                    f"Paper 001 Fig. 4 profile (yuksel1kg, kf spread {spread}, seed {seed})",
+                    f"Yüksel et al. 2014 Fig. 4 profile (yuksel1kg, kf spread {spread}, seed {seed})",
                 )
     return lines
 
@@ -247,7 +247,7 @@ def cost(config: dict, out: Path) -> list[str]:
                 estimator_step_seconds(n, c["steps"], backend=backend) for _ in range(c["repeats"])
             )
     lines = [
-        "## Paper 003 Sec. V-C: cost per step on this machine (best of repeats)",
+        "## Hentzen et al. 2019 Sec. V-C: cost per step on this machine (best of repeats)",
         "",
         "| what | " + " | ".join(f"µs per step, {b}" for b in backends) + " |",
         "|---|" + "---|" * len(backends),
@@ -258,7 +258,8 @@ def cost(config: dict, out: Path) -> list[str]:
         for n in config["estimators"]
     ]
     ratios = ", ".join(f"{times['ukf', b] / times['ekf', b]:.2f} ({b})" for b in backends)
-    return [*lines, "", f"UKF/EKF cost ratio: {ratios} (paper 003 measured 2.5 on its flight computer)"]
+    paper = "Hentzen et al. 2019 measured 2.5 on its flight computer"
+    return [*lines, "", f"UKF/EKF cost ratio: {ratios} ({paper})"]
 
 
 def _measurement_noise(sensors: dict) -> dict:

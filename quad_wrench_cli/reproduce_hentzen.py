@@ -239,7 +239,7 @@ def figure8(config: dict, out: Path) -> list[str]:
 PARTS = {"table1": table1, "fig11": fig11, "fig9": fig9, "figure8": figure8}
 
 
-TITLE = "Paper 003 (Hentzen et al. 2019)"
+TITLE = "Hentzen et al. 2019"
 
 
 CONFIG = "reproduce_hentzen.yaml"

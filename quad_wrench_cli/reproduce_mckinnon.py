@@ -240,7 +240,7 @@ def run(args: argparse.Namespace) -> int:
     out.mkdir(parents=True, exist_ok=True)
     env = config.get("env", {})
     lines = [
-        f"# Paper 000 in simulation: config {label}, vehicle {env.get('vehicle')}, "
+        f"# McKinnon & Schoellig 2016 in simulation: config {label}, vehicle {env.get('vehicle')}, "
         f"estimator {env.get('estimator')}, seeds {config['seeds']}",
         "",
     ]

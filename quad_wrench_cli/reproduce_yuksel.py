@@ -267,7 +267,7 @@ def wall(config: dict, out: Path) -> list[str]:
 PARTS = {"fig4": fig4, "fig5": fig5, "fig6": fig6, "wall": wall}
 
 
-TITLE = "Paper 001 (Yüksel et al. 2014)"
+TITLE = "Yüksel et al. 2014"
 
 
 CONFIG = "reproduce_yuksel.yaml"

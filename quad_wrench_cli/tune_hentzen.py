@@ -132,8 +132,9 @@ def run(args: argparse.Namespace) -> int:
     with usage_errors():
         out = Path(config["output"])
         lines = [
-            f"# Tuning of paper 003's controllers ({config['estimator']}, seeds {config['seeds']}, "
-            f"step {config['step']} m, overshoot <= {config['max_overshoot']:.0%})", "",
+            f"# Tuning of Hentzen et al.'s (2019) controllers ({config['estimator']}, "
+            f"seeds {config['seeds']}, step {config['step']} m, "
+            f"overshoot <= {config['max_overshoot']:.0%})", "",
             "| agent | λ (1/s) | rise x (s) | rise z (s) | max overshoot |", "|---|---|---|---|---|",
         ]  # fmt: skip
     out.mkdir(parents=True, exist_ok=True)
