@@ -159,7 +159,10 @@ def fig5(config: dict, out: Path) -> list[str]:
             t = stream.dt * np.arange(1, len(stream.inputs) + 1)
             true = np.array(stream.truth)
             for name in config["estimators"]:
-                params = {**_measurement_noise(settings["sensors"]), **settings["estimator_params"][name]}
+                params = {
+                    **_measurement_noise(settings["sensors"]),
+                    **settings["estimator_params"].get(name, {}),
+                }
                 est = replay(name, c["vehicle"], stream, params)
                 metrics[name].append(step_metrics(t, est, true, c["wrench"]))
                 if seed == config["seeds"][0]:
@@ -211,7 +214,7 @@ def fig4_yuksel(config: dict, out: Path) -> list[str]:
             true = np.array(stream.truth)
             traces = {}
             for name in config["estimators"]:
-                params = {**_measurement_noise(c["sensors"]), **c["estimator_params"][name]}
+                params = {**_measurement_noise(c["sensors"]), **c["estimator_params"].get(name, {})}
                 est = replay(name, c["vehicle"], stream, params)
                 traces[name] = est
                 worst = 0.0
@@ -257,6 +260,8 @@ def cost(config: dict, out: Path) -> list[str]:
         f"| {n} | " + " | ".join(f"{times[n, b] * 1e6:.1f}" for b in backends) + " |"
         for n in config["estimators"]
     ]
+    if not {"ukf", "ekf"} <= set(config["estimators"]):
+        return lines
     ratios = ", ".join(f"{times['ukf', b] / times['ekf', b]:.2f} ({b})" for b in backends)
     paper = "Hentzen et al. 2019 measured 2.5 on its flight computer"
     return [*lines, "", f"UKF/EKF cost ratio: {ratios} ({paper})"]

@@ -32,7 +32,10 @@ from quad_wrench_env.vehicle import PRESETS, Mixer, VehicleParams, make_vehicle
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("log", metavar="LOG", help="a flight log (CSV, see docs/estimators.md)")
     parser.add_argument(
-        "--estimator", choices=ESTIMATORS, default="ukf", help="the estimator to run (default: ukf)"
+        "--estimator",
+        default="ukf",
+        help=f"the estimator to run: {', '.join(ESTIMATORS)}, or a user's registered one as "
+        "package.module:name (default: ukf)",
     )
     parser.add_argument(
         "--vehicle",
@@ -129,7 +132,7 @@ def run(args: argparse.Namespace) -> int:
     wrenches, sd = replay(log, estimator, vehicle)
     out = Path(args.output)
     out.mkdir(parents=True, exist_ok=True)
-    stem = out / f"{Path(args.log).stem}_{args.estimator}"
+    stem = out / f"{Path(args.log).stem}_{args.estimator.replace(':', '_')}"
     write_csv(stem.with_suffix(".csv"), _rows(log.time, wrenches, sd))
     title = f"{args.estimator} on {Path(args.log).name} ({args.vehicle}, {1.0 / log.period:.6g} Hz)"
     _plot(log, wrenches, sd, stem.with_suffix(".png"), title)

@@ -15,6 +15,9 @@ Each entry registers itself where it is defined::
 
 :func:`registered` gives a kind's entries (a live, read-only mapping: ``AGENTS``, ``ESTIMATORS`` and
 ``TASKS`` are such views) and :func:`lookup` one of them, an unknown name refused with the allowed ones.
+Wherever a config or a command names an entry, ``"package.module:name"`` imports that module first (which
+registers its entries) and then takes ``name``: a user's own estimator, wind model, scene part or agent
+enters any config in one line, e.g. ``estimator="my_lab.estimators:quasi_static"``.
 Both first import the package's own modules of that kind (:data:`HOMES`), so the package lists nothing
 twice and never scans for modules. A name taken by another object is refused, naming both.
 """
@@ -95,8 +98,23 @@ def registered(kind: str) -> Mapping[str, Any]:
     return MappingProxyType(_ENTRIES[kind])
 
 
+def resolve(name: Any) -> Any:
+    """``name``, or for ``"package.module:name"`` the part after the colon once that module is imported
+    (its entries registered); a module that does not import is refused, naming it."""
+    if not (isinstance(name, str) and ":" in name):
+        return name
+    module, _, key = name.partition(":")
+    try:
+        importlib.import_module(module)
+    except ImportError as error:
+        raise ValueError(f"{name!r}: module {module!r} does not import ({error})") from None
+    return key
+
+
 def lookup(kind: str, name: str) -> Any:
-    """The entry ``name`` of ``kind``; an unknown name is refused, listing the allowed ones."""
+    """The entry ``name`` of ``kind`` (or ``"module:name"``, :func:`resolve`); an unknown name is
+    refused, listing the allowed ones."""
+    name = resolve(name)
     entries = registered(kind)
     if name not in entries:
         raise ValueError(f"unknown {kind} {name!r}; allowed: {sorted(entries)}")

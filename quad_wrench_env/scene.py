@@ -24,7 +24,7 @@ from typing import Any, Protocol, runtime_checkable
 import numpy as np
 
 from quad_wrench_env.config import build_named
-from quad_wrench_env.registry import register, registered
+from quad_wrench_env.registry import register, registered, resolve
 
 
 @runtime_checkable
@@ -166,6 +166,8 @@ def _ridges(part: Any) -> list[tuple[float, float]]:
 
 def make_scene_part(spec: Mapping[str, Any], position: int = 0) -> ScenePart:
     """A scene part from its config ``{"kind": ..., **fields}``; bad kinds and keys are named."""
+    if isinstance(spec, Mapping) and "kind" in spec:
+        spec = {**spec, "kind": resolve(spec["kind"])}
     return build_named(spec, "kind", registered("scene"), f"scene[{position}]")[1]
 
 

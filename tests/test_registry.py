@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import pickle
 from dataclasses import dataclass
+from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
@@ -18,6 +19,8 @@ from quad_wrench_env.disturbances.base import make_wind, wind_config
 from quad_wrench_env.estimators import ESTIMATORS
 from quad_wrench_env.tasks import TASKS
 from tests.test_open_engine import Crosswind, Hold
+
+EXAMPLES = Path(__file__).resolve().parents[1] / "docs" / "examples"
 
 
 @pytest.fixture
@@ -102,3 +105,30 @@ def test_unknown_names_kinds_and_taken_names_are_refused_clearly(scratch):
         scratch.register("task", "Other/Name-v0", Hold)
     with pytest.raises(ValueError, match=r"wind\[0\]: unknown model 'thermal'; allowed: \['dryden'"):
         wind_config({"model": "thermal"})
+
+
+def test_a_users_estimator_enters_the_comparison_with_one_line_of_config(
+    scratch, tmp_path, monkeypatch, capsys
+):
+    """``"module:name"`` imports the module (which registers its entries): the quasi-static estimator of
+    docs/examples/ joins ``quad-wrench compare estimators``'s table by adding it to ``estimators``."""
+    from quad_wrench_cli.main import main
+
+    monkeypatch.syspath_prepend(str(EXAMPLES))
+    config = tmp_path / "estimators.yaml"
+    config.write_text(
+        "env_id: QuadWrench/FanTracking-v1\n"
+        "estimators: [ukf, ekf, 'quasi_static:quasi_static']\n"
+        f"seeds: [0]\noutput: {tmp_path / 'out'}\ncost: {{steps: 50, repeats: 1}}\n"
+    )
+    assert main(["compare", "estimators", "--config", str(config), "--only", "cost"]) == 0
+    rows = [
+        line.split("|")[1].strip() for line in capsys.readouterr().out.splitlines() if line.startswith("| ")
+    ]
+    assert {"ukf", "ekf", "quasi_static:quasi_static"} <= set(rows)
+    assert "quasi_static" in registry.registered("estimator")
+
+
+def test_a_module_that_does_not_import_is_named(scratch):
+    with pytest.raises(ValueError, match=r"'no_such_module:x': module 'no_such_module' does not import"):
+        registry.lookup("estimator", "no_such_module:x")

@@ -13,7 +13,7 @@ from typing import Any
 
 from quad_wrench_env.agents import admittance, hover, ida_pbc, mpc, pid  # noqa: F401 (they register)
 from quad_wrench_env.agents.base import Policy
-from quad_wrench_env.registry import registered
+from quad_wrench_env.registry import registered, resolve
 
 AGENTS = registered("agent")
 """The classical agents by name (the registry's live, read-only view)."""
@@ -32,8 +32,9 @@ def shipped_agents() -> list[str]:
 def make_agent(name: str, **params: Any) -> Policy:
     """The agent called ``name`` with its parameters (gains) from a config; a shipped learned policy
     or a run folder takes no parameters."""
-    if name in AGENTS:
-        return AGENTS[name](**params)
+    key = resolve(name) if ":" in name and not Path(name).exists() else name
+    if key in AGENTS:
+        return AGENTS[key](**params)
     folder = SHIPPED / name if name in shipped_agents() else Path(name)
     if (folder / "config.yaml").is_file():
         if params:

@@ -42,7 +42,7 @@ import numpy as np
 
 from quad_wrench_env.config import build_named
 from quad_wrench_env.kernels import njit
-from quad_wrench_env.registry import lookup, registered
+from quad_wrench_env.registry import lookup, registered, resolve
 from quad_wrench_env.rotations import cross
 
 
@@ -153,6 +153,8 @@ def resultant(offsets: np.ndarray, forces: np.ndarray) -> tuple[np.ndarray, np.n
 def wind_config(spec: Mapping[str, Any], position: int = 0) -> tuple[str, Any]:
     """The model name and built config of one ``wind`` entry (``{"model": name, **fields}``; the models
     are the registry's ``"wind"`` entries, each with its ``config_class``), bad names and keys named."""
+    if isinstance(spec, Mapping) and "model" in spec:
+        spec = {**spec, "model": resolve(spec["model"])}
     configs = {name: cls.config_class for name, cls in registered("wind").items()}
     return build_named(spec, "model", configs, f"wind[{position}]")
 
