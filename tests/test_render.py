@@ -210,3 +210,55 @@ def test_a_task_says_what_its_frames_show_through_render_marks(make_env, monkeyp
     (pixel,), _ = env.unwrapped._renderer.camera.project(point[None])
     assert "the task's own line" in calls[0]
     assert colour_pixels(image, REFERENCE, pixel) > 40
+
+
+def test_every_visible_wind_field_gives_a_well_formed_outlet(make_env):
+    """The ``Visible`` seam's conformance: each wind field with an outlet (the fan, the fixed jet) gives
+    unit axis and facing directions, a positive radius and spread, from the vehicle's own time and place."""
+    from quad_wrench_env.disturbances.base import Outlet, Visible
+
+    env = make_env(wind=[{"model": "jet", "position": [3, -2, 1], "direction": [0, 2, 0], "speed": 10}])
+    env.reset(seed=0)
+    visible = [w for w in env.unwrapped.fleet.components.winds if isinstance(w, Visible)]
+    assert {type(w).__name__ for w in visible} == {"FanJet", "Jet"}
+    for wind in visible:
+        outlet = wind.outlet(0, 1.0, np.array((2.3, 0.2, 1.0)))
+        assert isinstance(outlet, Outlet) and outlet.radius > 0 and outlet.spread > 0
+        np.testing.assert_allclose([np.linalg.norm(outlet.axis), np.linalg.norm(outlet.facing)], 1.0)
+    jet = next(w for w in visible if type(w).__name__ == "Jet")
+    np.testing.assert_allclose(jet.outlet(0, 0.0, np.zeros(3)).axis, (0.0, 1.0, 0.0))
+
+
+def test_a_users_wind_field_with_an_outlet_is_drawn_without_the_renderer_knowing_it(make_env, monkeypatch):
+    """The renderer draws any ``Visible`` wind field: the thermal of docs/examples/ given an outlet of
+    its own (a vent on the floor; no class the renderer knows) gets its outlet bodies, and an inactive
+    outlet is hidden."""
+    from pathlib import Path
+
+    from quad_wrench_env import registry
+    from quad_wrench_env.disturbances.base import Outlet
+
+    monkeypatch.setitem(registry._ENTRIES, "wind", dict(registry.registered("wind")))
+    monkeypatch.syspath_prepend(str(Path(__file__).resolve().parents[1] / "docs" / "examples"))
+    from thermal import Thermal
+
+    @registry.register("wind", "vent")
+    class Vent(Thermal):
+        active = True
+
+        def outlet(self, vehicle, time, position):
+            x0, y0 = self.config.center
+            up = np.array((0.0, 0.0, 1.0))
+            return Outlet(np.array((x0, y0, 0.0)), up, up, self.config.radius, 0.1, self.active)
+
+    env = make_env(fan={"enabled": False}, wind=[{"model": "vent"}], render_mode="rgb_array")
+    env.reset(seed=0)
+    before = bodies(env)
+    env.render()
+    renderer = env.unwrapped._renderer
+    vent = env.unwrapped.fleet.components.winds[-1]
+    assert isinstance(vent, Vent) and renderer.sources == [vent]
+    assert len(renderer._drawn) == 1 and bodies(env) > before + 1
+    assert renderer._active() == [True]
+    vent.active = False
+    assert renderer._active() == [False]

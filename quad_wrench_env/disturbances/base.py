@@ -150,6 +150,36 @@ def resultant(offsets: np.ndarray, forces: np.ndarray) -> tuple[np.ndarray, np.n
     return forces.sum(axis=-2), cross(offsets, forces).sum(axis=-2)
 
 
+@dataclass(frozen=True)
+class Outlet:
+    """A wind field's visible source (a fan's or a jet's outlet) as one vehicle sees it now: what the
+    renderer draws, for any wind field that has one (:class:`Visible`)."""
+
+    origin: np.ndarray
+    """(3,) centre of the outlet (m, world frame)."""
+    axis: np.ndarray
+    """(3,) unit direction of the jet's axis as seen from the vehicle now."""
+    facing: np.ndarray
+    """(3,) unit direction the outlet faces (a moving fan's stays along +x whatever its axis does)."""
+    radius: float
+    """m: the outlet's radius."""
+    spread: float
+    """The jet's spreading rate (half-width growth per metre)."""
+    active: bool = True
+    """Whether it blows in the vehicle's episode."""
+    moving: bool = False
+    """Whether it moves (the camera keeps it in view first)."""
+
+
+@runtime_checkable
+class Visible(Protocol):
+    """A wind field with a source to draw."""
+
+    def outlet(self, vehicle: int, time: float, position: np.ndarray) -> Outlet | None:
+        """Its outlet as vehicle ``vehicle`` at ``position`` (3,) sees it at its ``time``; None when
+        there is none (e.g. a switched-off fan)."""
+
+
 def wind_config(spec: Mapping[str, Any], position: int = 0) -> tuple[str, Any]:
     """The model name and built config of one ``wind`` entry (``{"model": name, **fields}``; the models
     are the registry's ``"wind"`` entries, each with its ``config_class``), bad names and keys named."""

@@ -23,7 +23,7 @@ from typing import Protocol
 import numpy as np
 
 from quad_wrench_env.config import check_numbers
-from quad_wrench_env.disturbances.base import CompiledForm
+from quad_wrench_env.disturbances.base import CompiledForm, Outlet
 from quad_wrench_env.disturbances.jet_kernels import jet_axis_y
 from quad_wrench_env.kernels import resolve_backend
 
@@ -326,6 +326,21 @@ class FanJet:
         if self._compiled and t.shape == (self.count,) and index == slice(None):
             return jet_axis_y(np.zeros(self.count), t, self.motion_tables, self._kernel)
         return self._y(t, index)
+
+    def outlet(self, vehicle: int, time: float, position: np.ndarray) -> Outlet | None:
+        """The fan's outlet at its y now, its axis aimed at the retarded jet axis at the vehicle's
+        distance (the :class:`~quad_wrench_env.disturbances.base.Visible` seam); None when switched off."""
+        c = self.config
+        if not c.enabled:
+            return None
+        t, index = np.array((time,)), slice(vehicle, vehicle + 1)
+        origin = np.array((0.0, float(self.fan_y(t, index)[0]), c.height))
+        x = max(float(position[0]), 0.1)
+        axis = np.array((x, float(self.axis_y(np.array((x,)), t, index)[0]) - origin[1], 0.0))
+        facing = np.array((1.0, 0.0, 0.0))
+        return Outlet(
+            origin, axis / np.linalg.norm(axis), facing, 0.5 * c.outlet_diameter, c.spread, moving=True
+        )
 
     def advance(self, dt: float, position: np.ndarray, velocity: np.ndarray, normals: np.ndarray) -> None:
         if self.config.turbulence_intensity == 0.0 or not self.config.enabled:

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from quad_wrench_env.config import check_numbers
-from quad_wrench_env.disturbances.base import STILL, CompiledForm
+from quad_wrench_env.disturbances.base import STILL, CompiledForm, Outlet
 from quad_wrench_env.disturbances.fan import advance_turbulence, centreline_speed, half_width
 from quad_wrench_env.registry import register
 
@@ -96,6 +96,13 @@ class Jet:
         self.origin = np.array(config.position, dtype=float)
         self.direction = np.array(config.direction, dtype=float) / math.hypot(*config.direction)
         self._radius2 = (0.5 * config.diameter) ** 2
+
+    def outlet(self, vehicle: int, time: float, position: np.ndarray) -> Outlet:
+        """The fixed outlet along its direction (the :class:`~quad_wrench_env.disturbances.base.Visible`
+        seam), active while the vehicle's ``speed_scale`` is above 0."""
+        c = self.config
+        active = float(self.speed_scale[vehicle, 0]) > 0.0
+        return Outlet(self.origin, self.direction, self.direction, 0.5 * c.diameter, c.spread, active)
 
     def kernel_parameters(self) -> np.ndarray:
         """On, U0, core length ``D/(2c)``, outlet radius, spread, origin (3), direction (3), turbulence

@@ -39,8 +39,7 @@ from typing import Any
 import numpy as np
 import pybullet as p
 
-from quad_wrench_env.disturbances.fan import FanJet
-from quad_wrench_env.disturbances.jet import Jet
+from quad_wrench_env.disturbances.base import Outlet, Visible
 from quad_wrench_env.envs.base import QuadWrenchEnv, info_entries
 from quad_wrench_env.envs.overlay import (
     JET_COLOUR,
@@ -171,10 +170,12 @@ class SceneRenderer:
         winds = env.fleet.components.winds
         self.windy = bool(winds)
         """Whether the env has winds (whose air at the vehicle is drawn)."""
-        self.fans = [w for w in winds if isinstance(w, FanJet) and w.config.enabled]
-        self.jets = [w for w in winds if isinstance(w, Jet)]
-        self._outward = [np.array((1.0, 0.0, 0.0))] * len(self.fans) + [j.direction for j in self.jets]
-        """Each outlet's direction (a fan's, along +x, whatever its axis does)."""
+        self.sources = [w for w in winds if isinstance(w, Visible)]
+        """The wind fields with an outlet to draw (the ``Visible`` seam), moving ones first after a build."""
+        self._outward: list[np.ndarray] = []
+        """Each drawn outlet's facing direction (a moving fan's along +x, whatever its axis does)."""
+        self._moving = 0
+        """How many of the drawn outlets move (they come first)."""
         self._vehicle = -1
         self._drawn: list[tuple[int, int, list[tuple]]] = []
         """Each jet's outlet body, axis body and the outlet's shape colours."""
@@ -196,6 +197,11 @@ class SceneRenderer:
         cid = self.env.world.client
         self._recolour_world()
         self._vehicle = _body(cid, _vehicle_shapes(self.env))
+        drawn = [(source, self._outlet_of(source)) for source in self.sources]
+        drawn = sorted(((s, o) for s, o in drawn if o is not None), key=lambda pair: not pair[1].moving)
+        self.sources = [source for source, _ in drawn]
+        self._outward = [outlet.facing for _, outlet in drawn]
+        self._moving = sum(outlet.moving for _, outlet in drawn)
         for jet, outward in zip(self._jet_shapes(), self._outward, strict=True):
             outlet = _outlet_shapes(jet.radius, outward, float(jet.origin[2]))
             rod = (0.012 * jet.radius, JET_LENGTH)
@@ -215,29 +221,22 @@ class SceneRenderer:
             look = _HIDDEN if body in world.bodies or body == world.plane else SURFACE
             p.changeVisualShape(body, -1, rgbaColor=look, physicsClientId=world.client)
 
-    def _jet_shapes(self) -> list[JetShape]:
-        """Each fan's and fixed jet's envelope now (a fan's axis aimed at its retarded axis at the
-        vehicle's distance)."""
+    def _outlet_of(self, source: Visible) -> Outlet | None:
         env = self.env
-        time, position = env.fleet.time[:1], env.world.state().position[0]
-        shapes = []
-        for fan in self.fans:
-            c = fan.config
-            origin = np.array((0.0, float(fan.fan_y(time, slice(0, 1))[0]), c.height))
-            x = max(float(position[0]), 0.1)
-            axis_y = float(fan.axis_y(np.array((x,)), time, slice(0, 1))[0])
-            axis = np.array((x, axis_y - origin[1], 0.0))
-            shapes.append(
-                JetShape(origin, axis / np.linalg.norm(axis), 0.5 * c.outlet_diameter, c.spread, JET_LENGTH)
-            )
-        for jet in self.jets:
-            c = jet.config
-            shapes.append(JetShape(jet.origin, jet.direction, 0.5 * c.diameter, c.spread, JET_LENGTH))
-        return shapes
+        return source.outlet(0, float(env.fleet.time[0]), env.world.state().position[0])
+
+    def _outlets_now(self) -> list[Outlet]:
+        """The drawn sources' outlets now, moving ones first."""
+        return [self._outlet_of(source) for source in self.sources]
+
+    def _jet_shapes(self) -> list[JetShape]:
+        """Each drawn outlet's jet envelope now (a moving fan's axis aimed at its retarded axis at the
+        vehicle's distance)."""
+        return [JetShape(o.origin, o.axis, o.radius, o.spread, JET_LENGTH) for o in self._outlets_now()]
 
     def _active(self) -> list[bool]:
-        """Which jets blow for the vehicle (fans, then fixed jets)."""
-        return [True] * len(self.fans) + [float(j.speed_scale[0, 0]) > 0.0 for j in self.jets]
+        """Which jets blow for the vehicle, in drawing order."""
+        return [o.active for o in self._outlets_now()]
 
     def _show_jets(self) -> None:
         """Show the jets that blow in this episode, hide the others."""
@@ -260,8 +259,8 @@ class SceneRenderer:
         nearest surface within reach, else nothing), and how to look at it: the horizontal direction to
         the camera's side, the turn from it and the elevation (degrees)."""
         active = [jet for jet, on in zip(jets, self._active(), strict=True) if on]
-        if self.fans:
-            return jets[0].origin, (np.array((1.0, 0.0)), 40.0, 30.0)
+        if self._moving:
+            return jets[0].origin, (self._outward[0][:2], 40.0, 30.0)
         if active and np.hypot(*active[0].axis[:2]) > 1e-3:
             return active[0].origin, (active[0].axis[:2] / np.hypot(*active[0].axis[:2]), 60.0, 25.0)
         default = (np.array((0.0, -1.0)), 20.0, 20.0)
@@ -332,7 +331,7 @@ class SceneRenderer:
             physicsClientId=cid,
         )
         jets = self._jet_shapes()
-        for index in range(len(self.fans)):
+        for index in range(self._moving):
             self._place(index, jets[index])
         camera = self.camera = self._camera(position, jets)
         if env.render_mode == "human":
