@@ -6,6 +6,9 @@ Each entry registers itself where it is defined::
     @register("wind", "thermal")         # a wind field class with a ``config_class``:
     class Thermal: ...                   #   gym.make(id, wind=[{"model": "thermal", "speed": 2.0}])
 
+    @register("load", "tether")          # a point load class with a ``config_class``:
+    class Tether: ...                    #   gym.make(id, loads=[{"load": "tether", "length": 0.8}])
+
     @register("scene", "ramp")           # a scene-part dataclass: scene=[{"kind": "ramp", ...}]
     @register("agent", "compliant_hold") # a policy class: make_agent("compliant_hold", k=1.0)
     @register("task")                    # a task class, under its ``env_id``, which is then a Gymnasium
@@ -37,12 +40,14 @@ HOMES: dict[str, tuple[str, ...]] = {
         "quad_wrench_env.disturbances.one_cosine",
         "quad_wrench_env.disturbances.jet",
     ),
+    "load": (),
     "scene": ("quad_wrench_env.scene",),
     "estimator": ("quad_wrench_env.estimators",),
     "task": ("quad_wrench_env.tasks",),
     "agent": ("quad_wrench_env.agents",),
 }
-"""Each kind and the package's modules that register its entries."""
+"""Each kind and the package's modules that register its entries (the package names no point load
+(``"load"``): its payload and scheduled wrench have keys of their own)."""
 
 _ENTRIES: dict[str, dict[str, Any]] = {kind: {} for kind in HOMES}
 _NO_VALUE = object()

@@ -20,7 +20,7 @@ SCRIPTS = [name for name in FILES if name.endswith("_run.py")]
 
 
 def test_every_kind_has_an_example_and_a_script():
-    assert {"quasi_static.py", "thermal.py", "hover_task.py", "compliant_hold.py"} <= set(FILES)
+    assert {"quasi_static.py", "thermal.py", "tether.py", "hover_task.py", "compliant_hold.py"} <= set(FILES)
     assert {name.removesuffix("_run.py") + ".py" for name in SCRIPTS} <= set(FILES)
 
 

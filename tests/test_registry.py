@@ -35,6 +35,7 @@ def scratch(monkeypatch):
 def test_every_kind_holds_the_packages_entries():
     expected = {
         "wind": {"dryden", "jet", "one_cosine"},
+        "load": set(),  # the payload and the scheduled wrench have keys of their own
         "scene": {"table", "wall", "ceiling"},
         "estimator": {"ukf", "ekf", "observer", "oracle"},
         "task": {
@@ -96,7 +97,7 @@ def test_a_task_registered_outside_gets_its_id_entry_points_and_harness(scratch)
 def test_unknown_names_kinds_and_taken_names_are_refused_clearly(scratch):
     with pytest.raises(ValueError, match=r"unknown agent 'nope'; allowed: \['admittance', 'hold'"):
         registry.lookup("agent", "nope")
-    with pytest.raises(ValueError, match=r"unknown registry kind 'planet'; allowed: \['wind'"):
+    with pytest.raises(ValueError, match=r"unknown registry kind 'planet'; allowed: \['wind', 'load'"):
         registry.register("planet", "earth", object())
     taken = r"agent 'pid' is already registered as quad_wrench_env\.agents\.pid"
     with pytest.raises(ValueError, match=taken):

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 
@@ -49,19 +51,25 @@ def test_motor_speeds_are_quantized_to_8_bits():
     assert np.abs(levels - np.linspace(0.0, 550.0, 10001)).max() <= 550.0 / 255 / 2 + 1e-12
 
 
+def _at_rest(rotation: np.ndarray) -> SimpleNamespace:
+    """Bodies at rest at the origin with attitudes ``rotation`` (n, 3, 3), as a point load reads them."""
+    zeros = np.zeros((len(rotation), 3))
+    return SimpleNamespace(position=zeros, velocity=zeros, angular_velocity=zeros, rotation=rotation)
+
+
 def test_payload_under_a_rotor_gives_paper_000s_torque():
     payload = Payload(PayloadConfig(mass=0.053, point=(0.129, 0.129, 0.0), attach_time=7.0, release_time=9.0))
     times = np.array((6.9, 7.0, 9.0))
-    offsets, forces = payload.point_load(times, np.tile(np.eye(3), (3, 1, 1)))
+    offsets, forces = payload.point_load(times, _at_rest(np.tile(np.eye(3), (3, 1, 1))))
     np.testing.assert_array_equal(forces[[0, 2]], 0.0)  # before attaching and after the release
     offset, force = offsets[1, 0], forces[1, 0]
     torque = np.cross(offset, force)
     assert force[2] == pytest.approx(-0.053 * GRAVITY)
     np.testing.assert_allclose(np.abs(torque[:2]), 0.053 * GRAVITY * 0.129)  # 0.067 N·m, Sec. III
     tilted = rotation_matrix(quat_from_euler_zyx(0.0, 0.0, np.pi / 2))
-    offsets, _ = payload.point_load(np.array((8.0,)), tilted[None])
+    offsets, _ = payload.point_load(np.array((8.0,)), _at_rest(tilted[None]))
     np.testing.assert_allclose(offsets[0, 0], tilted @ (0.129, 0.129, 0.0))
-    assert Payload(PayloadConfig()).point_load(times, np.tile(np.eye(3), (3, 1, 1))) is None
+    assert Payload(PayloadConfig()).point_load(times, _at_rest(np.tile(np.eye(3), (3, 1, 1)))) is None
 
 
 def test_bad_sensor_and_payload_settings_are_named():
@@ -80,10 +88,10 @@ def test_wrench_profile_applies_its_wrench_through_point_forces():
         [[5, 10, 1, 0, 0, 0, 0, 0], [25, 30, 0, 0, 0, 1, 0, 0], [8, 9, 0, 0, -1, 0, 0.2, 0.3]]
     )
     times = np.array((4.9, 6.0, 8.5, 26.0))
-    offsets, forces = profile.point_load(times, np.tile(np.eye(3), (4, 1, 1)))
+    offsets, forces = profile.point_load(times, _at_rest(np.tile(np.eye(3), (4, 1, 1))))
     force, torque = resultant(offsets, forces)
     expected = ((0, 0, 0, 0, 0, 0), (1, 0, 0, 0, 0, 0), (1, 0, -1, 0, 0.2, 0.3), (0, 0, 0, 1, 0, 0))
     np.testing.assert_allclose(np.concatenate((force, torque), axis=1), expected, atol=1e-12)
-    assert WrenchProfile([]).point_load(times, np.tile(np.eye(3), (4, 1, 1))) is None
+    assert WrenchProfile([]).point_load(times, _at_rest(np.tile(np.eye(3), (4, 1, 1)))) is None
     with pytest.raises(ValueError, match="segment"):
         WrenchProfile([[3, 1, 0, 0, 0, 0, 0, 0]])

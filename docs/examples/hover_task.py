@@ -31,7 +31,8 @@ class BodyPush:
     def kernel_parameters(self) -> np.ndarray:
         return self.offset.copy()
 
-    def point_load(self, t, rotation, index=slice(None)):
+    def point_load(self, t, body, index=slice(None)):
+        rotation = body.rotation
         forces = np.reshape(self.force_body[index], (-1, 3))
         world_offsets = np.einsum("nij,j->ni", rotation, self.offset)
         world_forces = np.einsum("nij,nj->ni", rotation, forces)
@@ -39,7 +40,7 @@ class BodyPush:
 
 
 @njit
-def body_push_load(params, force_body, state, time, rotation, out):
+def body_push_load(params, force_body, state, time, position, velocity, angular_velocity, rotation, out):
     """``BodyPush.point_load``'s resultant about the centre of mass added to ``out`` (N, 6)."""
     for n in range(time.shape[0]):
         r, f = np.zeros(3), np.zeros(3)

@@ -25,8 +25,9 @@ wind ``velocity``      ``points`` (N, P, 3) world points, ``time`` (N,), ``out``
                        the air velocity at each point to ``out``
 wind ``advance``       ``position`` (N, 3), ``velocity`` (N, 3), ``dt``, ``normals`` (N, width): one
                        physics step of the field's random processes on its own standard normal draws
-point load ``load``    ``time`` (N,), ``rotation`` (N, 3, 3), ``out`` (N, 6): adds ``[F, τ]`` about
-                       the centre of mass (world frame)
+point load ``load``    ``time`` (N,), the vehicles' rigid-body state: ``position``, ``velocity``,
+                       ``angular_velocity`` (N, 3, world frame) and ``rotation`` (N, 3, 3); ``out``
+                       (N, 6): adds ``[F, τ]`` about the centre of mass (world frame)
 rotor ``thrust``       ``hubs`` (N, 4, 3) world hub positions, ``rotation`` (N, 3, 3), ``thrusts``
                        (N, 4) true rotor thrusts (N), ``out`` (N, 4): adds thrust to each rotor
 =====================  ===========================================================================
@@ -98,16 +99,26 @@ class WindField(Component, Protocol):
         ``index`` at their times ``t`` (n,) (s); ``mean=True`` leaves out the turbulent part."""
 
 
+class BodyState(Protocol):
+    """The vehicles' rigid-body state a point load reads (the engine's ``RigidBodyState``), world frame,
+    each with a leading vehicle axis."""
+
+    position: np.ndarray
+    velocity: np.ndarray
+    angular_velocity: np.ndarray
+    rotation: np.ndarray
+
+
 @runtime_checkable
 class PointLoad(Component, Protocol):
     """Forces at body points besides the air's (a hung payload, a scheduled wrench)."""
 
     def point_load(
-        self, t: np.ndarray, rotation: np.ndarray, index: np.ndarray | slice = slice(None)
+        self, t: np.ndarray, body: BodyState, index: np.ndarray | slice = slice(None)
     ) -> tuple[np.ndarray, np.ndarray] | None:
         """``(offsets (n, K, 3) from the centres of mass, forces (n, K, 3))``, world frame, for the n
-        vehicles ``index`` at times ``t`` (n,) with attitudes ``rotation`` (n, 3, 3); None when it
-        never acts."""
+        vehicles ``index`` at times ``t`` (n,) in the rigid-body states ``body`` (n: position, velocity,
+        angular velocity, rotation, ...); None when it never acts."""
 
 
 @runtime_checkable
@@ -193,3 +204,18 @@ def make_wind(spec: Mapping[str, Any], count: int, position: int = 0) -> WindFie
     """The wind field of one ``wind`` entry for ``count`` vehicles."""
     name, config = wind_config(spec, position)
     return lookup("wind", name)(config, count)
+
+
+def load_config(spec: Mapping[str, Any], position: int = 0) -> tuple[str, Any]:
+    """The name and built config of one ``loads`` entry (``{"load": name, **fields}``; the registry's
+    ``"load"`` entries, each with its ``config_class``), bad names and keys named."""
+    if isinstance(spec, Mapping) and "load" in spec:
+        spec = {**spec, "load": resolve(spec["load"])}
+    configs = {name: cls.config_class for name, cls in registered("load").items()}
+    return build_named(spec, "load", configs, f"loads[{position}]")
+
+
+def make_load(spec: Mapping[str, Any], count: int, position: int = 0) -> PointLoad:
+    """The point load of one ``loads`` entry for ``count`` vehicles."""
+    name, config = load_config(spec, position)
+    return lookup("load", name)(config, count)

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from quad_wrench_env.disturbances.base import CompiledForm
+from quad_wrench_env.disturbances.base import BodyState, CompiledForm
 from quad_wrench_env.kernels import njit
 from quad_wrench_env.vehicle import GRAVITY
 
@@ -63,20 +63,20 @@ class Payload:
         return (c.mass > 0) & (c.attach_time <= t) & (t < c.release_time)
 
     def point_load(
-        self, t: np.ndarray, rotation: np.ndarray, index: np.ndarray | slice = slice(None)
+        self, t: np.ndarray, body: BodyState, index: np.ndarray | slice = slice(None)
     ) -> tuple[np.ndarray, np.ndarray] | None:
         """``(offsets (n, 1, 3) from the centres of mass, forces (n, 1, 3))``, world frame, for n
-        vehicles at times ``t`` (n,) with attitudes ``rotation`` (n, 3, 3) (zero force while the mass
-        does not hang), or None without a payload."""
+        vehicles at times ``t`` (n,) with attitudes ``body.rotation`` (n, 3, 3) (zero force while the
+        mass does not hang), or None without a payload."""
         if self.config.mass <= 0:
             return None
-        offsets = rotation @ self._point
+        offsets = body.rotation @ self._point
         forces = self.attached(t)[:, None] * self._weight
         return offsets[:, None, :], forces[:, None, :]
 
 
 @njit
-def payload_load(payload, table, state, time, rotation, out):
+def payload_load(payload, table, state, time, position, velocity, angular_velocity, rotation, out):
     """``Payload.point_load``'s resultant added to ``out`` (N, 6), numbers as
     ``Payload.kernel_parameters``."""
     if payload[0] <= 0.0:

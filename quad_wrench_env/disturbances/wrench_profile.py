@@ -13,7 +13,7 @@ import math
 
 import numpy as np
 
-from quad_wrench_env.disturbances.base import CompiledForm
+from quad_wrench_env.disturbances.base import BodyState, CompiledForm
 from quad_wrench_env.kernels import njit
 from quad_wrench_env.rotations import cross, rows_times
 
@@ -61,7 +61,7 @@ class WrenchProfile:
         return rows_times(active.astype(float), self.segments[:, 2:])
 
     def point_load(
-        self, t: np.ndarray, rotation: np.ndarray, index: np.ndarray | slice = slice(None)
+        self, t: np.ndarray, body: BodyState, index: np.ndarray | slice = slice(None)
     ) -> tuple[np.ndarray, np.ndarray] | None:
         """(offsets, forces), each (n, 3, 3), of the force at the centre of mass and the torque couple
         for n vehicles at times ``t`` (n,), or None without segments."""
@@ -81,7 +81,7 @@ class WrenchProfile:
 
 
 @njit
-def profile_load(segments, table, state, time, rotation, out):
+def profile_load(segments, table, state, time, position, velocity, angular_velocity, rotation, out):
     """``WrenchProfile.point_load``'s resultant added to ``out`` (N, 6): the sum of the segments acting
     at each vehicle's time (``segments``: (K, 8) flattened)."""
     count = segments.shape[0] // 8

@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
-from quad_wrench_env.disturbances.base import PointLoad, RotorModifier, WindField, make_wind
+from quad_wrench_env.disturbances.base import PointLoad, RotorModifier, WindField, make_load, make_wind
 from quad_wrench_env.disturbances.ground_effect import GroundEffect
 from quad_wrench_env.disturbances.payload import Payload
 from quad_wrench_env.disturbances.wrench_profile import WrenchProfile
@@ -41,7 +41,7 @@ class Components:
 def assemble(cfg: EnvConfig, vehicle: VehicleParams, count: int, task: Components) -> Components:
     """The task's components followed by those every env takes from its config: ``scene`` parts,
     ``wind`` fields, ``ground_effect`` (over the ground and every horizontal top of the scene, the
-    task's included), ``payload`` and ``external_wrench`` (each only when it acts)."""
+    task's included), ``payload`` and ``external_wrench`` (each only when it acts), then ``loads``."""
     scene = task.scene + [make_scene_part(spec, i) for i, spec in enumerate(cfg.scene)]
     winds = task.winds + [make_wind(spec, count, i) for i, spec in enumerate(cfg.wind)]
     rotors = list(task.rotors)
@@ -52,4 +52,5 @@ def assemble(cfg: EnvConfig, vehicle: VehicleParams, count: int, task: Component
         loads.append(Payload(cfg.payload))
     if cfg.external_wrench:
         loads.append(WrenchProfile(cfg.external_wrench))
+    loads += [make_load(spec, count, i) for i, spec in enumerate(cfg.loads)]
     return Components(winds, rotors, loads, scene)

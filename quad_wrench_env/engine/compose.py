@@ -113,7 +113,9 @@ def source(slots: list[Slot], state_start: int, points: int, noise_width: int) -
         elif slot.kind == "rotor":
             rotors.append(f"    c{k}_thrust({head}, hubs, rotation, thrusts, added)")
         else:
-            loads.append(f"    c{k}_load({head}, time, rotation, loads)")
+            loads.append(
+                f"    c{k}_load({head}, time, position, velocity, angular_velocity, rotation, loads)"
+            )
     offsets_at, points_at, air_at = start, start + 3 * points, start + 6 * points
     normals_at = start + 9 * points
     thrusts_at, added_at = normals_at + noise_width, normals_at + noise_width + 4
@@ -127,6 +129,11 @@ def source(slots: list[Slot], state_start: int, points: int, noise_width: int) -
         "    hubs = points[:, :4]",
         *rotors,
         "    _engine.added_thrust_loads(buffer, offsets, added)",
+    ]
+    body_block = [
+        f"    position = rows(buffer, {field['position']}, n, 3)",
+        f"    velocity = rows(buffer, {field['velocity']}, n, 3)",
+        f"    angular_velocity = rows(buffer, {field['angular_velocity']}, n, 3)",
     ]
     time = f"buffer[{field['time']} * n : {field['time'] + 1} * n]"
     lines = [
@@ -155,6 +162,7 @@ def source(slots: list[Slot], state_start: int, points: int, noise_width: int) -
         *winds,
         "    _engine.drag_loads(buffer, constants, offsets, air)",
         *(rotor_block if rotors else []),
+        *(body_block if loads else []),
         *loads,
         "    _engine.apply_loads(buffer, n)",
         "",

@@ -7,7 +7,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from quad_wrench_env.config import check_numbers
-from quad_wrench_env.disturbances.base import wind_config
+from quad_wrench_env.disturbances.base import load_config, wind_config
 from quad_wrench_env.disturbances.payload import PayloadConfig
 from quad_wrench_env.disturbances.wrench_profile import validate_segments
 from quad_wrench_env.engine.actions import ActionLimits
@@ -85,6 +85,10 @@ class EnvConfig:
     """Extra wind fields, each ``{"model": name, **settings}``: ``dryden`` (``w20``, ``altitude``,
     ``mean``), ``one_cosine`` (``peak``, ``start``, ``duration``, ``hold``), ``jet`` (``position``,
     ``direction``, ``speed``, ``diameter``, ``spread``); see :mod:`quad_wrench_env.disturbances`."""
+    loads: list[dict[str, Any]] = field(default_factory=list)
+    """Extra point loads, each ``{"load": name, **settings}``, of the registry's ``"load"`` kind (a
+    user's own, e.g. ``{"load": "my_lab.loads:tether"}``); the package's payload and scheduled wrench
+    have keys of their own."""
     ground_effect: bool = False
     """Cheeseman-Bennett ground effect on each rotor over the ground and the scene's tops."""
     scene: list[dict[str, Any]] = field(default_factory=list)
@@ -120,6 +124,8 @@ class EnvConfig:
         validate_segments(self.external_wrench)
         for position, spec in enumerate(self.wind):
             wind_config(spec, position)
+        for position, spec in enumerate(self.loads):
+            load_config(spec, position)
         for position, spec in enumerate(self.scene):
             make_scene_part(spec, position)
         resolve_backend(self.backend)

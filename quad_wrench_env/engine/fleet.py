@@ -357,7 +357,7 @@ class Fleet:
             offsets = np.concatenate((offsets, hubs), axis=1)
             forces = np.concatenate((forces, added[:, :, None] * rotation[:, None, :, 2]), axis=1)
         for load in self.components.loads:
-            extra = load.point_load(self.time[index], rotation, index)
+            extra = load.point_load(self.time[index], state, index)
             if extra is not None:
                 offsets = np.concatenate((offsets, extra[0]), axis=1)
                 forces = np.concatenate((forces, extra[1]), axis=1)

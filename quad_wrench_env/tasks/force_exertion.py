@@ -54,7 +54,7 @@ from typing import TYPE_CHECKING, Any, ClassVar
 import numpy as np
 
 from quad_wrench_env.config import check_numbers
-from quad_wrench_env.disturbances.base import CompiledForm
+from quad_wrench_env.disturbances.base import BodyState, CompiledForm
 from quad_wrench_env.engine.components import Components
 from quad_wrench_env.engine.config import EnvConfig, ToolConfig
 from quad_wrench_env.kernels import njit
@@ -293,14 +293,14 @@ class ConstantPush:
         return np.zeros(1)
 
     def point_load(
-        self, t: np.ndarray, rotation: np.ndarray, index: np.ndarray | slice = slice(None)
+        self, t: np.ndarray, body: BodyState, index: np.ndarray | slice = slice(None)
     ) -> tuple[np.ndarray, np.ndarray] | None:
         forces = np.reshape(self.force[index], (-1, 3))
         return np.zeros((forces.shape[0], 1, 3)), forces[:, None, :].copy()
 
 
 @njit
-def push_load(params, force, state, time, rotation, out):
+def push_load(params, force, state, time, position, velocity, angular_velocity, rotation, out):
     """``ConstantPush.point_load``'s resultant added to ``out`` (N, 6)."""
     for n in range(time.shape[0]):
         for i in range(3):
