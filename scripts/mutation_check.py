@@ -234,8 +234,8 @@ MUTATIONS = (
             ),
             (
                 FAN,
-                "self.noise + np.sqrt(1.0 - decay * decay)[:, None] * normals",
-                "self.noise + normals",
+                "noise[:] = decay[:, None] * noise + np.sqrt(1.0 - decay * decay)[:, None] * normals",
+                "noise[:] = decay[:, None] * noise + normals",
             ),
         ),
         ("tests/test_fan.py",),
@@ -492,8 +492,8 @@ MUTATIONS = (
         (
             (
                 "quad_wrench_env/disturbances/payload.py",
-                "        offsets = rotation @ self._point",
-                "        offsets = 0.0 * (rotation @ self._point)",
+                "        offsets = body.rotation @ self._point",
+                "        offsets = 0.0 * (body.rotation @ self._point)",
             ),
             (
                 "quad_wrench_env/disturbances/payload.py",
