@@ -11,9 +11,9 @@ case by case. Exit code 1 and the differing cases when any differ.
 
 The cases, through public names only (so that both revisions run them): every registered task x
 vehicle preset x estimator, a single env and a 3-vehicle vector env (seeded random actions, autoreset,
-60 control steps each); every action type on each task; each task on the numpy backend; the
-classical agents and the shipped learned policies through the harness (one held-out seed). Not part
-of CI: it takes minutes.
+60 control steps each); every action type on each task; each task on the numpy backend, and with
+every configurable disturbance at once on both backends; the classical agents and the shipped
+learned policies through the harness (one held-out seed). Not part of CI: it takes minutes.
 """
 
 from __future__ import annotations
@@ -30,6 +30,17 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 STEPS = 60
 SEED = 7
+EVERYTHING = {  # every configurable disturbance at once, acting within the 60 steps
+    "wind": [
+        {"model": "dryden", "w20": 2.0, "altitude": 1.0, "mean": [0.5, 0.0, 0.0]},
+        {"model": "one_cosine", "peak": [0.0, 2.0, 0.0], "start": 0.2, "duration": 0.5},
+        {"model": "jet", "position": [3.0, -2.0, 1.0], "direction": [0.0, 1.0, 0.0], "speed": 6.0},
+    ],
+    "ground_effect": True,
+    "scene": [{"kind": "table", "center": [2.3, 0.0], "size": [1.0, 1.0], "height": 0.6}],
+    "payload": {"mass": 0.05, "point": [0.1, 0.1, 0.0], "attach_time": 0.1, "release_time": 0.8},
+    "external_wrench": [[0.3, 0.9, 0.2, 0.0, -0.1, 0.0, 0.01, 0.0]],
+}
 AGENTS = {  # the classical agents, each on its task and action type
     "QuadWrench/FanTracking-v1": [("hold", {}, "velocity"), ("admittance", {}, "velocity")],
     "QuadWrench/DisturbanceRejection-v0": [
@@ -120,6 +131,13 @@ def dump(path: Path) -> None:
             hashes[f"single {env_id} action {action_type}"] = _fly_single(env_id, action_type=action_type)
         hashes[f"single {env_id} numpy backend"] = _fly_single(env_id, backend="numpy")
         hashes[f"vector {env_id} numpy backend"] = _fly_vector(env_id, backend="numpy")
+        for backend in ("numpy", "numba"):
+            hashes[f"single {env_id} every disturbance {backend}"] = _fly_single(
+                env_id, backend=backend, **EVERYTHING
+            )
+            hashes[f"vector {env_id} every disturbance {backend}"] = _fly_vector(
+                env_id, backend=backend, **EVERYTHING
+            )
         for name, params, action_type in agents:
             result = evaluate(make_agent(name, **params), env_id, [2000], action_type=action_type)
             hashes[f"agent {env_id} {name}"] = scored(result)
