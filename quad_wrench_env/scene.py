@@ -26,10 +26,16 @@ import numpy as np
 from quad_wrench_env.config import build_named
 from quad_wrench_env.registry import register, registered, resolve
 
+TOUCHES = ("crash", "report")
+"""What a vehicle touching a scene part means: ``crash`` (with anything but a tool's tip: the episode
+ends as a crash, the default) or ``report`` (never ends an episode by itself: ``info["contacts"]`` says
+which vehicle touches which such part, and the task decides, e.g. a perch or a landing pad)."""
+
 
 @runtime_checkable
 class ScenePart(Protocol):
-    """A static body of the scene, in a vehicle's frame (m)."""
+    """A static body of the scene, in a vehicle's frame (m); its ``touch`` is one of :data:`TOUCHES`
+    (a part without one: ``crash``)."""
 
     name: str
     friction: float
@@ -41,10 +47,21 @@ class ScenePart(Protocol):
         """``(x_min, x_max, y_min, y_max, z)`` of the part's horizontal top, or None."""
 
 
+def touch_of(part: Any) -> str:
+    """The part's :data:`TOUCHES` entry (``crash`` for a part that declares none); another is refused."""
+    touch = getattr(part, "touch", "crash")
+    if touch not in TOUCHES:
+        raise ValueError(f"scene {part.name}: touch={touch!r} is unknown; allowed: {list(TOUCHES)}")
+    return touch
+
+
 def _check(part: Any, pairs: tuple[str, ...], positive: tuple[str, ...]) -> None:
     """Refuse a scene part whose numbers are not finite, whose ``pairs`` (centre, size) are not two
-    numbers, or whose ``positive`` fields are not > 0, naming the field."""
+    numbers, whose ``positive`` fields are not > 0 or whose ``touch`` is unknown, naming the field."""
+    touch_of(part)
     for key in dataclasses.fields(part):
+        if key.name == "touch":
+            continue
         value = getattr(part, key.name)
         numbers = tuple(value) if isinstance(value, (tuple, list)) else (value,)
         if key.name in pairs:
@@ -68,6 +85,7 @@ class Table:
     size: tuple[float, float] = (1.0, 1.0)
     height: float = 0.75
     friction: float = 0.5
+    touch: str = "crash"
     name = "table"
 
     def __post_init__(self) -> None:
@@ -92,6 +110,7 @@ class Wall:
     height: float = 3.0
     thickness: float = 0.2
     friction: float = 0.5
+    touch: str = "crash"
     roughness: float = 0.0
     ridge_spacing: float = 0.05
     rough_length: float = 3.0
@@ -121,6 +140,7 @@ class Ceiling:
     size: tuple[float, float] = (8.0, 8.0)
     thickness: float = 0.2
     friction: float = 0.5
+    touch: str = "crash"
     roughness: float = 0.0
     ridge_spacing: float = 0.05
     rough_length: float = 3.0

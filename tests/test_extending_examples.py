@@ -20,7 +20,15 @@ SCRIPTS = [name for name in FILES if name.endswith("_run.py")]
 
 
 def test_every_kind_has_an_example_and_a_script():
-    assert {"quasi_static.py", "thermal.py", "tether.py", "hover_task.py", "compliant_hold.py"} <= set(FILES)
+    kinds = {
+        "quasi_static.py",
+        "thermal.py",
+        "tether.py",
+        "landing_pad.py",
+        "hover_task.py",
+        "compliant_hold.py",
+    }
+    assert kinds <= set(FILES)
     assert {name.removesuffix("_run.py") + ".py" for name in SCRIPTS} <= set(FILES)
 
 

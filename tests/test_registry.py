@@ -133,3 +133,18 @@ def test_a_users_estimator_enters_the_comparison_with_one_line_of_config(
 def test_a_module_that_does_not_import_is_named(scratch):
     with pytest.raises(ValueError, match=r"'no_such_module:x': module 'no_such_module' does not import"):
         registry.lookup("estimator", "no_such_module:x")
+
+
+def test_every_scene_part_conforms_and_refuses_an_unknown_touch():
+    """The ``ScenePart`` seam's conformance, for every registered kind built with its defaults: boxes
+    with positive half extents, a top that is None or a rectangle, a touch of ``TOUCHES``."""
+    from quad_wrench_env.scene import TOUCHES, ScenePart, make_scene_part
+
+    for kind in registry.registered("scene"):
+        part = make_scene_part({"kind": kind})
+        assert isinstance(part, ScenePart) and part.touch in TOUCHES and part.friction > 0
+        assert part.boxes() and all(min(half) > 0 for _, half in part.boxes())
+        top = part.top()
+        assert top is None or (len(top) == 5 and top[0] < top[1] and top[2] < top[3])
+    with pytest.raises(ValueError, match=r"touch='perch' is unknown; allowed: \['crash', 'report'\]"):
+        make_scene_part({"kind": "wall", "touch": "perch"})

@@ -35,7 +35,7 @@ import numpy as np
 import pybullet as p
 
 from quad_wrench_env.rotations import from_pybullet, rotation_matrices, to_pybullet
-from quad_wrench_env.scene import ScenePart
+from quad_wrench_env.scene import ScenePart, touch_of
 from quad_wrench_env.vehicle import GRAVITY, VehicleParams
 
 _GROUND_GROUP, _VEHICLE_GROUP = 1, 2
@@ -141,6 +141,8 @@ class World:
         self.plane = -1
         self._crash_bodies: list[int] = []
         """The ground and the scene parts whose contact ends an episode, once built."""
+        self._reported_bodies: list[list[int]] = []
+        """Each ``touch="report"`` part's bodies, in scene order, once built."""
         self._index_of: dict[int, int] = {}
         self.half_extents = (vehicle.arm + vehicle.rotor_radius,) * 2 + (0.5 * vehicle.hull_height,)
         """Half extents (m) of each vehicle's collision box."""
@@ -174,7 +176,11 @@ class World:
         self.plane = p.createMultiBody(0.0, plane_shape, useMaximalCoordinates=1, physicsClientId=cid)
         p.setCollisionFilterGroupMask(self.plane, -1, _GROUND_GROUP, _VEHICLE_GROUP, physicsClientId=cid)
         self._crash_bodies = [self.plane]
+        self._reported_bodies = []
         for part in self.scene:  # one copy, shared by every vehicle
+            crash = touch_of(part) == "crash"
+            if not crash:
+                self._reported_bodies.append([])
             for centre, half in part.boxes():
                 shape = p.createCollisionShape(p.GEOM_BOX, halfExtents=half, physicsClientId=cid)
                 look = p.createVisualShape(
@@ -185,7 +191,7 @@ class World:
                 )
                 p.setCollisionFilterGroupMask(body, -1, _GROUND_GROUP, _VEHICLE_GROUP, physicsClientId=cid)
                 p.changeDynamics(body, -1, lateralFriction=part.friction, physicsClientId=cid)
-                self._crash_bodies.append(body)
+                (self._crash_bodies if crash else self._reported_bodies[-1]).append(body)
         v, half_extents, tool = self.vehicle, self.half_extents, self.tool
         colour = (0.2, 0.2, 0.25, 1.0)
         if tool is None:
@@ -294,6 +300,22 @@ class World:
                 index = self._index_of.get(contact[2])
                 if index is not None and not (tips is not None and self._at_tip(contact[6], tips[index])):
                     touching[index] = True
+        return touching
+
+    @property
+    def reported_parts(self) -> int:
+        """How many scene parts report their touches (``touch="report"``), once built."""
+        return len(self._reported_bodies)
+
+    def touches(self) -> np.ndarray:
+        """(N, K) bool: which vehicle touches (with anything) which of the K ``touch="report"`` parts."""
+        touching = np.zeros((self.count, len(self._reported_bodies)), dtype=bool)
+        for k, bodies in enumerate(self._reported_bodies):
+            for body in bodies:
+                for contact in p.getContactPoints(bodyA=body, physicsClientId=self.client):
+                    index = self._index_of.get(contact[2])
+                    if index is not None:
+                        touching[index, k] = True
         return touching
 
     def _tips(self) -> np.ndarray:

@@ -133,14 +133,17 @@ def info_entries(fleet: Fleet, task: Task, vehicle: int | None = None) -> dict[s
     vehicle's entries alone (Python floats for its scalars). Copies, never views of the fleet's state.
     ``wrench_cov`` is the estimator's 6x6 covariance of ``wrench_est``, in its frame (the world's; zeros for
     the oracle); an estimator that carries none (NaN: the observer) leaves it out, as a NaN in ``info`` would
-    break Gymnasium's determinism check."""
+    break Gymnasium's determinism check. ``contacts`` (K,) bool per vehicle: which of the scene's K parts
+    with ``touch="report"`` it touches, only in a scene that has such parts."""
     state = fleet.state
     covariance = fleet.estimator.wrench_covariances()
     entries = {
         "time": fleet.time, "position": state.position, "velocity": state.velocity,
         "wrench_true": fleet.wrench_true, "wrench_est": fleet.estimates()[1],
         **({} if np.isnan(covariance).all() else {"wrench_cov": covariance}),
-        "wind_velocity": fleet.wind_velocity, **task.info(fleet),
+        "wind_velocity": fleet.wind_velocity,
+        **({"contacts": fleet.world.touches()} if fleet.world.reported_parts else {}),
+        **task.info(fleet),
     }  # fmt: skip
     statuses = fleet.estimator.statuses()
     if vehicle is None:
