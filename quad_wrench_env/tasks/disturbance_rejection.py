@@ -75,6 +75,7 @@ from quad_wrench_env.engine.components import Components
 from quad_wrench_env.engine.config import EnvConfig
 from quad_wrench_env.registry import register
 from quad_wrench_env.scene import Table
+from quad_wrench_env.tasks import terms
 from quad_wrench_env.tasks.base import TaskDefaults
 from quad_wrench_env.vehicle import VehicleParams
 
@@ -452,10 +453,10 @@ class DisturbanceRejection(TaskDefaults):
     def reward_terms(self, fleet: Fleet, actions: np.ndarray, ended: np.ndarray) -> dict[str, np.ndarray]:
         r = self.cfg.reward
         return {
-            "tracking": -np.minimum(self._numbers(fleet)["tracking_error"], r.tracking_cap),
-            "alive": r.tracking_cap * (~ended),
-            "effort": -r.effort_weight * np.mean(actions * actions, axis=1),
-            "crash": -r.crash_penalty * ended.astype(float),
+            "tracking": terms.capped_cost(self._numbers(fleet)["tracking_error"], r.tracking_cap),
+            "alive": terms.alive(ended, r.tracking_cap),
+            "effort": terms.effort(actions, r.effort_weight),
+            "crash": terms.crash(ended, r.crash_penalty),
         }
 
     def observe(self, fleet: Fleet, out: np.ndarray) -> None:

@@ -60,6 +60,7 @@ from quad_wrench_env.engine.config import EnvConfig, ToolConfig
 from quad_wrench_env.kernels import njit
 from quad_wrench_env.registry import register
 from quad_wrench_env.scene import Ceiling, Wall
+from quad_wrench_env.tasks import terms
 from quad_wrench_env.tasks.base import TaskDefaults
 from quad_wrench_env.vehicle import GRAVITY, VehicleParams
 
@@ -227,12 +228,12 @@ class ForceExertion(TaskDefaults):
         approach = r.discount * potential - self.potential
         self.potential = potential
         return {
-            "contact": -np.minimum(
+            "contact": terms.capped_cost(
                 np.linalg.norm(self._exerted(fleet) - self.target_force, axis=1), r.contact_cap
             ),
-            "alive": r.contact_cap * (~ended),
-            "effort": -r.effort_weight * np.mean(actions * actions, axis=1),
-            "crash": -r.crash_penalty * ended.astype(float),
+            "alive": terms.alive(ended, r.contact_cap),
+            "effort": terms.effort(actions, r.effort_weight),
+            "crash": terms.crash(ended, r.crash_penalty),
             "approach": approach,
         }
 

@@ -1,0 +1,37 @@
+"""Reward terms the tasks share, each a function of (N,) arrays that returns an (N,) term, with its
+weight from the task's reward config (in the spirit of Isaac Lab's reward terms). A task's reward is
+the sum of its terms, each reported in ``info["reward_terms"]``.
+
+- :func:`capped_cost` and :func:`alive` together: a cost ``-min(e, c)`` and ``+c`` on every step that
+  does not end the episode early, so a step flown is worth ``[0, c]`` and ending early never pays
+  (DisturbanceRejection's tracking, ForceExertion's contact force);
+- :func:`effort`: ``-w·mean(a²)`` over the action's components;
+- :func:`crash`: ``-penalty`` on the step that ends an episode early.
+
+FanTracking computes the same effort and crash terms inside its compiled reward kernel
+(``fan_tracking_terms``, as ``(-w/4)·Σa²``: the same number to rounding, kept for its numbers bit for bit).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def capped_cost(error: np.ndarray, cap: float) -> np.ndarray:
+    """``-min(error, cap)``: a cost that stops growing at ``cap``."""
+    return -np.minimum(error, cap)
+
+
+def alive(ended: np.ndarray, cap: float) -> np.ndarray:
+    """``cap`` on every step that does not end the episode early (``ended`` (N,) bool), else 0."""
+    return cap * (~ended)
+
+
+def effort(actions: np.ndarray, weight: float) -> np.ndarray:
+    """``-weight·mean(a²)`` of (N, 4) normalised actions."""
+    return -weight * np.mean(actions * actions, axis=1)
+
+
+def crash(ended: np.ndarray, penalty: float) -> np.ndarray:
+    """``-penalty`` where the episode ended early (``ended`` (N,) bool), else 0."""
+    return -penalty * ended.astype(float)
