@@ -191,13 +191,19 @@ class Visible(Protocol):
         there is none (e.g. a switched-off fan)."""
 
 
+def named_config(kind: str, key: str, spec: Mapping[str, Any], where: str) -> tuple[str, Any]:
+    """The name and built config of a config entry ``{key: name, **fields}`` naming a registered
+    ``kind`` (each with its ``config_class``; ``"module:name"`` imports the module first), bad names and
+    keys refused naming ``where`` (e.g. ``"wind[0]"``)."""
+    if isinstance(spec, Mapping) and key in spec:
+        spec = {**spec, key: resolve(spec[key])}
+    configs = {name: cls.config_class for name, cls in registered(kind).items()}
+    return build_named(spec, key, configs, where)
+
+
 def wind_config(spec: Mapping[str, Any], position: int = 0) -> tuple[str, Any]:
-    """The model name and built config of one ``wind`` entry (``{"model": name, **fields}``; the models
-    are the registry's ``"wind"`` entries, each with its ``config_class``), bad names and keys named."""
-    if isinstance(spec, Mapping) and "model" in spec:
-        spec = {**spec, "model": resolve(spec["model"])}
-    configs = {name: cls.config_class for name, cls in registered("wind").items()}
-    return build_named(spec, "model", configs, f"wind[{position}]")
+    """The model name and built config of one ``wind`` entry, ``{"model": name, **fields}``."""
+    return named_config("wind", "model", spec, f"wind[{position}]")
 
 
 def make_wind(spec: Mapping[str, Any], count: int, position: int = 0) -> WindField:
@@ -207,12 +213,8 @@ def make_wind(spec: Mapping[str, Any], count: int, position: int = 0) -> WindFie
 
 
 def load_config(spec: Mapping[str, Any], position: int = 0) -> tuple[str, Any]:
-    """The name and built config of one ``loads`` entry (``{"load": name, **fields}``; the registry's
-    ``"load"`` entries, each with its ``config_class``), bad names and keys named."""
-    if isinstance(spec, Mapping) and "load" in spec:
-        spec = {**spec, "load": resolve(spec["load"])}
-    configs = {name: cls.config_class for name, cls in registered("load").items()}
-    return build_named(spec, "load", configs, f"loads[{position}]")
+    """The name and built config of one ``loads`` entry, ``{"load": name, **fields}``."""
+    return named_config("load", "load", spec, f"loads[{position}]")
 
 
 def make_load(spec: Mapping[str, Any], count: int, position: int = 0) -> PointLoad:
