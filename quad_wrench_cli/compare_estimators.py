@@ -24,6 +24,7 @@ import matplotlib.pyplot as plt
 
 from quad_wrench_cli.common import add_config_argument, load_config, save_figure, show, usage_errors
 from quad_wrench_cli.consistency import nees_table
+from quad_wrench_cli.estimator_benchmark import benchmark_table
 from quad_wrench_env.agents import make_agent
 from quad_wrench_env.agents.evaluate import run_episode, write_report
 from quad_wrench_env.bench import bare_pybullet_step_seconds, estimator_step_seconds
@@ -284,7 +285,7 @@ def _plot(t: np.ndarray, true: np.ndarray, traces: dict, path: Path, title: str)
     save_figure(fig, path, dpi=110)
 
 
-PARTS = {"fig5": fig5, "fig4": fig4_yuksel, "cost": cost, "nees": nees_table}
+PARTS = {"fig5": fig5, "fig4": fig4_yuksel, "cost": cost, "nees": nees_table, "benchmark": benchmark_table}
 CONFIG = "compare_estimators.yaml"
 
 

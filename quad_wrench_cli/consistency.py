@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -72,15 +73,65 @@ def agents(name: str, params: Mapping[str, Any], env: Any) -> Policy:
 
 def _policy(name: str, flight: Mapping[str, Any], env: Any, seeds: list[int]) -> Policy:
     if ("agent" in flight) == ("weave" in flight):
-        raise ValueError(f"nees.flights.{name}: give either 'agent' or 'weave', got keys {sorted(flight)}")
+        raise ValueError(f"flights.{name}: give either 'agent' or 'weave', got keys {sorted(flight)}")
     if "agent" in flight:
         return agents(flight["agent"], flight.get("agent_params", {}), env)
     spec = flight["weave"]
     if set(spec) != {"amplitude", "frequency"}:
         raise ValueError(
-            f"nees.flights.{name}.weave has keys {sorted(spec)}; allowed and needed: amplitude, frequency"
+            f"flights.{name}.weave has keys {sorted(spec)}; allowed and needed: amplitude, frequency"
         )
     return weave(spec["amplitude"], spec["frequency"], seeds, env.cfg.policy_hz)
+
+
+@dataclass
+class Flown:
+    """One flight of M runs, recorded at every policy step after the settling time (steps, M, ...):
+    the time, the true and the estimated wrench and the covariance (None for an estimator that
+    carries none), and which runs ended early."""
+
+    time: np.ndarray
+    truth: np.ndarray
+    estimate: np.ndarray
+    covariance: np.ndarray | None
+    ended: np.ndarray
+
+
+def flown(
+    env_id: str, flight: Mapping[str, Any], name: str, vehicle: str, estimator: str, seeds: list[int],
+    settle: float,
+) -> Flown:  # fmt: skip
+    """Fly ``flight`` (``agent`` or ``weave``; optional ``env_id``, ``env`` settings and reset ``options``)
+    with M = len(``seeds``) vehicles of one vector env, the estimator in the loop, and record it."""
+    env = gym.make_vec(
+        flight.get("env_id", env_id), num_envs=len(seeds), vectorization_mode="vector_entry_point",
+        vehicle=vehicle, estimator=estimator, **flight.get("env", {}),
+    )  # fmt: skip
+    try:
+        base = env.unwrapped
+        observations, _ = env.reset(seed=seeds, options=flight.get("options"))
+        act = _policy(name, flight, base, seeds)
+        settled = round(settle * base.cfg.policy_hz)
+        ended = np.zeros(len(seeds), dtype=bool)
+        times, truth, estimate, covariance = [], [], [], []
+        for step in range(base.max_steps - 1):
+            observations, _, terminated, _, info = env.step(act(step, observations))
+            ended |= terminated
+            if step + 1 >= settled:
+                times.append(info["time"][0])
+                truth.append(info["wrench_true"])
+                estimate.append(info["wrench_est"])
+                if "wrench_cov" in info:
+                    covariance.append(info["wrench_cov"])
+    finally:
+        env.close()
+    return Flown(
+        np.array(times),
+        np.array(truth),
+        np.array(estimate),
+        np.array(covariance) if covariance else None,
+        ended,
+    )
 
 
 def fly(
@@ -89,29 +140,12 @@ def fly(
     """The (steps, M) NEES of the force and of the torque of flight ``name`` after the settling time,
     one column per run that went to the end, and the number of runs that ended early."""
     c = config["nees"]
-    flight = c["flights"][name]
     seeds = list(range(c["first_seed"], c["first_seed"] + c["runs"]))
-    env = gym.make_vec(
-        config["env_id"], num_envs=len(seeds), vectorization_mode="vector_entry_point",
-        vehicle=vehicle, estimator=estimator, **flight.get("env", {}),
-    )  # fmt: skip
-    try:
-        base = env.unwrapped
-        observations, _ = env.reset(seed=seeds)
-        act = _policy(name, flight, base, seeds)
-        settled = round(c["settle"] * base.cfg.policy_hz)
-        ended = np.zeros(len(seeds), dtype=bool)
-        force, torque = [], []
-        for step in range(base.max_steps - 1):
-            observations, _, terminated, _, info = env.step(act(step, observations))
-            ended |= terminated
-            if step + 1 >= settled:
-                error, covariance = info["wrench_est"] - info["wrench_true"], info["wrench_cov"]
-                force.append(nees(error[:, :3], covariance[:, :3, :3]))
-                torque.append(nees(error[:, 3:], covariance[:, 3:, 3:]))
-    finally:
-        env.close()
-    return np.array(force)[:, ~ended], np.array(torque)[:, ~ended], int(ended.sum())
+    f = flown(config["env_id"], c["flights"][name], name, vehicle, estimator, seeds, c["settle"])
+    error = f.estimate - f.truth
+    force = nees(error[..., :3], f.covariance[..., :3, :3])
+    torque = nees(error[..., 3:], f.covariance[..., 3:, 3:])
+    return force[:, ~f.ended], torque[:, ~f.ended], int(f.ended.sum())
 
 
 def _cells(values: np.ndarray, low: float, high: float) -> str:

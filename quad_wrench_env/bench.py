@@ -268,10 +268,10 @@ def filter_bank_step_seconds(
 
 
 def estimator_step_seconds(
-    name: str, steps: int, seed: int = 0, dt: float = 0.005, backend: str = "numpy"
+    name: str, steps: int, seed: int = 0, dt: float = 0.005, backend: str = "numpy", vehicle: str = "ardrone2"
 ) -> float:
-    """Seconds per ``step`` of estimator ``name`` fed a hovering vehicle's noisy pose (0.5 mm, 2 mrad)."""
-    vehicle = make_vehicle("ardrone2")
+    """Seconds per ``step`` of estimator ``name`` fed a hovering ``vehicle``'s noisy pose (0.5 mm, 2 mrad)."""
+    vehicle = make_vehicle(vehicle)
     est = make_estimator(name, vehicle, dt, backend)
     rng = np.random.default_rng(seed)
     position, q = np.array((0.0, 0.0, 1.0)), np.array((1.0, 0.0, 0.0, 0.0))

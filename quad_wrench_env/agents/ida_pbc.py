@@ -439,7 +439,7 @@ class IDAPBCPolicy:
                 f"IDAPBCPolicy needs the observation blocks {sorted(missing)}, which this env lacks"
             )
         if self._by_task:
-            self._use(load_param_set(task_default_set(type(base).task_class.env_id)))
+            self._use(load_param_set(task_default_set(base.task.env_id)))
         vehicle = base.vehicle
         self._mass = float(vehicle.mass)
         self._inertia = np.array(vehicle.inertia, dtype=float)
