@@ -5,6 +5,7 @@ line of config."""
 from __future__ import annotations
 
 import math
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -44,6 +45,7 @@ def test_a_users_estimator_enters_the_benchmark_with_one_line(tmp_path, monkeypa
 
     monkeypatch.setitem(registry._ENTRIES, "estimator", dict(registry.registered("estimator")))
     monkeypatch.syspath_prepend(str(EXAMPLES))
+    monkeypatch.delitem(sys.modules, "quasi_static", raising=False)  # registers again, in this registry
     config = tmp_path / "benchmark.yaml"
     config.write_text(
         "env_id: QuadWrench/FanTracking-v1\nseeds: [0]\n"

@@ -101,6 +101,8 @@ def fly_reference(name: str, seed: int, motion: bool = False, **settings) -> tup
     noise (and with ``motion`` an onboard estimator's velocity and body rates)."""
     states, inputs = reference_flight()
     rng = np.random.default_rng(seed)
+    if name in ("ukf", "ekf"):  # the reference's rotors are exact: no spread in the reported covariance
+        settings = {"rotor_spread": 0.0, **settings}
     est = make_estimator(name, VEHICLE, DT, **settings)
     est.reset(states[0, 4:7], states[0, :4])
     wrenches, sigmas = [], []

@@ -5,6 +5,7 @@ harness, ``gym.make``), and names are refused clearly when unknown or taken."""
 from __future__ import annotations
 
 import pickle
+import sys
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -116,6 +117,7 @@ def test_a_users_estimator_enters_the_comparison_with_one_line_of_config(
     from quad_wrench_cli.main import main
 
     monkeypatch.syspath_prepend(str(EXAMPLES))
+    monkeypatch.delitem(sys.modules, "quasi_static", raising=False)  # registers again, in this registry
     config = tmp_path / "estimators.yaml"
     config.write_text(
         "env_id: QuadWrench/FanTracking-v1\n"

@@ -4,6 +4,8 @@ and still writers, and no rendering cost without a render mode."""
 
 from __future__ import annotations
 
+import sys
+
 import imageio.v2 as imageio
 import numpy as np
 import pybullet as p
@@ -240,6 +242,7 @@ def test_a_users_wind_field_with_an_outlet_is_drawn_without_the_renderer_knowing
 
     monkeypatch.setitem(registry._ENTRIES, "wind", dict(registry.registered("wind")))
     monkeypatch.syspath_prepend(str(Path(__file__).resolve().parents[1] / "docs" / "examples"))
+    monkeypatch.delitem(sys.modules, "thermal", raising=False)  # registers again, in this registry
     from thermal import Thermal
 
     @registry.register("wind", "vent")

@@ -32,7 +32,7 @@ from __future__ import annotations
 import numpy as np
 
 from quad_wrench_env.estimators.bank import BankOfOne, EulerAttitudes, FilterBank
-from quad_wrench_env.estimators.noise import EKFNoise
+from quad_wrench_env.estimators.noise import EKFNoise, rotor_spread_covariance
 from quad_wrench_env.kernels import resolve_backend
 from quad_wrench_env.kernels.ekf import (
     ekf_bank_step,
@@ -169,15 +169,18 @@ class ExtendedFilterBank(FilterBank, EulerAttitudes):
         return ekf_estimates, (self.x,)
 
     def wrench_covariances(self) -> np.ndarray:
-        """(N, 6, 6) covariance of ``[f_ext, R η_ext]``."""
+        """(N, 6, 6) covariance of ``[f_ext, R η_ext]`` about the external wrench: the filter's own, plus
+        the rotors' thrust-coefficient spread it cannot tell from an external wrench
+        (:func:`~quad_wrench_env.estimators.noise.rotor_spread_covariance`)."""
+        spread = rotor_spread_covariance(self.vehicle, self.noise.rotor_spread, self.rotations())
         if self.backend == "numba":
             out = np.empty((self.count, 6, 6))
             ekf_wrench_covariances(self.x, self.P, out)
-            return out
+            return out + spread
         rotate = np.tile(np.eye(6), (self.count, 1, 1))
         rotate[:, 3:, 3:] = self.rotations()
         block = self.P[:, 12:18, 12:18]
-        return rotate @ block @ rotate.transpose(0, 2, 1)
+        return rotate @ block @ rotate.transpose(0, 2, 1) + spread
 
     def states(self) -> np.ndarray:
         """(N, 13) estimated position, velocity, quaternion and body rates."""

@@ -5,7 +5,10 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numpy as np
+
 from quad_wrench_env.config import check_numbers
+from quad_wrench_env.vehicle import GRAVITY, Mixer, VehicleParams
 
 
 @dataclass
@@ -38,9 +41,32 @@ class FilterNoise:
     initial_torque: float = 0.02
     initial_force: float = 0.2
     kappa: float = 2.0
+    rotor_spread: float = 0.02
+    """Relative sd of each rotor's thrust coefficient about the nominal (the env's ``kf_spread``, 0.02 by
+    default): the filter cannot tell a rotor's error from an external wrench, so it enters the
+    *reported* covariance of the wrench (:func:`rotor_spread_covariance`), never the estimate."""
 
     def __post_init__(self) -> None:
-        check_numbers("estimator_params", self, tuple(vars(self)))
+        check_numbers("estimator_params", self, tuple(k for k in vars(self) if k != "rotor_spread"))
+        check_numbers("estimator_params", self, ("rotor_spread",), positive=False)
+
+
+def rotor_spread_covariance(vehicle: VehicleParams, spread: float, rotations: np.ndarray) -> np.ndarray:
+    """(N, 6, 6) covariance (world frame) of the wrench that the rotors' thrust-coefficient errors make at
+    hover, for attitudes ``rotations`` (N, 3, 3): rotor i's coefficient ``k_f(1 + δ_i)``, ``δ_i ~ N(0,
+    spread²)``, adds ``δ_i`` times its column of the mixer's allocation times ``ω_i²`` (McKinnon &
+    Schoellig 2016 eq. 1: thrust along body z, the roll, pitch and yaw torques), with the hover's
+    ``ω_i² = m g / (4 k_f)``. A filter sees that wrench as external; the env's ``wrench_true`` leaves it
+    out (it is the vehicle's own), so the covariance a filter reports for ``wrench_est - wrench_true``
+    adds it: a consider covariance (Schmidt 1966: a parameter the filter does not estimate, whose
+    uncertainty it carries), exact at hover and a first-order one elsewhere."""
+    per_rotor = Mixer(vehicle).allocation * (vehicle.mass * GRAVITY / (4.0 * vehicle.kf))  # (4, 4)
+    body = (spread * spread) * per_rotor @ per_rotor.T  # [thrust, τ_body] (4, 4)
+    jacobian = np.zeros((len(rotations), 6, 4))
+    jacobian[:, :3, 0] = rotations[:, :, 2]
+    jacobian[:, 3:, 1:] = rotations
+    covariance = jacobian @ body @ jacobian.transpose(0, 2, 1)
+    return 0.5 * (covariance + covariance.transpose(0, 2, 1))  # symmetric to the last bit
 
 
 def mrp_std(angle_std: float) -> float:

@@ -56,7 +56,7 @@ import math
 import numpy as np
 
 from quad_wrench_env.estimators.bank import BankOfOne, FilterBank
-from quad_wrench_env.estimators.noise import FilterNoise, mrp_std
+from quad_wrench_env.estimators.noise import FilterNoise, mrp_std, rotor_spread_covariance
 from quad_wrench_env.kernels import resolve_backend
 from quad_wrench_env.kernels.ukf import ukf_bank_step, ukf_constants, ukf_estimates
 from quad_wrench_env.rotations import (
@@ -181,8 +181,12 @@ class UnscentedFilterBank(FilterBank):
         return ukf_estimates, (self.quaternions, self.rests)
 
     def wrench_covariances(self) -> np.ndarray:
-        """(N, 6, 6) covariance of ``[f_e, τ_e]``."""
-        return self.covariances[:, _WRENCH_BLOCK[0], _WRENCH_BLOCK[1]]
+        """(N, 6, 6) covariance of ``[f_e, τ_e]`` about the external wrench: the filter's own, plus the
+        rotors' thrust-coefficient spread it cannot tell from an external wrench
+        (:func:`~quad_wrench_env.estimators.noise.rotor_spread_covariance`)."""
+        rotations = rotation_matrices(self.states()[:, 6:10])
+        spread = rotor_spread_covariance(self.vehicle, self.noise.rotor_spread, rotations)
+        return self.covariances[:, _WRENCH_BLOCK[0], _WRENCH_BLOCK[1]] + spread
 
     def statuses(self) -> list[str]:
         return ["ok" if k == 0 else "reinitialised" for k in self.reinitialisations.tolist()]
