@@ -122,7 +122,8 @@ def test_the_rotor_spread_covariance_is_the_spread_of_the_rotors_wrench():
     torque ``r_i × T e_z`` and its reaction torque (written out from the hubs, not the package's mixer);
     in the world frame of a tilted attitude, the sample covariance of 200 000 draws matches to 2 % of
     the diagonal's scale (the sampling error of a variance is sqrt(2/n) = 0.3 %)."""
-    from quad_wrench_env.estimators.noise import rotor_spread_covariance
+    from quad_wrench_env.estimators.noise import rotor_spread_body, rotor_spread_covariance
+    from quad_wrench_env.rotations import quat_from_matrix
     from quad_wrench_env.vehicle import GRAVITY, make_vehicle
 
     vehicle, spread = make_vehicle("hummingbird"), 0.05
@@ -139,7 +140,9 @@ def test_the_rotor_spread_covariance_is_the_spread_of_the_rotors_wrench():
     body = delta @ columns.T  # (n, 4): thrust and body torques
     world = np.concatenate((body[:, :1] * rotation[:, 2], body[:, 1:] @ rotation.T), axis=1)
     expected = np.cov(world.T)
-    reported = rotor_spread_covariance(vehicle, spread, rotation[None])[0]
+    reported = rotor_spread_covariance(rotor_spread_body(vehicle, spread), quat_from_matrix(rotation)[None])[
+        0
+    ]
     scale = np.sqrt(np.outer(np.diag(expected), np.diag(expected)))
     np.testing.assert_allclose(reported / scale, expected / scale, atol=0.02)
 

@@ -32,7 +32,7 @@ from __future__ import annotations
 import numpy as np
 
 from quad_wrench_env.estimators.bank import BankOfOne, EulerAttitudes, FilterBank
-from quad_wrench_env.estimators.noise import EKFNoise, rotor_spread_covariance
+from quad_wrench_env.estimators.noise import EKFNoise, rotor_spread_body, rotor_spread_covariance
 from quad_wrench_env.kernels import resolve_backend
 from quad_wrench_env.kernels.ekf import (
     ekf_bank_step,
@@ -88,6 +88,7 @@ class ExtendedFilterBank(FilterBank, EulerAttitudes):
         self.dt = dt
         self.count = count
         self.noise = noise or EKFNoise()
+        self._rotor_spread = rotor_spread_body(vehicle, self.noise.rotor_spread)
         n = self.noise
         self.mass = vehicle.mass
         self.inertia = np.array(vehicle.inertia)
@@ -172,7 +173,7 @@ class ExtendedFilterBank(FilterBank, EulerAttitudes):
         """(N, 6, 6) covariance of ``[f_ext, R η_ext]`` about the external wrench: the filter's own, plus
         the rotors' thrust-coefficient spread it cannot tell from an external wrench
         (:func:`~quad_wrench_env.estimators.noise.rotor_spread_covariance`)."""
-        spread = rotor_spread_covariance(self.vehicle, self.noise.rotor_spread, self.rotations())
+        spread = rotor_spread_covariance(self._rotor_spread, self.quaternions())
         if self.backend == "numba":
             out = np.empty((self.count, 6, 6))
             ekf_wrench_covariances(self.x, self.P, out)

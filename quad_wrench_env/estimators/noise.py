@@ -8,6 +8,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from quad_wrench_env.config import check_numbers
+from quad_wrench_env.kernels import njit
+from quad_wrench_env.kernels.quaternions import matrix
 from quad_wrench_env.vehicle import GRAVITY, Mixer, VehicleParams
 
 
@@ -51,22 +53,48 @@ class FilterNoise:
         check_numbers("estimator_params", self, ("rotor_spread",), positive=False)
 
 
-def rotor_spread_covariance(vehicle: VehicleParams, spread: float, rotations: np.ndarray) -> np.ndarray:
-    """(N, 6, 6) covariance (world frame) of the wrench that the rotors' thrust-coefficient errors make at
-    hover, for attitudes ``rotations`` (N, 3, 3): rotor i's coefficient ``k_f(1 + δ_i)``, ``δ_i ~ N(0,
-    spread²)``, adds ``δ_i`` times its column of the mixer's allocation times ``ω_i²`` (McKinnon &
-    Schoellig 2016 eq. 1: thrust along body z, the roll, pitch and yaw torques), with the hover's
-    ``ω_i² = m g / (4 k_f)``. A filter sees that wrench as external; the env's ``wrench_true`` leaves it
-    out (it is the vehicle's own), so the covariance a filter reports for ``wrench_est - wrench_true``
-    adds it: a consider covariance (Schmidt 1966: a parameter the filter does not estimate, whose
-    uncertainty it carries), exact at hover and a first-order one elsewhere."""
+def rotor_spread_body(vehicle: VehicleParams, spread: float) -> np.ndarray:
+    """(4, 4) covariance of ``[thrust, τ_body]`` that the rotors' thrust-coefficient errors make at hover:
+    rotor i's coefficient ``k_f(1 + δ_i)``, ``δ_i ~ N(0, spread²)``, adds ``δ_i`` times its column of the
+    mixer's allocation times ``ω_i²`` (McKinnon & Schoellig 2016 eq. 1: thrust along body z, the roll,
+    pitch and yaw torques), with the hover's ``ω_i² = m g / (4 k_f)``."""
     per_rotor = Mixer(vehicle).allocation * (vehicle.mass * GRAVITY / (4.0 * vehicle.kf))  # (4, 4)
-    body = (spread * spread) * per_rotor @ per_rotor.T  # [thrust, τ_body] (4, 4)
-    jacobian = np.zeros((len(rotations), 6, 4))
-    jacobian[:, :3, 0] = rotations[:, :, 2]
-    jacobian[:, 3:, 1:] = rotations
-    covariance = jacobian @ body @ jacobian.transpose(0, 2, 1)
-    return 0.5 * (covariance + covariance.transpose(0, 2, 1))  # symmetric to the last bit
+    return (spread * spread) * per_rotor @ per_rotor.T
+
+
+def rotor_spread_covariance(body: np.ndarray, quaternions: np.ndarray) -> np.ndarray:
+    """(N, 6, 6) world-frame covariance of the wrench whose body covariance is ``body``
+    (:func:`rotor_spread_body`), for attitudes ``quaternions`` (N, 4) ``[w, x, y, z]``: ``J body Jᵀ`` with
+    ``J = [R e_z, 0; 0, R]``. A filter sees the rotors' wrench as external; the env's ``wrench_true``
+    leaves it out (it is the vehicle's own), so the covariance a filter reports for ``wrench_est -
+    wrench_true`` adds it: a consider covariance (Schmidt 1966: a parameter the filter does not estimate,
+    whose uncertainty it carries), exact at hover and a first-order one elsewhere."""
+    out = np.empty((len(quaternions), 6, 6))
+    _world_covariances(body, np.ascontiguousarray(quaternions, dtype=float), out)
+    return out
+
+
+@njit
+def _world_covariances(body, quaternions, out):
+    """``J body Jᵀ`` per vehicle into ``out`` (N, 6, 6), the upper triangle mirrored (symmetric to the
+    bit)."""
+    rotation = np.empty((3, 3))
+    jacobian = np.zeros((6, 4))
+    for n in range(quaternions.shape[0]):
+        q = quaternions[n]
+        matrix(q[0], q[1], q[2], q[3], rotation)
+        for i in range(3):
+            jacobian[i, 0] = rotation[i, 2]
+            for k in range(3):
+                jacobian[3 + i, 1 + k] = rotation[i, k]
+        for i in range(6):
+            for j in range(i, 6):
+                total = 0.0
+                for a in range(4):
+                    for b in range(4):
+                        total += jacobian[i, a] * body[a, b] * jacobian[j, b]
+                out[n, i, j] = total
+                out[n, j, i] = total
 
 
 def mrp_std(angle_std: float) -> float:

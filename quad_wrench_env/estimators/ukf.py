@@ -56,7 +56,7 @@ import math
 import numpy as np
 
 from quad_wrench_env.estimators.bank import BankOfOne, FilterBank
-from quad_wrench_env.estimators.noise import FilterNoise, mrp_std, rotor_spread_covariance
+from quad_wrench_env.estimators.noise import FilterNoise, mrp_std, rotor_spread_body, rotor_spread_covariance
 from quad_wrench_env.kernels import resolve_backend
 from quad_wrench_env.kernels.ukf import ukf_bank_step, ukf_constants, ukf_estimates
 from quad_wrench_env.rotations import (
@@ -95,6 +95,7 @@ class UnscentedFilterBank(FilterBank):
         self.vehicle = vehicle
         self.dt = dt
         self.noise = noise or FilterNoise()
+        self._rotor_spread = rotor_spread_body(vehicle, self.noise.rotor_spread)
         n = self.noise
         self.count = count
         self.mass = vehicle.mass
@@ -184,8 +185,7 @@ class UnscentedFilterBank(FilterBank):
         """(N, 6, 6) covariance of ``[f_e, τ_e]`` about the external wrench: the filter's own, plus the
         rotors' thrust-coefficient spread it cannot tell from an external wrench
         (:func:`~quad_wrench_env.estimators.noise.rotor_spread_covariance`)."""
-        rotations = rotation_matrices(self.states()[:, 6:10])
-        spread = rotor_spread_covariance(self.vehicle, self.noise.rotor_spread, rotations)
+        spread = rotor_spread_covariance(self._rotor_spread, self.quaternions)
         return self.covariances[:, _WRENCH_BLOCK[0], _WRENCH_BLOCK[1]] + spread
 
     def statuses(self) -> list[str]:
