@@ -67,15 +67,21 @@ def fly_alone(env_id: str, actions: np.ndarray, **settings) -> np.ndarray:
         env.close()
 
 
-def fly_among(env_id: str, actions: np.ndarray, count: int, index: int, **settings) -> np.ndarray:
+def fly_among(
+    env_id: str, actions: np.ndarray, count: int, index: int, restart_every: int = 0, **settings
+) -> np.ndarray:
     """The same vehicle's records at ``index`` of a vector env of ``count``: reset with ``SEED -
-    index`` so that it gets ``SEED``; the others fly random actions in [-1, 1]."""
+    index`` so that it gets ``SEED``; the others fly random actions in [-1, 1] and, with
+    ``restart_every``, are restarted every that many steps (as autoresets restart crashed ones)."""
     venv = gym.make_vec(env_id, num_envs=count, vectorization_mode="vector_entry_point", **settings)
     others = np.random.default_rng(count)
+    rest = [i for i in range(count) if i != index]
     try:
         obs, info = venv.reset(seed=SEED - index)
         records = [_record(obs[index], info, index)]
-        for action in actions:
+        for step, action in enumerate(actions, start=1):
+            if restart_every and step % restart_every == 0:
+                venv.unwrapped.reset_vehicles(rest, [None] * len(rest), [None] * len(rest))
             batch = others.uniform(-1.0, 1.0, (count, actions.shape[1]))
             batch[index] = action
             obs, _, terminated, truncated, info = venv.step(batch)
@@ -88,14 +94,16 @@ def fly_among(env_id: str, actions: np.ndarray, count: int, index: int, **settin
         venv.close()
 
 
-def compare_at_every_size(env_id: str, sizes=SIZES, steps: int = STEPS, **settings) -> list[int]:
+def compare_at_every_size(
+    env_id: str, sizes=SIZES, steps: int = STEPS, restart_every: int = 0, **settings
+) -> list[int]:
     """Asserts the same bits at every (size, index); returns how many steps each flight compared."""
     scale = TASKS[env_id]["action_scale"]
     actions = np.random.default_rng(SEED).uniform(-scale, scale, (steps, 4))
     alone = fly_alone(env_id, actions, **settings)
     compared = []
     for count, index in sizes:
-        among = fly_among(env_id, actions, count, index, **settings)
+        among = fly_among(env_id, actions, count, index, restart_every, **settings)
         assert among.shape == alone.shape, f"{count} vehicles: {len(among) - 1} steps, alone {len(alone) - 1}"
         mismatch = np.flatnonzero((among != alone).any(axis=1))
         assert mismatch.size == 0, (
@@ -113,6 +121,15 @@ def test_a_vehicle_gives_the_same_bits_at_any_index_of_a_vector_env_of_any_size(
     differed by 1e-14 m from the first step) and sums regrouped by the vector width (1e-13 N)."""
     compared = compare_at_every_size(env_id, backend="numba")
     assert min(compared) >= 25, f"too short a flight to compare: {compared} steps"
+
+
+@pytest.mark.parametrize("env_id", list(TASKS))
+def test_other_vehicles_restarting_leave_a_vehicle_its_bits(env_id):
+    """Autoresets restart crashed vehicles while the others fly on: a restart reads the restarted
+    vehicles' states from PyBullet and must leave the others' (the compiled step's) bits alone.
+    Re-reading every vehicle changed the others in the last bit, so a training run on vehicles in
+    two processes differed from the same run in one (0.40 vs 0.11 m after 500 k steps)."""
+    compare_at_every_size(env_id, sizes=((2, 1), (9, 8)), restart_every=7, backend="numba")
 
 
 @pytest.mark.parametrize("estimator", ["ekf", "observer", "oracle"])

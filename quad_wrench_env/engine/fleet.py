@@ -258,9 +258,10 @@ class Fleet:
         self.noise.reset(index, rng)
 
     def refresh(self, index: np.ndarray) -> None:
-        """Read the true states after the vehicles ``index`` were reset (their external wrenches and
-        air velocities now, the others' unchanged) and hand the truth to a truth-fed estimator."""
-        self.state.assign(self.world.state())
+        """Read the true states of the vehicles ``index`` after they were reset (their external
+        wrenches and air velocities now) and hand the truth to a truth-fed estimator. The other
+        vehicles keep their states' bits: a vehicle's numbers never depend on another's restart."""
+        self.state.assign(self.world.state().select(index), index)
         selected = self.state.select(index)
         self.wrench_true[index] = self.external_loads(selected, index)
         self.wind_velocity[index] = self.air_at(selected.position[:, None, :], index)[:, 0]

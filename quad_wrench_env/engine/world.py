@@ -82,10 +82,11 @@ class RigidBodyState:
         """Bodies at rest at (N, 3) positions and (N, 4) attitudes."""
         return cls.from_motion(position, quaternion, np.zeros_like(position), np.zeros_like(position))
 
-    def assign(self, other: RigidBodyState) -> None:
-        """Copy ``other``'s states into these arrays, in place (a fleet's state is views of its buffer)."""
+    def assign(self, other: RigidBodyState, index: np.ndarray | slice = slice(None)) -> None:
+        """Copy ``other``'s states into the rows ``index`` of these arrays, in place (a fleet's state
+        is views of its buffer)."""
         for name in ("position", "quaternion", "velocity", "angular_velocity", "rotation", "body_rates"):
-            getattr(self, name)[...] = getattr(other, name)
+            getattr(self, name)[index] = getattr(other, name)
 
     def select(self, index: np.ndarray | slice) -> RigidBodyState:
         """The states of the bodies ``index``."""
