@@ -40,6 +40,32 @@ def test_layout_defaults_and_spaces(make_env):
     assert info["tracking_error"] == pytest.approx(0.0, abs=1e-9)
 
 
+def test_observed_tracking_error_is_reference_minus_estimate(make_env):
+    """With ``observe_tracking_error`` the task's columns hold ``p_ref - p̂`` and ``v_ref - v̂``, the
+    estimate being the engine's own observed position and velocity; PID, which needs the reference
+    itself, refuses such an env by name."""
+    env = make_env(ENV_ID, estimator="ekf", action_type="velocity", observe_tracking_error=True)
+    layout = env.unwrapped.obs_layout
+    assert (layout["position_error"], layout["velocity_error"]) == (slice(25, 28), slice(28, 31))
+    assert "reference_position" not in layout
+    obs, info = env.reset(seed=3, options={"scenario": "figure8"})
+    errors = []
+    for _ in range(60):
+        obs, _, terminated, truncated, info = env.step(np.array([0.3, -0.2, 0.1, 0.0]))
+        for block, reference, estimate in (
+            ("position_error", "reference_position", "position"),
+            ("velocity_error", "reference_velocity", "velocity"),
+        ):
+            expected = np.asarray(info[reference]) - obs[layout[estimate]].astype(float)
+            gap = np.abs(obs[layout[block]] - expected)
+            assert np.all(gap <= 2e-6 * (1.0 + np.abs(expected))), (block, gap)  # float32 rounding
+        errors.append(np.linalg.norm(obs[layout["position_error"]]))
+        assert not (terminated or truncated)
+    assert max(errors) > 0.1  # the vehicle left the path: the columns are not the reference
+    with pytest.raises(ValueError, match="reference_position"):
+        make_agent("pid").reset(make_env(ENV_ID, estimator="ekf", observe_tracking_error=True))
+
+
 @pytest.mark.parametrize("scenario", SCENARIOS)
 def test_reference_velocity_is_the_derivative_of_the_reference_position(make_env, scenario):
     """Central differences of the position (1 ms) against the velocity the task reports, over the

@@ -22,7 +22,8 @@ BACKENDS = [
     pytest.param("numba", marks=pytest.mark.skipif(not NUMBA_AVAILABLE, reason="numba is not installed")),
 ]
 EFFORT_WEIGHT, CRASH_PENALTY = 0.01, 10.0  # both tasks' reward tables
-TRACKING_CAP, CONTACT_CAP = 5.0, 2.0  # m, N: the caps of the tracking and contact terms, and the alive term
+TRACKING_CAP, CONTACT_CAP = 5.0, 2.0  # the caps of the tracking and contact (N) terms, and the alive term
+TRACKING_SCALE = 0.5  # m: the length of the tracking kernel c·exp(-e/s) (docs/tasks.md)
 APPROACH_WEIGHT, DISCOUNT = 10.0, 0.99  # ForceExertion's shaping: Φ = -10·gap, γ = 0.99
 WALL_X, CEILING_HEIGHT, TIP_RADIUS, START_GAP = 4.5, 2.2, 0.015, 0.05  # ForceExertion's room (m)
 NORMALS = {"wall": np.array((1.0, 0.0, 0.0)), "ceiling": np.array((0.0, 0.0, 1.0))}
@@ -156,7 +157,8 @@ def _disturbance_rejection_terms(
     info: dict, action: np.ndarray, reference: np.ndarray, terminated: bool
 ) -> dict[str, float]:
     return {
-        "tracking": -min(float(np.linalg.norm(np.asarray(info["position"]) - reference)), TRACKING_CAP),
+        "tracking": -TRACKING_CAP
+        * (1.0 - math.exp(-float(np.linalg.norm(np.asarray(info["position"]) - reference)) / TRACKING_SCALE)),
         "alive": 0.0 if terminated else TRACKING_CAP,
         "effort": _effort(action),
         "crash": -CRASH_PENALTY if terminated else 0.0,
@@ -171,8 +173,8 @@ def test_disturbance_rejection_reward_terms_by_hand(make_env, scenario, backend)
     table's (worked out here from its numbers, time from ``info``), the three terms and the reward
     equal the table's with ``p`` the true position, the crash penalty on the early end and not on the
     truncation. Catches a tracking term on the horizontal error alone or against another reference, a
-    sign error, an effort on the unclipped action or summed, a crash penalty on a truncation or
-    missing on an early end."""
+    linear kernel or another length, a sign error, an effort on the unclipped action or summed, a
+    crash penalty on a truncation or missing on an early end."""
     env = make_env(
         DISTURBANCE_REJECTION, backend=backend, estimator="oracle", kf_spread=0.0, episode_seconds=1.5
     )

@@ -152,6 +152,26 @@ def test_a_policy_refuses_an_env_whose_actions_or_observations_mean_otherwise():
         policy.reset(gym.make(FAN_TRACKING, observe_wrench=False, action_type="attitude"))
 
 
+def test_a_policy_trained_on_the_tracking_error_refuses_the_reference():
+    """DisturbanceRejection's ``observe_tracking_error`` changes what its last six columns mean: a
+    policy trained with it is refused on an env without it (same shape), and the key, which other
+    tasks' configs lack, is not asked of them."""
+    rejection = "QuadWrench/DisturbanceRejection-v0"
+    trained = {"action_type": "velocity", "observe_tracking_error": True}
+    env = gym.make(rejection, **trained)
+    policy = SB3Policy(PPO("MlpPolicy", env, n_steps=64, device="cpu"), trained_on=trained)
+    policy.reset(env)
+    assert policy.env_settings() == trained
+    with pytest.raises(
+        ValueError, match="observe_tracking_error=True, the env has observe_tracking_error=False"
+    ):
+        policy.reset(gym.make(rejection, action_type="velocity"))
+    fan = gym.make(FAN_TRACKING, observe_wrench=False)
+    SB3Policy(PPO("MlpPolicy", fan, n_steps=64, device="cpu"), trained_on={"observe_wrench": False}).reset(
+        fan
+    )
+
+
 def test_ppo_fan_tracking_is_shipped():
     assert "ppo_fan_tracking" in shipped_agents()
 

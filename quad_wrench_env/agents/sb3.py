@@ -58,8 +58,9 @@ class ObservationScaling:
             return cls(data["mean"], data["var"], float(data["clip"]), float(data["epsilon"]))
 
 
-MEANING_KEYS = ("action_type", "observe_wrench", "history")
-"""Env settings that change what an action or an observation means (``history`` its size too)."""
+MEANING_KEYS = ("action_type", "observe_wrench", "history", "observe_tracking_error")
+"""Env settings that change what an action or an observation means (``history`` its size too;
+``observe_tracking_error`` is DisturbanceRejection's own and counts only where the config has it)."""
 
 
 class SB3Policy:
@@ -94,7 +95,7 @@ class SB3Policy:
         if self.trained_on is not None:
             cfg = env.unwrapped.cfg
             defaults = {f.name: f.default for f in dataclasses.fields(cfg)}
-            for key in MEANING_KEYS:
+            for key in (key for key in MEANING_KEYS if key in defaults):
                 trained = self.trained_on.get(key, defaults[key])  # not given: the task's default
                 if trained != getattr(cfg, key):
                     raise ValueError(

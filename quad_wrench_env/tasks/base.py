@@ -30,8 +30,9 @@ class Task(Protocol):
     """``"QuadWrench/<Name>-v<k>"``."""
     config_class: ClassVar[type[EnvConfig]]
     reset_options: ClassVar[tuple[str, ...]]
-    observation_blocks: ClassVar[tuple[tuple[str, int, float], ...]]
-    """The task's own observation blocks ``(name, width, bound)``, after the engine's (may be empty)."""
+    observation_blocks: tuple[tuple[str, int, float], ...]
+    """The task's own observation blocks ``(name, width, bound)``, after the engine's (may be empty;
+    a task may choose them by its config)."""
     termination_reasons: ClassVar[tuple[str, ...]]
     """The task's own reasons to end an episode (may be empty), after the engine's."""
     trace_keys: ClassVar[tuple[str, ...]]

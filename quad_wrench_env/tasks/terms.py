@@ -2,9 +2,10 @@
 weight from the task's reward config (in the spirit of Isaac Lab's reward terms). A task's reward is
 the sum of its terms, each reported in ``info["reward_terms"]``.
 
-- :func:`capped_cost` and :func:`alive` together: a cost ``-min(e, c)`` and ``+c`` on every step that
-  does not end the episode early, so a step flown is worth ``[0, c]`` and ending early never pays
-  (DisturbanceRejection's tracking, ForceExertion's contact force);
+- :func:`capped_cost` or :func:`saturating_cost`, and :func:`alive` together: a cost ``-min(e, c)``
+  or ``-c·(1 - exp(-e/s))`` and ``+c`` on every step that does not end the episode early, so a step
+  flown is worth ``[0, c]`` and ending early never pays (ForceExertion's contact force,
+  DisturbanceRejection's tracking);
 - :func:`effort`: ``-w·mean(a²)`` over the action's components;
 - :func:`crash`: ``-penalty`` on the step that ends an episode early.
 
@@ -20,6 +21,13 @@ import numpy as np
 def capped_cost(error: np.ndarray, cap: float) -> np.ndarray:
     """``-min(error, cap)``: a cost that stops growing at ``cap``."""
     return -np.minimum(error, cap)
+
+
+def saturating_cost(error: np.ndarray, cap: float, scale: float) -> np.ndarray:
+    """``-cap·(1 - exp(-error/scale))``: steepest at zero error (slope ``cap/scale``), tending to
+    ``-cap`` far away; with :func:`alive` a step earns ``cap·exp(-error/scale)``, the exponential
+    tracking kernel of Isaac Lab's reward terms."""
+    return -cap * (1.0 - np.exp(-error / scale))
 
 
 def alive(ended: np.ndarray, cap: float) -> np.ndarray:
