@@ -153,9 +153,9 @@ def test_a_policy_refuses_an_env_whose_actions_or_observations_mean_otherwise():
 
 
 def test_a_policy_trained_on_the_tracking_error_refuses_the_reference():
-    """DisturbanceRejection's ``observe_tracking_error`` changes what its last six columns mean: a
-    policy trained with it is refused on an env without it (same shape), and the key, which other
-    tasks' configs lack, is not asked of them."""
+    """DisturbanceRejection's ``observe_tracking_error`` changes what its last six columns mean, and
+    ``action_limits`` what an action commands: a policy trained with either is refused on an env
+    without it (same shapes), and a key that another task's config lacks is not asked of it."""
     rejection = "QuadWrench/DisturbanceRejection-v0"
     trained = {"action_type": "velocity", "observe_tracking_error": True}
     env = gym.make(rejection, **trained)
@@ -166,6 +166,12 @@ def test_a_policy_trained_on_the_tracking_error_refuses_the_reference():
         ValueError, match="observe_tracking_error=True, the env has observe_tracking_error=False"
     ):
         policy.reset(gym.make(rejection, action_type="velocity"))
+    limits = {"max_speed_xy": 2.0, "max_speed_z": 2.0}  # what an action in [-1, 1] commands, m/s
+    faster = SB3Policy(policy.model, trained_on={**trained, "action_limits": limits})
+    faster.reset(gym.make(rejection, **trained, action_limits=limits))
+    assert faster.env_settings() == {**trained, "action_limits": limits}
+    with pytest.raises(ValueError, match="the env has action_limits=.*make the env with action_limits="):
+        faster.reset(env)
     fan = gym.make(FAN_TRACKING, observe_wrench=False)
     SB3Policy(PPO("MlpPolicy", fan, n_steps=64, device="cpu"), trained_on={"observe_wrench": False}).reset(
         fan

@@ -58,9 +58,10 @@ class ObservationScaling:
             return cls(data["mean"], data["var"], float(data["clip"]), float(data["epsilon"]))
 
 
-MEANING_KEYS = ("action_type", "observe_wrench", "history", "observe_tracking_error")
+MEANING_KEYS = ("action_type", "action_limits", "observe_wrench", "history", "observe_tracking_error")
 """Env settings that change what an action or an observation means (``history`` its size too;
-``observe_tracking_error`` is DisturbanceRejection's own and counts only where the config has it)."""
+``action_limits`` the command an action stands for; ``observe_tracking_error`` is
+DisturbanceRejection's own and counts only where the config has it)."""
 
 
 class SB3Policy:
@@ -94,13 +95,16 @@ class SB3Policy:
         self._memory, self._start = None, np.ones(1, dtype=bool)
         if self.trained_on is not None:
             cfg = env.unwrapped.cfg
-            defaults = {f.name: f.default for f in dataclasses.fields(cfg)}
-            for key in (key for key in MEANING_KEYS if key in defaults):
-                trained = self.trained_on.get(key, defaults[key])  # not given: the task's default
-                if trained != getattr(cfg, key):
+            names = {f.name for f in dataclasses.fields(cfg)}
+            keys = [key for key in MEANING_KEYS if key in names]
+            given = {key: self.trained_on[key] for key in keys if key in self.trained_on}
+            trained_cfg = build(type(cfg), given)  # a key not given: the task's default
+            for key in keys:
+                trained, here = getattr(trained_cfg, key), getattr(cfg, key)
+                if trained != here:
                     raise ValueError(
                         f"the policy was trained with {key}={trained!r}, the env has "
-                        f"{key}={getattr(cfg, key)!r}; make the env with {key}={trained!r}"
+                        f"{key}={here!r}; make the env with {key}={given.get(key, trained)!r}"
                     )
         expected = self.model.observation_space.shape
         got = env.observation_space.shape
