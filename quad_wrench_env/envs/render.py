@@ -40,7 +40,7 @@ import numpy as np
 import pybullet as p
 
 from quad_wrench_env.disturbances.base import Outlet, Visible
-from quad_wrench_env.envs.base import QuadWrenchEnv, info_entries
+from quad_wrench_env.envs.base import QuadWrenchEnv
 from quad_wrench_env.envs.overlay import (
     JET_COLOUR,
     Arrow,
@@ -356,7 +356,7 @@ class SceneRenderer:
         active = [jet for jet, on in zip(jets, self._active(), strict=True) if on]
         shadow = (position[:2], 0.5 * self.span)
         image = paint_scene(rgb, depth, segments, camera, shadow, active, self._vehicle)
-        info = info_entries(env.fleet, env.task, vehicle=0)
+        info = env.simulation.info(vehicle=0)
         marks = self.marks(info)
         if marks.get("reference") is not None:
             draw_reference(

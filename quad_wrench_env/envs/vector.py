@@ -28,19 +28,8 @@ from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from quad_wrench_env.engine.observation import ObservationHistory
-from quad_wrench_env.envs.base import (
-    QuadWrenchEnv,
-    build_config,
-    build_fleet,
-    check_options,
-    clip_actions,
-    closed_error,
-    info_entries,
-    observations,
-    termination_codes,
-    termination_reasons,
-)
+from quad_wrench_env.envs.base import QuadWrenchEnv, build_config, check_options, clip_actions, closed_error
+from quad_wrench_env.envs.simulation import Simulation, StepResult
 
 
 def _masked(entries: Mapping[str, Any], mask: np.ndarray) -> dict[str, Any]:
@@ -94,11 +83,13 @@ class QuadWrenchVectorEnv(VectorEnv):
         cfg = self.cfg
         self.num_envs = num_envs
         self.render_mode = None
-        self.task, self.fleet = build_fleet(task_class, cfg, num_envs)
+        self.simulation = Simulation(task_class, cfg, num_envs)
+        """The fleet of ``num_envs`` vehicles and its task (:mod:`quad_wrench_env.envs.simulation`)."""
+        self.task, self.fleet = self.simulation.task, self.simulation.fleet
         self.vehicle = self.fleet.vehicle
         self.reset_options = task_class.reset_options
-        self.termination_reasons = termination_reasons(self.task)
-        self.max_steps = round(cfg.episode_seconds * cfg.policy_hz)
+        self.termination_reasons = self.simulation.termination_reasons
+        self.max_steps = self.simulation.max_steps
         self.obs_layout = self.fleet.layout.slices
         self.action_scaling = self.fleet.action_scaling
         self.dt = 1.0 / cfg.policy_hz
@@ -108,11 +99,6 @@ class QuadWrenchVectorEnv(VectorEnv):
         self.observation_space = batch_space(self.single_observation_space, num_envs)
         self.action_space = batch_space(self.single_action_space, num_envs)
         self._rngs: list[np.random.Generator | None] = [None] * num_envs
-        self._steps = np.zeros(num_envs, dtype=int)
-        self._last_actions = np.zeros((num_envs, 4))
-        self._history = ObservationHistory(self.fleet.layout, num_envs)
-        self._observations = np.zeros((num_envs, self.fleet.layout.size), dtype=np.float32)
-        """Each vehicle's last observation (what a restart of others leaves it)."""
         self._started = False
         self._closed = False
 
@@ -143,28 +129,27 @@ class QuadWrenchVectorEnv(VectorEnv):
         for i, seed, vehicle_options in zip(indices, seeds, options, strict=True):
             if seed is not None or self._rngs[i] is None:
                 self._rngs[i], _ = seeding.np_random(seed)
-            self._start(i, check_options(vehicle_options, self.reset_options))
-        restarted = np.asarray(list(indices), dtype=int)
-        self.fleet.refresh(restarted)
-        self._history.restart(restarted)
+            self.simulation.start(i, self._rngs[i], check_options(vehicle_options, self.reset_options))
+        observations = self.simulation.restarted(np.asarray(list(indices), dtype=int))
         self._started = True
-        return self._observe(restarted), _masked(self._infos(), np.ones(self.num_envs, bool))
+        return observations, _masked(self._infos(), np.ones(self.num_envs, bool))
 
     def step(
         self, actions: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
-        step_observations, rewards, terminated, truncated, terms, codes = self._advance(actions)
+        result = self._advance(actions)
+        step_observations, terminated, truncated = result.observations, result.terminated, result.truncated
         reasons = self.termination_reasons
         step_entries = {
             **self._infos(),
-            "reward_terms": terms,
-            "termination_reason": np.array([reasons[c] for c in codes.tolist()], dtype=object),
+            "reward_terms": result.reward_terms,
+            "termination_reason": np.array([reasons[c] for c in result.codes.tolist()], dtype=object),
         }
         done = terminated | truncated
         if not np.any(done):
             info = _masked(step_entries, np.ones(self.num_envs, bool))
             info["_termination_reason"] = terminated
-            return step_observations, rewards, terminated, truncated, info
+            return step_observations, result.rewards, terminated, truncated, info
         final_info = _masked(step_entries, done)
         final_info["_termination_reason"] = terminated
         final_obs = np.full(self.num_envs, None, dtype=object)
@@ -176,71 +161,42 @@ class QuadWrenchVectorEnv(VectorEnv):
         info["termination_reason"] = step_entries["termination_reason"]
         info["_termination_reason"] = np.zeros(self.num_envs, bool)
         info.update(final_obs=final_obs, _final_obs=done, final_info=final_info, _final_info=done)
-        return next_observations, rewards, terminated, truncated, info
+        return next_observations, result.rewards, terminated, truncated, info
 
     def step_arrays(self, actions: np.ndarray) -> Transition:
         """:meth:`step` without Gymnasium's ``info``: the same episodes, numbers and restarts, as
         arrays over vehicles (what training reads: ``SB3VecEnv``), with no per-vehicle objects and no
         copies of the fleet's state (the engine's ``info`` entries are not gathered)."""
-        step_observations, rewards, terminated, truncated, terms, _ = self._advance(actions)
+        result = self._advance(actions)
         # the ended episodes' numbers: copied before the restarts, which may recompute the task's arrays
         entries = {key: np.copy(value) for key, value in self.task.info(self.fleet).items()}
-        done = terminated | truncated
-        next_observations = self._restart_ended(done) if np.any(done) else step_observations
+        done = result.terminated | result.truncated
+        next_observations = self._restart_ended(done) if np.any(done) else result.observations
         return Transition(
-            next_observations, step_observations, rewards, terminated, truncated, terms, entries
-        )
+            next_observations, result.observations, result.rewards, result.terminated, result.truncated,
+            result.reward_terms, entries,
+        )  # fmt: skip
 
     def close_extras(self, **kwargs: Any) -> None:
         """Release the PyBullet client; safe to call more than once."""
         self._closed = True
-        self.fleet.close()
+        self.simulation.close()
 
     # -- helpers -----------------------------------------------------------------------------------
-    def _advance(
-        self, actions: np.ndarray
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, np.ndarray], np.ndarray]:
-        """One policy step of every vehicle: observations, rewards, terminated, truncated, the reward
-        terms and the termination codes, before any restart."""
+    def _advance(self, actions: np.ndarray) -> StepResult:
+        """One control step of every vehicle, before any restart."""
         if self._closed:
             raise closed_error(self)
         if not self._started:
             raise RuntimeError("call reset() before step()")
-        a = clip_actions(actions, (self.num_envs, 4))
-        fleet = self.fleet
-        fleet.step(a)
-        self._steps += 1
-        self._last_actions = a
-        codes = termination_codes(fleet, self.task)
-        terminated = codes > 0
-        terms = self.task.reward_terms(fleet, a, terminated)
-        rewards = np.sum(list(terms.values()), axis=0)
-        truncated = ~terminated & (self._steps >= self.max_steps)
-        return self._observe(slice(None)), rewards, terminated, truncated, terms, codes
+        return self.simulation.step(clip_actions(actions, (self.num_envs, 4)))
 
     def _restart_ended(self, done: np.ndarray) -> np.ndarray:
         """Start the next episode of the vehicles ``done`` (without options); every observation."""
         restarted = np.flatnonzero(done)
         for i in restarted.tolist():
-            self._start(i, {})
-        self.fleet.refresh(restarted)
-        self._history.restart(restarted)
-        return self._observe(restarted)
-
-    def _observe(self, index: np.ndarray | slice) -> np.ndarray:
-        """Every vehicle's observation: new for the vehicles ``index`` (their history filled and
-        recorded), as it was for the others."""
-        fresh = observations(self.fleet, self.task, self._last_actions)
-        self._history.record(fresh, index)
-        self._observations[index] = fresh[index]
-        return self._observations.copy()
-
-    def _start(self, index: int, options: Mapping[str, Any]) -> None:
-        rng = self._rngs[index]
-        position, yaw = self.task.reset_vehicle(index, rng, options)
-        self.fleet.reset_vehicle(index, rng, position, yaw)
-        self._steps[index] = 0
-        self._last_actions[index] = 0.0
+            self.simulation.start(i, self._rngs[i], {})
+        return self.simulation.restarted(restarted)
 
     def _infos(self) -> dict[str, Any]:
-        return info_entries(self.fleet, self.task)
+        return self.simulation.info()

@@ -1,0 +1,164 @@
+"""N vehicles of one task, stepped by one call: what the single env (N = 1) and the vector env adapt.
+
+``Simulation(task_class, cfg, count).step(actions)`` flies every vehicle one control step (the
+fleet's physics, :class:`~quad_wrench_env.engine.fleet.Fleet`) and asks the task for what the step
+means, in one order for every env: the termination codes (the engine's first, then the task's), the
+reward terms (told which episodes ended early), then the observations. It returns a
+:class:`StepResult` of arrays over vehicles, before any restart; the envs turn it into Gymnasium's
+tuples (a single env's Python floats, the vector env's arrays and autoresets). Restarts go through
+:meth:`Simulation.start` (one vehicle, its generator and task options) and :meth:`Simulation.restarted`
+(the vehicles just started, read back at once).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from quad_wrench_env.engine.components import assemble
+from quad_wrench_env.engine.fleet import ENGINE_TERMINATIONS, Fleet
+from quad_wrench_env.engine.observation import ObservationHistory, ObservationLayout
+from quad_wrench_env.tasks.base import Task
+from quad_wrench_env.vehicle import make_vehicle
+
+
+def termination_reasons(task: Task) -> tuple[str, ...]:
+    """Every code's reason: ``""`` (goes on), the engine's, then the task's own."""
+    return ("", *ENGINE_TERMINATIONS, *task.termination_reasons)
+
+
+def termination_codes(fleet: Fleet, task: Task) -> np.ndarray:
+    """(N,) codes into :func:`termination_reasons`: the engine's first, then the task's."""
+    codes = fleet.terminations()
+    own = task.terminations(fleet)
+    if own is not None:
+        codes = np.where((codes == 0) & (own > 0), len(ENGINE_TERMINATIONS) + own, codes)
+    return codes
+
+
+def observations(fleet: Fleet, task: Task, last_actions: np.ndarray) -> np.ndarray:
+    """(N, width) float32 observations: the engine's blocks, then the task's."""
+    out = fleet.observations(last_actions)
+    if task.observation_blocks:
+        task.observe(fleet, out[:, fleet.layout.task_columns])
+    return out
+
+
+def build_fleet(task_class: type[Task], cfg: Any, count: int, gui: bool = False) -> tuple[Task, Fleet]:
+    """The task for ``count`` vehicles and the fleet that flies it: its components and the config's."""
+    vehicle = make_vehicle(cfg.vehicle, **cfg.vehicle_params)
+    task = task_class(cfg, vehicle, count)
+    components = assemble(cfg, vehicle, count, task.components())
+    layout = ObservationLayout(task.observation_blocks, cfg.history)
+    return task, Fleet(cfg, vehicle, count, components, layout, gui=gui)
+
+
+def info_entries(fleet: Fleet, task: Task, vehicle: int | None = None) -> dict[str, Any]:
+    """The info of every vehicle, each entry with a leading vehicle axis (the keys of
+    ``docs/architecture.md``, "Contracts"; ``docs/tasks.md`` has them in full); with ``vehicle``, that
+    vehicle's entries alone (Python floats for its scalars). Copies, never views of the fleet's state.
+    ``wrench_cov`` is the estimator's 6x6 covariance of ``wrench_est``, in its frame (the world's; zeros for
+    the oracle); an estimator that carries none (NaN: the observer) leaves it out, as a NaN in ``info`` would
+    break Gymnasium's determinism check. ``contacts`` (K,) bool per vehicle: which of the scene's K parts
+    with ``touch="report"`` it touches, only in a scene that has such parts."""
+    state = fleet.state
+    covariance = fleet.estimator.wrench_covariances()
+    entries = {
+        "time": fleet.time, "position": state.position, "velocity": state.velocity,
+        "wrench_true": fleet.wrench_true, "wrench_est": fleet.estimates()[1],
+        **({} if np.isnan(covariance).all() else {"wrench_cov": covariance}),
+        "wind_velocity": fleet.wind_velocity,
+        **({"contacts": fleet.world.touches()} if fleet.world.reported_parts else {}),
+        **task.info(fleet),
+    }  # fmt: skip
+    statuses = fleet.estimator.statuses()
+    if vehicle is None:
+        info = {key: value.copy() for key, value in entries.items()}
+        info["estimator_status"] = np.array(statuses, dtype=object)
+    else:
+        info = {k: v[vehicle].copy() if v.ndim > 1 else v.item(vehicle) for k, v in entries.items()}
+        info["estimator_status"] = statuses[vehicle]
+    return info
+
+
+@dataclass(frozen=True)
+class StepResult:
+    """One control step of N vehicles, before any restart."""
+
+    observations: np.ndarray
+    """(N, width) float32, every vehicle's observation after the step."""
+    reward_terms: dict[str, np.ndarray]
+    """Each term (N,), as the task returned them."""
+    rewards: np.ndarray
+    """(N,) the terms' sum."""
+    codes: np.ndarray
+    """(N,) termination codes into :attr:`Simulation.termination_reasons` (0: goes on)."""
+    terminated: np.ndarray
+    """(N,) the episode ended early (``codes > 0``)."""
+    truncated: np.ndarray
+    """(N,) the episode reached ``episode_seconds`` without ending early."""
+
+
+class Simulation:
+    """The fleet of ``count`` vehicles flying ``task_class`` per ``cfg``, with each vehicle's step
+    count, last action and observation (see the module docstring)."""
+
+    def __init__(self, task_class: type[Task], cfg: Any, count: int, gui: bool = False) -> None:
+        self.task, self.fleet = build_fleet(task_class, cfg, count, gui=gui)
+        self.count = count
+        self.termination_reasons = termination_reasons(self.task)
+        """Every code's reason: ``""`` (goes on), the engine's, then the task's own."""
+        self.max_steps = round(cfg.episode_seconds * cfg.policy_hz)
+        self.steps = np.zeros(count, dtype=int)
+        """Control steps flown in each vehicle's episode."""
+        self.last_actions = np.zeros((count, 4))
+        self.history = ObservationHistory(self.fleet.layout, count)
+        self.observations = np.zeros((count, self.fleet.layout.size), dtype=np.float32)
+        """Each vehicle's last observation (what a restart of others leaves it)."""
+
+    def start(self, index: int, rng: np.random.Generator, options: Mapping[str, Any]) -> None:
+        """Begin vehicle ``index``'s next episode with the (checked) task ``options``, its draws from
+        ``rng``; call :meth:`restarted` once every restarted vehicle has been started."""
+        position, yaw = self.task.reset_vehicle(index, rng, options)
+        self.fleet.reset_vehicle(index, rng, position, yaw)
+        self.steps[index] = 0
+        self.last_actions[index] = 0.0
+
+    def restarted(self, index: np.ndarray) -> np.ndarray:
+        """Read the vehicles ``index`` back after their :meth:`start` (the others keep their bits) and
+        return every vehicle's observation, new for them, their history begun afresh."""
+        self.fleet.refresh(index)
+        self.history.restart(index)
+        return self.observe(index)
+
+    def step(self, actions: np.ndarray) -> StepResult:
+        """Fly every vehicle one control step with its (N, 4) action, already clipped to [-1, 1]."""
+        fleet, task = self.fleet, self.task
+        fleet.step(actions)
+        self.steps += 1
+        self.last_actions = actions
+        codes = termination_codes(fleet, task)
+        terminated = codes > 0
+        terms = task.reward_terms(fleet, actions, terminated)
+        rewards = np.sum(list(terms.values()), axis=0)
+        truncated = ~terminated & (self.steps >= self.max_steps)
+        return StepResult(self.observe(slice(None)), terms, rewards, codes, terminated, truncated)
+
+    def observe(self, index: np.ndarray | slice) -> np.ndarray:
+        """Every vehicle's observation: new for the vehicles ``index`` (their history filled and
+        recorded), as it was for the others."""
+        fresh = observations(self.fleet, self.task, self.last_actions)
+        self.history.record(fresh, index)
+        self.observations[index] = fresh[index]
+        return self.observations.copy()
+
+    def info(self, vehicle: int | None = None) -> dict[str, Any]:
+        """Every vehicle's ``info`` entries (arrays over vehicles), or ``vehicle``'s alone."""
+        return info_entries(self.fleet, self.task, vehicle)
+
+    def close(self) -> None:
+        """Release the PyBullet client; safe to call more than once."""
+        self.fleet.close()
