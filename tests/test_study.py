@@ -8,8 +8,10 @@ import csv
 
 import pytest
 
+from quad_wrench_env.agents import make_agent
+from quad_wrench_env.agents.evaluate import evaluate
 from quad_wrench_env.agents.sb3 import TrainingConfigError
-from quad_wrench_env.agents.study import StudyConfig, status, study, train_all
+from quad_wrench_env.agents.study import StudyConfig, evaluate_all, status, study, train_all
 from quad_wrench_env.config import build
 from tests.conftest import FAN_TRACKING
 
@@ -58,6 +60,20 @@ def test_a_study_trains_every_arm_and_seed_scores_them_beside_the_classical_agen
     with (tmp_path / "results.csv").open() as handle:
         assert len(list(csv.DictReader(handle))) == len(rows)
     assert train_all(config, tmp_path) == []  # a second call trains nothing: every run is done
+    # the agents, evaluated in parallel Ray tasks, come back in the config's order with the numbers of
+    # one agent flown on its own: the run with its training env (history 2) under the case's
+    results = evaluate_all(config, tmp_path)
+    agents = ["admittance (oracle)"] + [f"{arm} seed {k}" for arm in config.arms for k in (0, 1)]
+    assert list(results) == [(agent, "static") for agent in agents]
+    alone = evaluate(
+        make_agent(str(tmp_path / "runs" / "ukf-history-2-seed1")),
+        FAN_TRACKING,
+        [2000, 2001],
+        options={"fan_motion": "static"},
+        episode_seconds=6.0,
+        history=2,
+    )
+    assert results["ukf, history 2 seed 1", "static"].per_seed == alone.per_seed
 
 
 @pytest.mark.parametrize(

@@ -8,10 +8,10 @@ e.g. ``{env.observe_wrench: false, env.history: 8}``), the training ``seeds`` an
 :func:`study` trains each (arm, seed) into ``<folder>/runs/<arm>-seed<k>/`` on Ray (a local Ray on this
 machine's cores by default, one run per CPU, or the cluster at ``address``), skipping finished runs and
 resuming interrupted ones from their last checkpoint, so the same command continues a study; then it
-flies each run's kept model and each classical agent on every case and writes ``results.md`` (mean ±
-sd across training seeds of each run's mean over the held-out seeds; the classical controllers' over
-the seeds; and which arms differ by more than their spread), ``results.csv`` (every run, case and
-metric) and ``results.png``.
+flies each run's kept model and each classical agent on every case (one agent per Ray task) and
+writes ``results.md`` (mean ± sd across training seeds of each run's mean over the held-out seeds;
+the classical controllers' over the seeds; and which arms differ by more than their spread),
+``results.csv`` (every run, case and metric) and ``results.png``.
 """
 
 from __future__ import annotations
@@ -186,9 +186,22 @@ def train_all(config: StudyConfig, folder: Path, address: str | None = None) -> 
         return lines
 
 
-def evaluate_all(config: StudyConfig, folder: Path) -> dict[tuple[str, str], Evaluation]:
+def _compare_one(comparison: dict[str, Any], label: str) -> dict[tuple[str, str], Evaluation]:
+    """One agent of ``comparison`` on every case (a Ray task of :func:`evaluate_all`), without the
+    episodes' traces, which the summary does not read."""
+    results = compare({**comparison, "agents": {label: comparison["agents"][label]}})
+    return {key: dataclasses.replace(ev, episodes=[]) for key, ev in results.items()}
+
+
+def evaluate_all(
+    config: StudyConfig, folder: Path, address: str | None = None
+) -> dict[tuple[str, str], Evaluation]:
     """Each run's kept model (label ``<arm> seed <k>``, with its training env) and each classical agent
-    of the comparison on every case: :func:`quad_wrench_env.agents.evaluate.compare`."""
+    of the comparison on every case (:func:`quad_wrench_env.agents.evaluate.compare`), one agent per Ray
+    task with ``cpus_per_run`` CPUs (each episode is seeded, so the numbers do not depend on how the
+    agents are spread); the results in the config's order: the classical agents, then the runs."""
+    import ray
+
     comparison = config.comparison_values()
     agents = dict(comparison.get("agents", {}))
     for label in config.arms:
@@ -198,7 +211,12 @@ def evaluate_all(config: StudyConfig, folder: Path) -> dict[tuple[str, str], Eva
                 "agent": str(run_folder(folder, label, seed)),
                 "env": trained.env,
             }
-    return compare({**comparison, "agents": agents})
+    comparison = {**comparison, "agents": agents}
+    with ray_session(address):
+        task = ray.remote(num_cpus=config.cpus_per_run)(_compare_one)
+        shared = ray.put(comparison)
+        parts = ray.get([task.remote(shared, label) for label in agents])
+    return {key: value for part in parts for key, value in part.items()}
 
 
 def summary(config: StudyConfig, results: dict[tuple[str, str], Evaluation]) -> list[dict[str, Any]]:
@@ -259,7 +277,7 @@ def study(config: StudyConfig, folder: str | Path, address: str | None = None) -
     (folder / "runs").mkdir(parents=True, exist_ok=True)
     for line in train_all(config, folder, address):
         print(line, flush=True)
-    rows = summary(config, evaluate_all(config, folder))
+    rows = summary(config, evaluate_all(config, folder, address))
     write_results(config, folder, rows)
     return rows
 
