@@ -231,7 +231,7 @@ def component_seconds(calls: int, num_envs: int = 1, **env_kwargs) -> dict[str, 
         out["policy step: observation, reward, termination, info"] = _time(
             lambda: (
                 fleet.observations(action),
-                base.task.reward_terms(fleet, action, fleet.terminations() > 0),
+                base.task.step(fleet, action, fleet.terminations() > 0),
                 infos(),
             ),
             calls,

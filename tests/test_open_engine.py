@@ -19,7 +19,7 @@ from quad_wrench_env.engine.components import Components
 from quad_wrench_env.engine.config import EnvConfig
 from quad_wrench_env.envs.registry import env_classes
 from quad_wrench_env.kernels import NUMBA_AVAILABLE, njit
-from quad_wrench_env.tasks.base import TaskDefaults
+from quad_wrench_env.tasks.base import TaskDefaults, TaskStep
 from tests.conftest import FAN_TRACKING
 
 needs_numba = pytest.mark.skipif(not NUMBA_AVAILABLE, reason="numba is not installed")
@@ -106,11 +106,9 @@ class Hold(TaskDefaults):
     def _distance(self, fleet) -> np.ndarray:
         return np.linalg.norm(fleet.state.position - self.reference, axis=1)
 
-    def reward_terms(self, fleet, actions, ended) -> dict[str, np.ndarray]:
-        return {"distance": -self._distance(fleet)}
-
-    def terminations(self, fleet) -> np.ndarray:
-        return (self._distance(fleet) > self.cfg.radius).astype(int)
+    def step(self, fleet, actions, ended) -> TaskStep:
+        codes = (self._distance(fleet) > self.cfg.radius).astype(int)
+        return TaskStep({"distance": -self._distance(fleet)}, codes)
 
     def observe(self, fleet, out: np.ndarray) -> None:
         out[:] = self.reference

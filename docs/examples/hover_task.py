@@ -14,7 +14,7 @@ from quad_wrench_env.engine.components import Components
 from quad_wrench_env.engine.config import EnvConfig
 from quad_wrench_env.kernels import njit
 from quad_wrench_env.registry import register
-from quad_wrench_env.tasks.base import TaskDefaults
+from quad_wrench_env.tasks.base import TaskDefaults, TaskStep, ended_early
 
 
 class BodyPush:
@@ -97,11 +97,10 @@ class HoldPoint(TaskDefaults):
     def _distance(self, fleet) -> np.ndarray:
         return np.linalg.norm(fleet.state.position - self.target, axis=1)
 
-    def reward_terms(self, fleet, actions, ended) -> dict[str, np.ndarray]:
-        return {"distance": -self._distance(fleet), "crash": -10.0 * ended.astype(float)}
-
-    def terminations(self, fleet) -> np.ndarray:
-        return (self._distance(fleet) > self.cfg.radius).astype(int)  # 1: termination_reasons[0]
+    def step(self, fleet, actions, ended) -> TaskStep:
+        codes = (self._distance(fleet) > self.cfg.radius).astype(int)  # 1: termination_reasons[0]
+        ended = ended_early(ended, codes)  # the engine's crash or the task's drift
+        return TaskStep({"distance": -self._distance(fleet), "crash": -10.0 * ended.astype(float)}, codes)
 
     def observe(self, fleet, out: np.ndarray) -> None:
         out[:] = self.target

@@ -1,9 +1,9 @@
 """N vehicles of one task, stepped by one call: what the single env (N = 1) and the vector env adapt.
 
 ``Simulation(task_class, cfg, count).step(actions)`` flies every vehicle one control step (the
-fleet's physics, :class:`~quad_wrench_env.engine.fleet.Fleet`) and asks the task for what the step
-means, in one order for every env: the termination codes (the engine's first, then the task's), the
-reward terms (told which episodes ended early), then the observations. It returns a
+fleet's physics, :class:`~quad_wrench_env.engine.fleet.Fleet`), asks the task what the step means
+in one call (:meth:`~quad_wrench_env.tasks.base.Task.step`: its reward terms and its own terminations,
+told which episodes the engine ended), then reads the observations. It returns a
 :class:`StepResult` of arrays over vehicles, before any restart; the envs turn it into Gymnasium's
 tuples (a single env's Python floats, the vector env's arrays and autoresets). Restarts go through
 :meth:`Simulation.start` (one vehicle, its generator and task options) and :meth:`Simulation.restarted`
@@ -30,13 +30,11 @@ def termination_reasons(task: Task) -> tuple[str, ...]:
     return ("", *ENGINE_TERMINATIONS, *task.termination_reasons)
 
 
-def termination_codes(fleet: Fleet, task: Task) -> np.ndarray:
-    """(N,) codes into :func:`termination_reasons`: the engine's first, then the task's."""
-    codes = fleet.terminations()
-    own = task.terminations(fleet)
-    if own is not None:
-        codes = np.where((codes == 0) & (own > 0), len(ENGINE_TERMINATIONS) + own, codes)
-    return codes
+def termination_codes(engine: np.ndarray, own: np.ndarray | None) -> np.ndarray:
+    """(N,) codes into :func:`termination_reasons`: the ``engine``'s first, then the task's ``own``."""
+    if own is None:
+        return engine
+    return np.where((engine == 0) & (own > 0), len(ENGINE_TERMINATIONS) + own, engine)
 
 
 def observations(fleet: Fleet, task: Task, last_actions: np.ndarray) -> np.ndarray:
@@ -140,9 +138,11 @@ class Simulation:
         fleet.step(actions)
         self.steps += 1
         self.last_actions = actions
-        codes = termination_codes(fleet, task)
+        engine = fleet.terminations()
+        outcome = task.step(fleet, actions, engine > 0)
+        codes = termination_codes(engine, outcome.codes)
         terminated = codes > 0
-        terms = task.reward_terms(fleet, actions, terminated)
+        terms = outcome.reward_terms
         rewards = np.sum(list(terms.values()), axis=0)
         truncated = ~terminated & (self.steps >= self.max_steps)
         return StepResult(self.observe(slice(None)), terms, rewards, codes, terminated, truncated)

@@ -3,14 +3,17 @@
 A task serves N vehicles (a :class:`~quad_wrench_env.engine.fleet.Fleet`) at once, so the single env
 (N = 1) and the vector env run the same task code. It names its env id and config; brings its own
 components (wind fields, point loads, rotor modifiers, scene parts) besides those every env takes
-from its config; says where each episode starts; returns its reward terms, its own terminations,
-observation blocks and ``info``; and scores an episode's trace for the evaluation harness. The env
+from its config; says where each episode starts; answers each control step with one call,
+:meth:`Task.step`, returning a :class:`TaskStep` (its reward terms and its own terminations); fills its
+observation blocks and ``info`` from the fleet's state (reads, at a reset as after a step); and scores
+an episode's trace for the evaluation harness. The env
 classes and their registration are generated from the task (:mod:`quad_wrench_env.envs.registry`).
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, ClassVar, Protocol
 
 import numpy as np
@@ -21,6 +24,22 @@ from quad_wrench_env.vehicle import VehicleParams
 
 if TYPE_CHECKING:
     from quad_wrench_env.engine.fleet import Fleet
+
+
+@dataclass(frozen=True)
+class TaskStep:
+    """What one control step of N vehicles means to a task."""
+
+    reward_terms: dict[str, np.ndarray]
+    """(N,) each term, summed into the reward (reported in ``info["reward_terms"]``)."""
+    codes: np.ndarray | None = None
+    """(N,) the task's own terminations: 0, or k for ``termination_reasons[k - 1]``; None when it
+    has none. The engine's (crash, flip, out of the arena) come first."""
+
+
+def ended_early(ended: np.ndarray, codes: np.ndarray) -> np.ndarray:
+    """(N,) bool: the engine ended the episode (``ended``) or the task's own ``codes`` do."""
+    return ended | (codes > 0)
 
 
 class Task(Protocol):
@@ -51,12 +70,11 @@ class Task(Protocol):
     ) -> tuple[np.ndarray, float]:
         """Prepare vehicle ``index``'s new episode; return its initial position (3,) and yaw."""
 
-    def reward_terms(self, fleet: Fleet, actions: np.ndarray, ended: np.ndarray) -> dict[str, np.ndarray]:
-        """(N,) reward terms, summed into the reward, after a step with (N, 4) ``actions``;
-        ``ended`` (N,) marks the episodes that ended early on this step."""
-
-    def terminations(self, fleet: Fleet) -> np.ndarray | None:
-        """(N,) codes: 0, or k for the task's ``termination_reasons[k - 1]``; None when it has none."""
+    def step(self, fleet: Fleet, actions: np.ndarray, ended: np.ndarray) -> TaskStep:
+        """What the step just flown with (N, 4) ``actions`` means: the reward terms and the task's own
+        terminations, in one call (the only one that may change the task's state, e.g. a potential);
+        ``ended`` (N,) marks the episodes the engine ended on this step. The terms see the task's own
+        terminations too (:func:`ended_early`)."""
 
     def observe(self, fleet: Fleet, out: np.ndarray) -> None:
         """Fill the task's observation blocks, ``out`` (N, their width)."""
@@ -81,9 +99,6 @@ class TaskDefaults:
     termination_reasons: ClassVar[tuple[str, ...]] = ()
     trace_keys: ClassVar[tuple[str, ...]] = ()
     metric_columns: ClassVar[tuple[tuple[str, str, str], ...]] = ()
-
-    def terminations(self, fleet: Fleet) -> np.ndarray | None:
-        return None
 
     def observe(self, fleet: Fleet, out: np.ndarray) -> None:
         """No blocks of its own."""

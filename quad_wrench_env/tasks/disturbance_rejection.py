@@ -87,7 +87,7 @@ from quad_wrench_env.engine.config import EnvConfig
 from quad_wrench_env.registry import register
 from quad_wrench_env.scene import Table
 from quad_wrench_env.tasks import terms
-from quad_wrench_env.tasks.base import TaskDefaults
+from quad_wrench_env.tasks.base import TaskDefaults, TaskStep
 from quad_wrench_env.vehicle import VehicleParams
 
 if TYPE_CHECKING:
@@ -476,16 +476,18 @@ class DisturbanceRejection(TaskDefaults):
             self._cache = (fleet.revision, numbers)
         return numbers
 
-    def reward_terms(self, fleet: Fleet, actions: np.ndarray, ended: np.ndarray) -> dict[str, np.ndarray]:
+    def step(self, fleet: Fleet, actions: np.ndarray, ended: np.ndarray) -> TaskStep:
         r = self.cfg.reward
-        return {
-            "tracking": terms.saturating_cost(
-                self._numbers(fleet)["tracking_error"], r.tracking_cap, r.tracking_scale
-            ),
-            "alive": terms.alive(ended, r.tracking_cap),
-            "effort": terms.effort(actions, r.effort_weight),
-            "crash": terms.crash(ended, r.crash_penalty),
-        }
+        return TaskStep(
+            {
+                "tracking": terms.saturating_cost(
+                    self._numbers(fleet)["tracking_error"], r.tracking_cap, r.tracking_scale
+                ),
+                "alive": terms.alive(ended, r.tracking_cap),
+                "effort": terms.effort(actions, r.effort_weight),
+                "crash": terms.crash(ended, r.crash_penalty),
+            }
+        )
 
     def observe(self, fleet: Fleet, out: np.ndarray) -> None:
         numbers = self._numbers(fleet)

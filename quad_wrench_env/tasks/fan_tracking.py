@@ -78,7 +78,7 @@ from quad_wrench_env.engine.components import Components
 from quad_wrench_env.engine.config import EnvConfig
 from quad_wrench_env.kernels import njit, resolve_backend
 from quad_wrench_env.registry import register
-from quad_wrench_env.tasks.base import TaskDefaults
+from quad_wrench_env.tasks.base import TaskDefaults, TaskStep
 from quad_wrench_env.vehicle import VehicleParams
 
 if TYPE_CHECKING:
@@ -276,7 +276,7 @@ class FanTracking(TaskDefaults):
     def _numbers(self, fleet: Fleet, actions: np.ndarray | None, ended: np.ndarray | None) -> np.ndarray:
         """(N, 10) ``fan_tracking_terms``: reward terms tracking, standoff, effort, crash; axis error,
         jet axis y, fan position (3), stand-off error. Computed once per state of the fleet (the
-        reward's call, with the step's actions, comes first)."""
+        step's call, with its actions, comes before ``info`` reads them)."""
         revision, numbers = self._cache
         if revision == fleet.revision:
             return numbers
@@ -307,12 +307,12 @@ class FanTracking(TaskDefaults):
         self._cache = (fleet.revision, numbers)
         return numbers
 
-    def reward_terms(self, fleet: Fleet, actions: np.ndarray, ended: np.ndarray) -> dict[str, np.ndarray]:
+    def step(self, fleet: Fleet, actions: np.ndarray, ended: np.ndarray) -> TaskStep:
         numbers = self._numbers(fleet, actions, ended)
-        return {
+        return TaskStep({
             "tracking": numbers[:, 0], "standoff": numbers[:, 1], "effort": numbers[:, 2],
             "crash": numbers[:, 3],
-        }  # fmt: skip
+        })  # fmt: skip
 
     def info(self, fleet: Fleet) -> dict[str, np.ndarray]:
         numbers = self._numbers(fleet, None, None)

@@ -61,7 +61,7 @@ from quad_wrench_env.kernels import njit
 from quad_wrench_env.registry import register
 from quad_wrench_env.scene import Ceiling, Wall
 from quad_wrench_env.tasks import terms
-from quad_wrench_env.tasks.base import TaskDefaults
+from quad_wrench_env.tasks.base import TaskDefaults, TaskStep
 from quad_wrench_env.vehicle import GRAVITY, VehicleParams
 
 if TYPE_CHECKING:
@@ -222,20 +222,22 @@ class ForceExertion(TaskDefaults):
     def _exerted(self, fleet: Fleet) -> np.ndarray:
         return -fleet.contact_force
 
-    def reward_terms(self, fleet: Fleet, actions: np.ndarray, ended: np.ndarray) -> dict[str, np.ndarray]:
+    def step(self, fleet: Fleet, actions: np.ndarray, ended: np.ndarray) -> TaskStep:
         r = self.cfg.reward
         potential = -r.approach_weight * self.gap(fleet)
         approach = r.discount * potential - self.potential
         self.potential = potential
-        return {
-            "contact": terms.capped_cost(
-                np.linalg.norm(self._exerted(fleet) - self.target_force, axis=1), r.contact_cap
-            ),
-            "alive": terms.alive(ended, r.contact_cap),
-            "effort": terms.effort(actions, r.effort_weight),
-            "crash": terms.crash(ended, r.crash_penalty),
-            "approach": approach,
-        }
+        return TaskStep(
+            {
+                "contact": terms.capped_cost(
+                    np.linalg.norm(self._exerted(fleet) - self.target_force, axis=1), r.contact_cap
+                ),
+                "alive": terms.alive(ended, r.contact_cap),
+                "effort": terms.effort(actions, r.effort_weight),
+                "crash": terms.crash(ended, r.crash_penalty),
+                "approach": approach,
+            }
+        )
 
     def observe(self, fleet: Fleet, out: np.ndarray) -> None:
         out[:] = self.target_force
