@@ -17,6 +17,7 @@ per episode).
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -78,6 +79,11 @@ class DrydenGust:
         """(N, 3) turbulent part of each vehicle's wind at the config's σ (m/s)."""
         self.weather = np.tile((*config.mean, 1.0), (count, 1))
         """(N, 4) each vehicle's mean wind (3, m/s, world frame) and the factor on its turbulence."""
+
+    def set_weather(self, index: int, mean: Sequence[float] = (0.0, 0.0, 0.0), factor: float = 0.0) -> None:
+        """Vehicle ``index``'s mean wind (3, m/s, world frame) and the factor on its turbulence (0: none),
+        e.g. drawn by a task per episode."""
+        self.weather[index] = (*mean, factor)
 
     def kernel_parameters(self) -> np.ndarray:
         """σ (3), L (3)."""

@@ -6,6 +6,7 @@ and duration (:attr:`OneCosineGust.shape`; the config's unless a task draws them
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -60,6 +61,13 @@ class OneCosineGust(Steady):
         self.config = config
         self.shape = np.tile((*config.peak, config.start, config.duration), (count, 1))
         """(N, 5) each vehicle's gust: peak ``V_m`` (3, m/s), start ``t0`` (s), duration ``t_g`` (s)."""
+
+    def set_gust(
+        self, index: int, peak: Sequence[float] = (0.0, 0.0, 0.0), start: float = 0.0, duration: float = 1.0
+    ) -> None:
+        """Vehicle ``index``'s gust: peak ``V_m`` (3, m/s; zero: none), start ``t0`` and duration ``t_g``
+        (s), e.g. drawn by a task per episode."""
+        self.shape[index] = (*peak, start, duration)
 
     def kernel_parameters(self) -> np.ndarray:
         """Hold (1 or 0)."""

@@ -390,8 +390,8 @@ class DisturbanceRejection(TaskDefaults):
         scenario, jet_speed, wind_speed = self._choose(rng, options)
         self.scenario[index] = SCENARIOS.index(scenario)
         self.jet.speed_scale[index] = 0.0
-        self.turbulence.weather[index] = 0.0
-        self.bump.shape[index] = (0.0, 0.0, 0.0, 0.0, 1.0)
+        self.turbulence.set_weather(index)  # still air, no turbulence
+        self.bump.set_gust(index)  # no gust
         speed = 0.0
         if scenario == "jet_crossing":
             jc = cfg.jet_crossing
@@ -401,15 +401,15 @@ class DisturbanceRejection(TaskDefaults):
             g = cfg.gusts
             heading = rng.uniform(0.0, 2.0 * math.pi)
             peak = rng.uniform(*g.peak)
-            self.turbulence.weather[index, 3] = g.w20
-            self.bump.shape[index] = (
-                peak * math.cos(heading), peak * math.sin(heading), 0.0, rng.uniform(*g.start),
+            self.turbulence.set_weather(index, factor=g.w20)
+            self.bump.set_gust(
+                index, (peak * math.cos(heading), peak * math.sin(heading), 0.0), rng.uniform(*g.start),
                 rng.uniform(*g.duration),
             )  # fmt: skip
         elif scenario == "figure8":
             fig = cfg.figure8
             speed = wind_speed if wind_speed is not None else float(rng.choice(fig.wind_speeds))
-            self.turbulence.weather[index] = (*(speed * self._wind_direction), fig.turbulence_w20)
+            self.turbulence.set_weather(index, speed * self._wind_direction, fig.turbulence_w20)
         self.disturbance_speed[index] = speed
         position, _ = self.reference(np.zeros(1), self.scenario[index : index + 1])
         return position[0], 0.0
