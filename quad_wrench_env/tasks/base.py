@@ -93,7 +93,7 @@ class Task(Protocol):
 
 
 class TaskDefaults:
-    """What a task without its own terminations, observation blocks or metrics inherits."""
+    """What a task without its own termination reasons, observation blocks or metrics inherits."""
 
     observation_blocks: ClassVar[tuple[tuple[str, int, float], ...]] = ()
     termination_reasons: ClassVar[tuple[str, ...]] = ()
