@@ -81,6 +81,26 @@ def test_reference_velocity_is_the_derivative_of_the_reference_position(make_env
     assert np.max(np.abs(np.diff(velocity, axis=0))) < 0.02  # 5 ms apart: no velocity step
 
 
+def test_figure8_wind_heading_is_drawn_within_its_spread(make_env):
+    """The steady wind keeps its speed; its heading turns about the vertical within the spread per
+    episode, and stays on ``wind_direction`` (+y) without one."""
+    options = {"scenario": "figure8", "wind_speed": 8.5}
+    fixed = make_env(ENV_ID, estimator="oracle")
+    fixed.reset(seed=0, options=options)
+    np.testing.assert_allclose(fixed.unwrapped.task.turbulence.weather[0, :3], (0.0, 8.5, 0.0), atol=1e-12)
+    spread = math.radians(60.0)
+    env = make_env(ENV_ID, estimator="oracle", figure8={"wind_heading_spread": spread})
+    headings = []
+    for seed in range(40):
+        env.reset(seed=seed, options=options)
+        wind = env.unwrapped.task.turbulence.weather[0, :3]
+        assert math.hypot(*wind) == pytest.approx(8.5) and wind[2] == 0.0
+        headings.append(math.atan2(-wind[0], wind[1]))  # 0 along +y, turning towards -x
+    assert max(np.abs(headings)) <= spread and np.ptp(headings) > spread  # within, and spread out
+    with pytest.raises(ValueError, match=r"figure8.wind_heading_spread=4.0 must be in \[0, π\]"):
+        make_env(ENV_ID, figure8={"wind_heading_spread": 4.0})
+
+
 def test_references_follow_the_papers_paths(make_env):
     env = make_env(ENV_ID, backend="numpy")
     cfg = env.unwrapped.cfg

@@ -27,7 +27,8 @@ gusts         hover at ``(2.5, 0, 1.5)`` in Dryden turbulence (``w20`` 4 m/s) an
               [0.5, 2] s
 figure8       ``x = 2.5 + 1.25 sin φ``, ``z = 1.5 + 0.75 sin 2φ`` at ``y = 0`` (``φ`` eases from rest
               to 1 rad/s over 2 s) in a steady wind ``wind_speed`` along +y (0, 8.5 or 12.1 m/s,
-              drawn unless given) with light turbulence (``w20`` 1 m/s)
+              drawn unless given; its heading drawn per episode with ``figure8.wind_heading_spread``)
+              with light turbulence (``w20`` 1 m/s)
 ============  ================================================================================
 
 Default vehicle ``hummingbird`` (Hentzen et al.'s (2019) 700 g class); every preset flies it. Default action
@@ -228,6 +229,11 @@ class Figure8:
     wind_speeds: tuple[float, ...] = (0.0, 8.5, 12.1)
     """Steady wind speeds (m/s) along ``wind_direction``; one is drawn when ``wind_speed`` is not given."""
     wind_direction: tuple[float, float, float] = (0.0, 1.0, 0.0)
+    wind_heading_spread: float = 0.0
+    """Half-width (rad) of a uniform draw, per episode, of the wind's heading about ``wind_direction``
+    (turned about the vertical): 0 (the default) blows along ``wind_direction`` always, π from any
+    horizontal heading. A policy trained on one direction learns it instead of reading the wrench
+    (docs/results.md, "DisturbanceRejection learns")."""
     center: tuple[float, float, float] = (2.5, 0.0, 1.5)
     amplitude: tuple[float, float] = (1.25, 0.75)
     """x = A_x sin φ, z = A_z sin 2φ (m)."""
@@ -243,7 +249,11 @@ class Figure8:
         if math.hypot(*self.wind_direction) == 0.0:
             raise ValueError("figure8.wind_direction=[0, 0, 0] has no direction; give a non-zero vector")
         check_numbers("figure8", self, ("rate", "ramp_seconds"))
-        check_numbers("figure8", self, ("turbulence_w20",), positive=False)
+        check_numbers("figure8", self, ("turbulence_w20", "wind_heading_spread"), positive=False)
+        if self.wind_heading_spread > math.pi:
+            raise ValueError(
+                f"figure8.wind_heading_spread={self.wind_heading_spread!r} must be in [0, π] rad"
+            )
 
     def phase(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """``φ(t)`` and ``φ̇(t)``: ``φ̇ = rate·(1 - cos(π t/T))/2`` for ``t < T``, then ``rate``."""
@@ -409,7 +419,14 @@ class DisturbanceRejection(TaskDefaults):
         elif scenario == "figure8":
             fig = cfg.figure8
             speed = wind_speed if wind_speed is not None else float(rng.choice(fig.wind_speeds))
-            self.turbulence.set_weather(index, speed * self._wind_direction, fig.turbulence_w20)
+            direction = self._wind_direction
+            if fig.wind_heading_spread > 0.0:
+                turn = rng.uniform(-fig.wind_heading_spread, fig.wind_heading_spread)
+                c, s = math.cos(turn), math.sin(turn)
+                direction = np.array(
+                    (c * direction[0] - s * direction[1], s * direction[0] + c * direction[1], direction[2])
+                )
+            self.turbulence.set_weather(index, speed * direction, fig.turbulence_w20)
         self.disturbance_speed[index] = speed
         position, _ = self.reference(np.zeros(1), self.scenario[index : index + 1])
         return position[0], 0.0
