@@ -86,6 +86,7 @@ from quad_wrench_env.disturbances.one_cosine import OneCosineConfig, OneCosineGu
 from quad_wrench_env.engine.components import Components
 from quad_wrench_env.engine.config import EnvConfig
 from quad_wrench_env.registry import register
+from quad_wrench_env.rotations import quat_from_axis_angle, rotation_matrix
 from quad_wrench_env.scene import Table
 from quad_wrench_env.tasks import terms
 from quad_wrench_env.tasks.base import TaskDefaults, TaskStep
@@ -422,10 +423,7 @@ class DisturbanceRejection(TaskDefaults):
             direction = self._wind_direction
             if fig.wind_heading_spread > 0.0:
                 turn = rng.uniform(-fig.wind_heading_spread, fig.wind_heading_spread)
-                c, s = math.cos(turn), math.sin(turn)
-                direction = np.array(
-                    (c * direction[0] - s * direction[1], s * direction[0] + c * direction[1], direction[2])
-                )
+                direction = rotation_matrix(quat_from_axis_angle(np.array((0.0, 0.0, 1.0)), turn)) @ direction
             self.turbulence.set_weather(index, speed * direction, fig.turbulence_w20)
         self.disturbance_speed[index] = speed
         position, _ = self.reference(np.zeros(1), self.scenario[index : index + 1])
