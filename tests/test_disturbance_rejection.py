@@ -131,11 +131,37 @@ def test_jet_blows_at_jet_speed_where_it_crosses_the_path(make_env, speed):
     env.reset(seed=0, options={"jet_speed": speed})
     task = env.unwrapped.task
     b = math.hypot(0.3, 0.42)
-    assert task.jet.speed_scale[0, 0] == pytest.approx(speed * math.sqrt(2.0) * b / 0.6, rel=1e-12)
+    assert task.jets[0].speed_scale[0, 0] == pytest.approx(speed * math.sqrt(2.0) * b / 0.6, rel=1e-12)
     points = np.array([[[2.0, 0.0, 1.4], [2.0, 0.0, 1.4 + b]]])
-    air = task.jet.velocity_at(points, np.zeros(1), slice(0, 1))[0]
+    air = task.jets[0].velocity_at(points, np.zeros(1), slice(0, 1))[0]
     np.testing.assert_allclose(air[0], [0.0, speed, 0.0], atol=1e-9)
     np.testing.assert_allclose(air[1], [0.0, speed / math.e, 0.0], atol=1e-9)  # Gaussian: 1/e at r = b
+
+
+def test_jet_sides_put_the_outlet_on_either_side_and_draw_one_per_episode(make_env):
+    """``jet_crossing.jet_sides``: ``+y`` blows along -y at the path (the wind the vehicle meets in the
+    stream, read from the engine's ``info``); with both sides each episode blows one way, both occur;
+    a side not named is refused."""
+
+    def crossing_wind(env, seed):
+        env.reset(seed=seed, options={"jet_speed": 10.0})
+        worst = np.zeros(3)
+        down = np.array((0.0, 0.0, -1.0, 0.0), dtype=np.float32)  # descend at 0.5 m/s through 1.4 m
+        for _ in range(150):
+            _, _, _, _, info = env.step(down)
+            if abs(info["wind_velocity"][1]) > abs(worst[1]):
+                worst = info["wind_velocity"]
+        return worst
+
+    env = make_env(ENV_ID, estimator="oracle", jet_crossing={"jet_sides": ["+y"]}, action_type="velocity")
+    wind = crossing_wind(env, 0)
+    assert wind[1] < -6.0 and abs(wind[0]) < 0.5  # the stream along -y (10 m/s on its axis at the path)
+    both = {"jet_sides": ["-y", "+y"]}
+    env = make_env(ENV_ID, estimator="oracle", jet_crossing=both, action_type="velocity")
+    signs = {math.copysign(1.0, crossing_wind(env, seed)[1]) for seed in range(6)}
+    assert signs == {-1.0, 1.0}
+    with pytest.raises(ValueError, match=r"jet_crossing.jet_sides=\['-x'\] must name one or both"):
+        make_env(ENV_ID, jet_crossing={"jet_sides": ["-x"]})
 
 
 def test_each_vehicle_meets_only_its_own_scenarios_disturbance():
@@ -153,8 +179,8 @@ def test_each_vehicle_meets_only_its_own_scenarios_disturbance():
         env.unwrapped.reset_vehicles(range(4), [5, 6, 7, 8], options)
         task = env.unwrapped.task
         assert list(task.scenario) == [0, 1, 2, 3]
-        np.testing.assert_array_equal(task.jet.speed_scale[1:, 0], 0.0)
-        assert task.jet.speed_scale[0, 0] > 10.0
+        np.testing.assert_array_equal(task.jets[0].speed_scale[1:, 0], 0.0)
+        assert task.jets[0].speed_scale[0, 0] > 10.0
         np.testing.assert_allclose(
             task.turbulence.weather[:, :3], [[0, 0, 0], [0, 0, 0], [0, 0, 0], [0, 8.5, 0]]
         )

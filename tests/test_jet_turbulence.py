@@ -112,7 +112,7 @@ def test_disturbance_rejection_takes_the_jet_turbulence_from_its_config():
     for crossing in ({}, {"jet_turbulence_intensity": 0.2, "jet_turbulence_length": 0.4}):
         env = gym.make(env_id, jet_crossing=crossing, episode_seconds=2.0)
         try:
-            jet = env.unwrapped.task.jet
+            jet = env.unwrapped.task.jets[0]
             assert jet.noise_width == (3 if crossing else 0)
             assert jet.config.turbulence_length == crossing.get("jet_turbulence_length")
             env.reset(seed=0, options={"jet_speed": 10.0})

@@ -36,7 +36,7 @@ from quad_wrench_env.agents.sb3 import (
     train_config,
 )
 from quad_wrench_env.agents.sweep import ray_session
-from quad_wrench_env.config import apply_overrides, build, check_numbers, load_yaml
+from quad_wrench_env.config import apply_overrides, build, check_numbers, load_yaml, set_keys
 
 
 @dataclass
@@ -55,7 +55,7 @@ class StudyConfig:
     comparison: str | dict[str, Any] = field(default_factory=dict)
     """Where every run and the classical agents are scored: a ``compare agents`` config (``env_id``,
     ``env``, ``seeds`` never trained on, ``agents`` (the classical ones), ``cases``), a path (relative
-    to the study file) or a mapping. Each run flies with its training env on top of the config's."""
+    to the study file) or a mapping. Each run flies in the config's env with its :meth:`flying_env`."""
     cpus_per_run: float = 1.0
     """CPUs Ray reserves for each run (a run steps its env and its network in one process)."""
 
@@ -103,6 +103,17 @@ class StudyConfig:
     def run_config(self, label: str, seed: int) -> TrainConfig:
         """The training config of arm ``label`` with training seed ``seed``."""
         return train_config(self.base_values(), {**self.common, **self.arms[label], "seed": seed})
+
+    def flying_env(self, label: str, seed: int) -> dict[str, Any]:
+        """The env settings a run of arm ``label`` brings to the comparison: its training env's
+        estimator (what it was trained to read) and the arm's own ``env`` overrides (and ``common``'s);
+        the settings that give its observations and actions their meaning follow the policy anyway
+        (:func:`quad_wrench_env.agents.evaluate.flying_settings`). The base's world (scenario draws,
+        curricula such as a drawn start gap, a disturbance's heading spread) stays behind: every agent
+        meets the comparison's episodes."""
+        trained = self.run_config(label, seed).env
+        own = set_keys({}, {**self.common, **self.arms[label]}).get("env", {})
+        return {**({"estimator": trained["estimator"]} if "estimator" in trained else {}), **own}
 
     def base_values(self) -> dict[str, Any]:
         return load_yaml(self.base) if isinstance(self.base, str) else dict(self.base)
@@ -206,10 +217,9 @@ def evaluate_all(
     agents = dict(comparison.get("agents", {}))
     for label in config.arms:
         for seed in config.seeds:
-            trained = config.run_config(label, seed)
             agents[f"{label} seed {seed}"] = {
                 "agent": str(run_folder(folder, label, seed)),
-                "env": trained.env,
+                "env": config.flying_env(label, seed),
             }
     comparison = {**comparison, "agents": agents}
     with ray_session(address):

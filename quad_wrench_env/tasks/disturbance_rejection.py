@@ -18,8 +18,9 @@ jet_crossing  hover at ``(2, 0, 2.2)`` for 1 s, descend at 0.5 m/s to 0.6 m thro
               horizontal stream (centre speed ``jet_speed`` where it crosses the path: Hentzen et al. 2019
               flew 3, 10 and 12 m/s; drawn from ``jet_speeds`` unless given), then hover. The
               descent speed, the heights and the jet's size (0.6 m outlet 1 m from the path) are
-              not in the paper: chosen here. The jet is steady unless ``jet_turbulence_intensity``
-              is set (the fan's turbulence model)
+              not in the paper: chosen here. The outlet stands on the path's -y side (both sides, one
+              drawn per episode, with ``jet_crossing.jet_sides``). The jet is steady unless
+              ``jet_turbulence_intensity`` is set (the fan's turbulence model)
 table_pass    hover at ``x = 2.5`` over ``y = 2``, fly along +x at 0.3 m/s with the hull's bottom 8 cm
               above the table top across both edges, hover at ``x = 4.5`` (Hentzen et al. 2019 Fig. 10-11)
 gusts         hover at ``(2.5, 0, 1.5)`` in Dryden turbulence (``w20`` 4 m/s) and one horizontal
@@ -99,6 +100,8 @@ SCENARIOS = ("jet_crossing", "table_pass", "gusts", "figure8")
 PATH_SAMPLES = 301
 """Points of the reference path a frame draws (:meth:`DisturbanceRejection.render_marks`)."""
 RANDOM = "random"
+JET_SIDES = {"-y": 1.0, "+y": -1.0}
+"""``jet_crossing.jet_sides``: the outlet's side of the path and the sign of the jet's direction along y."""
 REFERENCE_BLOCKS = (("reference_position", 3, 20.0), ("reference_velocity", 3, 20.0))
 """The task's observation blocks ``(name, width, bound)`` by default."""
 ERROR_BLOCKS = (("position_error", 3, 20.0), ("velocity_error", 3, 20.0))
@@ -132,7 +135,11 @@ class JetCrossing:
     """Hover at the start before the descent (s)."""
     jet_height: float = 1.4
     jet_distance: float = 1.0
-    """From the outlet (on the path's -y side, blowing along +y) to the path (m)."""
+    """From the outlet to the path (m)."""
+    jet_sides: tuple[str, ...] = ("-y",)
+    """Where the outlet stands: ``"-y"`` (blowing along +y, the default), ``"+y"`` (blowing along -y);
+    with both, one is drawn per episode. A policy trained on one side learns where the jet pushes
+    instead of reading the wrench (docs/results.md, "DisturbanceRejection learns")."""
     jet_diameter: float = 0.6
     jet_spread: float = 0.42
     jet_turbulence_intensity: float = 0.0
@@ -146,6 +153,13 @@ class JetCrossing:
     def __post_init__(self) -> None:
         self.jet_speeds = _check_speeds("jet_crossing.jet_speeds", self.jet_speeds)
         self.path = tuple(self.path)
+        self.jet_sides = tuple(self.jet_sides)
+        sides = self.jet_sides
+        if not sides or len(set(sides)) != len(sides) or not set(sides) <= set(JET_SIDES):
+            raise ValueError(
+                f"jet_crossing.jet_sides={list(sides)!r} must name one or both of {list(JET_SIDES)}, "
+                "each once"
+            )
         check_numbers("jet_crossing", self, ("start_height", "end_height", "descent_speed", "jet_height"))
         check_numbers("jet_crossing", self, ("jet_distance", "jet_diameter", "jet_spread"))
         check_numbers("jet_crossing", self, ("hover_seconds",), positive=False)
@@ -353,14 +367,20 @@ class DisturbanceRejection(TaskDefaults):
             self.observation_blocks = ERROR_BLOCKS
         jc, tp, fig = cfg.jet_crossing, cfg.table_pass, cfg.figure8
         x, y = jc.path
-        self.jet = Jet(
-            JetConfig(
-                position=(x, y - jc.jet_distance, jc.jet_height), direction=(0.0, 1.0, 0.0), speed=1.0,
-                diameter=jc.jet_diameter, spread=jc.jet_spread,
-                turbulence_intensity=jc.jet_turbulence_intensity, turbulence_length=jc.jet_turbulence_length,
-            ),
-            count,
-        )  # fmt: skip
+        self.jets = [
+            Jet(
+                JetConfig(
+                    position=(x, y - sign * jc.jet_distance, jc.jet_height), direction=(0.0, sign, 0.0),
+                    speed=1.0, diameter=jc.jet_diameter, spread=jc.jet_spread,
+                    turbulence_intensity=jc.jet_turbulence_intensity,
+                    turbulence_length=jc.jet_turbulence_length,
+                ),
+                count,
+            )
+            for sign in (JET_SIDES[side] for side in jc.jet_sides)
+        ]  # fmt: skip
+        """One jet per entry of ``jet_crossing.jet_sides``; a vehicle's copy of each is off (speed 0)
+        but for the side drawn in a jet crossing."""
         self.turbulence = DrydenGust(DrydenConfig(w20=1.0, altitude=cfg.gusts.position[2]), count)
         self.bump = OneCosineGust(OneCosineConfig(hold=False), count)
         self.table = Table(center=tp.table_center, size=tp.table_size, height=tp.table_height)
@@ -372,9 +392,9 @@ class DisturbanceRejection(TaskDefaults):
         self._cache: tuple[int, dict[str, np.ndarray]] = (-1, {})
 
     def components(self) -> Components:
-        """The gust fan's jet, the turbulence, the 1-cosine bump and the table; each vehicle's copy of
+        """The gust fan's jets, the turbulence, the 1-cosine bump and the table; each vehicle's copy of
         a wind is switched on by its scenario (the others' tables are zero)."""
-        return Components(winds=[self.jet, self.turbulence, self.bump], scene=[self.table])
+        return Components(winds=[*self.jets, self.turbulence, self.bump], scene=[self.table])
 
     # -- episodes ----------------------------------------------------------------------------------
     def _choose(
@@ -400,14 +420,16 @@ class DisturbanceRejection(TaskDefaults):
         cfg = self.cfg
         scenario, jet_speed, wind_speed = self._choose(rng, options)
         self.scenario[index] = SCENARIOS.index(scenario)
-        self.jet.speed_scale[index] = 0.0
+        for jet in self.jets:
+            jet.speed_scale[index] = 0.0
         self.turbulence.set_weather(index)  # still air, no turbulence
         self.bump.set_gust(index)  # no gust
         speed = 0.0
         if scenario == "jet_crossing":
             jc = cfg.jet_crossing
             speed = jet_speed if jet_speed is not None else float(rng.choice(jc.jet_speeds))
-            self.jet.speed_scale[index] = jc.outlet_speed(speed)
+            side = int(rng.integers(len(self.jets))) if len(self.jets) > 1 else 0
+            self.jets[side].speed_scale[index] = jc.outlet_speed(speed)
         elif scenario == "gusts":
             g = cfg.gusts
             heading = rng.uniform(0.0, 2.0 * math.pi)
