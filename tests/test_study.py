@@ -53,6 +53,8 @@ def test_a_study_trains_every_arm_and_seed_scores_them_beside_the_classical_agen
     assert all(status(tmp_path / "runs" / run) == "done" for run in runs)
     arm = next(r for r in rows if r["agent"] == "ukf, history 2" and r["metric"] == "mean_abs_error_after_5s")
     assert arm["n"] == 2 and arm["kind"] == "arm"  # across the two training seeds
+    per_run = [float(v) for v in arm["values"].split(";")]  # each run's mean, training seeds 0 and 1
+    assert len(per_run) == 2 and sum(per_run) / 2 == pytest.approx(arm["mean"], rel=1e-5)
     classical = next(r for r in rows if r["agent"] == "admittance (oracle)")
     assert classical["n"] == 2 and classical["kind"] == "classical"  # across the two held-out seeds
     table = (tmp_path / "results.md").read_text()
@@ -74,6 +76,7 @@ def test_a_study_trains_every_arm_and_seed_scores_them_beside_the_classical_agen
         history=2,
     )
     assert results["ukf, history 2 seed 1", "static"].per_seed == alone.per_seed
+    assert per_run[1] == pytest.approx(alone.mean["mean_abs_error_after_5s"], rel=1e-5)
 
 
 @pytest.mark.parametrize(

@@ -231,7 +231,9 @@ def evaluate_all(
 
 def summary(config: StudyConfig, results: dict[tuple[str, str], Evaluation]) -> list[dict[str, Any]]:
     """One row per (arm or classical agent, case, metric): the mean and the spread (across training
-    seeds of each run's mean over the held-out seeds; for a classical agent, over the seeds)."""
+    seeds of each run's mean over the held-out seeds; for a classical agent, over the seeds) and
+    ``values``, what they summarise (each run's mean, in the order of ``seeds``; each held-out seed's
+    value), joined by ``;``."""
     comparison = config.comparison_values()
     metrics = [key for key, _, _ in table_columns(comparison["env_id"])]
     rows = []
@@ -249,6 +251,7 @@ def summary(config: StudyConfig, results: dict[tuple[str, str], Evaluation]) -> 
                     {
                         "case": case, "agent": label, "kind": kind, "metric": metric,
                         "mean": float(np.mean(values)), "sd": float(np.std(values)), "n": len(values),
+                        "values": ";".join(f"{v:.6g}" for v in values),
                     }
                 )  # fmt: skip
     return rows
