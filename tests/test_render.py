@@ -139,8 +139,14 @@ def panels(monkeypatch) -> list[list[str]]:
 @pytest.mark.parametrize(
     ("options", "words"),
     [
-        ({"scenario": "figure8", "wind_speed": 8.5}, "scenario figure8: steady wind 8.5 m/s"),
-        ({"scenario": "jet_crossing", "jet_speed": 10.0}, "scenario jet_crossing: jet 10.0 m/s"),
+        (
+            {"scenario": "figure8", "wind_speed": 8.5},
+            "scenario figure8: steady wind 8.5 m/s along (+0.00, +1.00)",
+        ),
+        (
+            {"scenario": "jet_crossing", "jet_speed": 10.0},
+            "scenario jet_crossing: jet 10.0 m/s across the path from -y",
+        ),
     ],
 )
 def test_disturbance_rejection_frames_name_the_scenario(make_env, monkeypatch, options, words):

@@ -539,17 +539,23 @@ class DisturbanceRejection(TaskDefaults):
         return dict(self._numbers(fleet))
 
     def render_marks(self, fleet: Fleet, vehicle: int) -> dict[str, Any]:
-        """The scenario (with the jet's or the wind's speed, or the gust) and its reference path over
-        the whole episode; the reference point comes from ``info["reference_position"]``."""
+        """The scenario (with the jet's speed and side, the wind's speed and heading, or the gust) and
+        its reference path over the whole episode; the reference point comes from
+        ``info["reference_position"]``."""
         index = int(self.scenario[vehicle])
         name, speed = SCENARIOS[index], float(self.disturbance_speed[vehicle])
         gust, start = math.hypot(*self.bump.shape[vehicle, :2]), float(self.bump.shape[vehicle, 3])
+        sides = [side for side, jet in zip(self.cfg.jet_crossing.jet_sides, self.jets, strict=True)
+                 if jet.speed_scale[vehicle, 0] > 0.0]  # fmt: skip
+        wind = self.turbulence.weather[vehicle, :2] / max(speed, 1e-12)
         detail = {
-            "jet_crossing": f"jet {speed:.1f} m/s across the path",
+            "jet_crossing": f"jet {speed:.1f} m/s across the path from {''.join(sides)}",
             "table_pass": "ground effect over the table",
             "gusts": f"turbulence, a gust of {gust:.1f} m/s at t = {start:.1f} s",
-            "figure8": f"steady wind {speed:.1f} m/s",
-        }[name]
+            "figure8": f"steady wind {speed:.1f} m/s" + (
+                f" along ({wind[0]:+.2f}, {wind[1]:+.2f})" if speed > 0.0 else ""
+            ),
+        }[name]  # fmt: skip
         times = np.linspace(0.0, self.cfg.episode_seconds, PATH_SAMPLES)
         path, _ = self.reference(times, np.full(times.size, index))
         return {"label": f"scenario {name}: {detail}", "path": path}
