@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import quad_wrench_env  # noqa: F401
-from quad_wrench_env.agents.sb3 import TrainConfig, train_config, training_env
+from quad_wrench_env.agents.sb3 import TrainConfig, evaluation_envs, train_config, training_env
 from quad_wrench_env.envs.processes import ProcessVectorEnv, WorkerError
 from quad_wrench_env.envs.sb3_vec_env import SB3VecEnv
 
@@ -83,6 +83,42 @@ def test_reset_options_and_seeds_reach_each_group() -> None:
         split.close()
 
 
+def test_each_group_flies_its_own_settings() -> None:
+    """``group_env``: vehicles 0-1 fly ardrone2 in the worker, 2-3 hummingbird here; each group's
+    numbers are those of a vector env of its own preset (a vehicle's numbers depend only on its own
+    seed, actions and settings)."""
+    kwargs = {"estimator": "ukf", "action_type": "velocity", **SHORT}
+    presets = ("ardrone2", "hummingbird")
+    split = SB3VecEnv(
+        ProcessVectorEnv("QuadWrench/FanTracking-v1", 4, 2, [{"vehicle": v} for v in presets], **kwargs),
+        step_infos=False,
+    )
+    alone = [
+        SB3VecEnv(
+            gym.make_vec("QuadWrench/FanTracking-v1", num_envs=4, vectorization_mode="vector_entry_point",
+                         vehicle=v, **kwargs),
+            step_infos=False,
+        )
+        for v in presets
+    ]  # fmt: skip
+    try:
+        for env in (split, *alone):
+            env.seed(7)
+        observations = [env.reset() for env in (split, *alone)]
+        rng = np.random.default_rng(0)
+        for _ in range(40):
+            assert np.array_equal(observations[0][:2], observations[1][:2])
+            assert np.array_equal(observations[0][2:], observations[2][2:])
+            actions = rng.uniform(-1, 1, (4, 4)).astype(np.float32)
+            observations = [env.step(actions)[0] for env in (split, *alone)]
+        assert not np.array_equal(observations[1], observations[2])  # the presets do fly differently
+    finally:
+        for env in (split, *alone):
+            env.close()
+    with pytest.raises(ValueError, match="group_env has 1 entries; give one per process"):
+        ProcessVectorEnv("QuadWrench/FanTracking-v1", 4, 2, [{"vehicle": "ardrone2"}])
+
+
 def test_a_worker_error_names_its_cause_and_close_is_idempotent() -> None:
     venv = ProcessVectorEnv("QuadWrench/FanTracking-v1", 4, 2, estimator="oracle")
     venv.reset_vehicles(range(4), [0, 1, 2, 3], [None] * 4)
@@ -109,6 +145,15 @@ def test_training_config_takes_env_processes() -> None:
         TrainConfig(num_envs=8, env_processes=9)
     with pytest.raises(ValueError, match="env_processes=0"):
         TrainConfig(env_processes=0)
+    with pytest.raises(ValueError, match="env_groups has 1 entries; give one per process"):
+        TrainConfig(num_envs=8, env_processes=2, env_groups=[{"vehicle": "ardrone2"}])
+    with pytest.raises(ValueError, match=r"env_groups set \['history'\]"):
+        TrainConfig(num_envs=8, env_processes=2, env_groups=[{"history": 2}, {}])
+    groups = [{"vehicle": "ardrone2"}, {"vehicle": "hummingbird"}]
+    two = train_config({"env": {"estimator": "ukf"}, "evaluation": {"env": {"episode_seconds": 5.0}}},
+                       {"env_processes": 2, "env_groups": groups})  # fmt: skip
+    assert evaluation_envs(two) == [{"estimator": "ukf", "vehicle": v, "episode_seconds": 5.0}
+                                    for v in ("ardrone2", "hummingbird")]  # fmt: skip
     config = train_config(
         {"num_envs": 4, "env": {"estimator": "oracle", "action_type": "velocity"}}, {"env_processes": 2}
     )

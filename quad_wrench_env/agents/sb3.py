@@ -190,6 +190,12 @@ class TrainConfig:
     ProcessVectorEnv`): 1 steps them all in the learner's process; 2 uses both cores of a 2-core
     machine for one run (the same numbers, so the same model). Keep 1 where runs share the cores
     (``quad-wrench study`` and ``sweep`` with two runs at once)."""
+    env_groups: list[dict[str, Any]] = field(default_factory=list)
+    """Env settings of each process's vehicles on top of ``env`` (empty: none; else one mapping per
+    process, ``env_processes`` of them), e.g. ``[{vehicle: ardrone2}, {vehicle: hummingbird}]``:
+    one policy trained across two presets. Settings that give observations and actions their meaning
+    (:data:`MEANING_KEYS`) are the run's, not a group's. The evaluation scores every group's env on
+    its seeds and keeps the mean."""
 
     def __post_init__(self) -> None:
         if self.algorithm not in ALGORITHMS:
@@ -205,6 +211,20 @@ class TrainConfig:
                 f"env_processes={self.env_processes} must be at most num_envs={self.num_envs} "
                 "(each process flies at least one vehicle)"
             )
+        if self.env_groups:
+            if not (isinstance(self.env_groups, list) and all(isinstance(g, dict) for g in self.env_groups)):
+                raise ValueError(f"env_groups={self.env_groups!r} must be a list of mappings of env settings")
+            if len(self.env_groups) != self.env_processes:
+                raise ValueError(
+                    f"env_groups has {len(self.env_groups)} entries; give one per process "
+                    f"(env_processes={self.env_processes})"
+                )
+            shared = sorted({key for group in self.env_groups for key in group} & set(MEANING_KEYS))
+            if shared:
+                raise ValueError(
+                    f"env_groups set {shared}: what an observation or action means is the run's (set it "
+                    "in env), not a group's"
+                )
         check_numbers("train", self, ("max_minutes",), positive=False)
         check_numbers("train", self, ("clip_observations",))
         if not (isinstance(self.log_std_init, (int, float)) and math.isfinite(self.log_std_init)):
@@ -289,8 +309,14 @@ def check_training(config: TrainConfig, folder: str | Path, resume: bool = False
         finally:
             venv.close()
         e = config.evaluation
-        settings = {**config.env, **e.env, "episode_seconds": 0.1}
-        metrics = evaluate(_Still(), config.env_id, e.seeds[:1], options=e.options, **settings).mean
+        for settings in evaluation_envs(config):  # every group's env settings, as the task takes them
+            metrics = evaluate(
+                _Still(),
+                config.env_id,
+                e.seeds[:1],
+                options=e.options,
+                **{**settings, "episode_seconds": 0.1},
+            ).mean
         if e.metric not in metrics:
             raise ValueError(
                 f"evaluation.metric={e.metric!r}; allowed for {config.env_id}: {sorted(metrics)}"
@@ -355,7 +381,9 @@ def training_env(config: TrainConfig) -> tuple[Any, VecNormalize]:
     from quad_wrench_env.envs.sb3_vec_env import SB3VecEnv
 
     if config.env_processes > 1:
-        venv = ProcessVectorEnv(config.env_id, config.num_envs, config.env_processes, **config.env)
+        venv = ProcessVectorEnv(
+            config.env_id, config.num_envs, config.env_processes, config.env_groups or None, **config.env
+        )
     else:
         venv = gym.make_vec(
             config.env_id, num_envs=config.num_envs, vectorization_mode="vector_entry_point", **config.env
@@ -478,8 +506,12 @@ def train(config: TrainConfig, folder: str | Path, resume: bool = False, progres
         def evaluate(self) -> None:
             self.next_eval = self.num_timesteps + e.every_steps
             policy = SB3Policy(model, scaling(), trained_on=config.env)
-            result = evaluate(policy, config.env_id, e.seeds, options=e.options, **{**config.env, **e.env})
-            value = result.mean[e.metric]  # check_training made sure the harness scores it
+            value = float(  # check_training made sure the harness scores it
+                np.mean([
+                    evaluate(policy, config.env_id, e.seeds, options=e.options, **settings).mean[e.metric]
+                    for settings in evaluation_envs(config)
+                ])
+            )  # fmt: skip
             self.logger.record(f"eval/{e.metric}", value)
             returns = [info["r"] for info in model.ep_info_buffer]
             mean_return = sum(returns) / len(returns) if returns else math.nan
@@ -504,6 +536,12 @@ def train(config: TrainConfig, folder: str | Path, resume: bool = False, progres
     save("final")
     env.close()
     return folder
+
+
+def evaluation_envs(config: TrainConfig) -> list[dict[str, Any]]:
+    """The env settings the evaluation during training scores (the mean over them is kept): the
+    training env with ``evaluation.env`` on top, once per entry of ``env_groups`` (with it) or once."""
+    return [{**config.env, **group, **config.evaluation.env} for group in config.env_groups or [{}]]
 
 
 def latest_snapshot(folder: Path) -> Path:

@@ -7,8 +7,11 @@ machine for one training run.
 The ``num_envs`` vehicles are split into ``processes`` groups of consecutive vehicles, as even as
 they go (``numpy.array_split``). The last group flies in this process; each other group flies in a
 worker process of its own (a :class:`~quad_wrench_env.envs.vector.QuadWrenchVectorEnv` of that
-group). A step hands each worker its vehicles' actions, steps this process's group meanwhile, and
-joins the results in vehicle order. A vehicle's episode depends only on its own seed, actions and
+group). ``group_env`` (one mapping per process, the workers' first) puts settings of its own on
+top of each group's env, e.g. ``[{"vehicle": "ardrone2"}, {"vehicle": "hummingbird"}]`` to train one
+policy across two presets; the groups must agree on the observation and action layouts. A step
+hands each worker its vehicles' actions, steps this process's group meanwhile, and joins the
+results in vehicle order. A vehicle's episode depends only on its own seed, actions and
 options (the same bits in a vector env of any size, ``tests/test_determinism.py``), so the split
 env gives every vehicle exactly the numbers of one :class:`QuadWrenchVectorEnv` of ``num_envs``
 vehicles, and a training run the same model.
@@ -241,11 +244,24 @@ class ProcessVectorEnv:
     render_mode = None
     """It does not render (see the module docstring)."""
 
-    def __init__(self, env_id: str, num_envs: int, processes: int = 2, **env_kwargs: Any) -> None:
+    def __init__(
+        self,
+        env_id: str,
+        num_envs: int,
+        processes: int = 2,
+        group_env: Sequence[Mapping[str, Any]] | None = None,
+        **env_kwargs: Any,
+    ) -> None:
         if not (isinstance(num_envs, int) and num_envs >= 1):
             raise ValueError(f"num_envs={num_envs!r} must be an integer >= 1")
         if not (isinstance(processes, int) and 1 <= processes <= num_envs):
             raise ValueError(f"processes={processes!r} must be an integer from 1 to num_envs={num_envs}")
+        if group_env is not None and len(group_env) != processes:
+            raise ValueError(
+                f"group_env has {len(group_env)} entries; give one per process ({processes}) or none"
+            )
+        # each group's env settings: env_kwargs with its entry of group_env (e.g. a vehicle preset) on top
+        kwargs = [{**env_kwargs, **(group_env[k] if group_env else {})} for k in range(processes)]
         split = np.array_split(np.arange(num_envs), processes)
         self.groups = [range(int(group[0]), int(group[-1]) + 1) for group in split]
         """The vehicles of each process (``numpy.array_split``'s sizes): the workers' first, this
@@ -258,16 +274,16 @@ class ProcessVectorEnv:
         self._closed = False
         self._finalizer = weakref.finalize(self, _stop, self._connections, self._workers, self._memories)
         try:
-            for group in self.groups[:-1]:
+            for group, settings in zip(self.groups[:-1], kwargs, strict=False):
                 mine, theirs = context.Pipe()
                 worker = context.Process(
-                    target=_serve, args=(theirs, env_id, len(group), dict(env_kwargs)), daemon=True
+                    target=_serve, args=(theirs, env_id, len(group), settings), daemon=True
                 )
                 worker.start()
                 theirs.close()
                 self._connections.append(mine)
                 self._workers.append(worker)
-            self.local = _vector_env(env_id, len(self.groups[-1]), env_kwargs)
+            self.local = _vector_env(env_id, len(self.groups[-1]), kwargs[-1])
             """This process's group of vehicles."""
             for number, connection in enumerate(self._connections):
                 _answer(connection, number)
