@@ -29,7 +29,6 @@ from quad_wrench_env.agents import make_agent
 from quad_wrench_env.agents.evaluate import run_episode, write_report
 from quad_wrench_env.bench import bare_pybullet_step_seconds, estimator_step_seconds
 from quad_wrench_env.estimators import OracleBank, make_estimator
-from quad_wrench_env.kernels import NUMBA_AVAILABLE
 from quad_wrench_env.vehicle import make_vehicle
 
 LABELS = ("f_x", "f_y", "f_z", "tau_x", "tau_y", "tau_z")
@@ -99,7 +98,7 @@ def record(config: dict, seed: int, **env_kwargs: Any) -> Stream:
 
 def replay(name: str, vehicle: str, stream: Stream, settings: dict) -> np.ndarray:
     """(steps, 6) wrench estimates of estimator ``name`` on the recorded stream."""
-    estimator = make_estimator(name, make_vehicle(vehicle), stream.dt, "auto", **settings)
+    estimator = make_estimator(name, make_vehicle(vehicle), stream.dt, **settings)
     _, _, position, quaternion = stream.inputs[0]
     estimator.reset(position, quaternion)
     out = np.empty((len(stream.inputs), 6))
@@ -242,30 +241,22 @@ def fig4_yuksel(config: dict, out: Path) -> list[str]:
 def cost(config: dict, out: Path) -> list[str]:
     c = config["cost"]
     bare = min(bare_pybullet_step_seconds(c["steps"]) for _ in range(c["repeats"]))
-    backends = ("numpy", "numba") if NUMBA_AVAILABLE else ("numpy",)
     times = {}
-    for backend in backends:
-        for n in config["estimators"]:
-            estimator_step_seconds(n, 2, backend=backend)  # compiled code loads on first use
-            times[n, backend] = min(
-                estimator_step_seconds(n, c["steps"], backend=backend) for _ in range(c["repeats"])
-            )
+    for n in config["estimators"]:
+        estimator_step_seconds(n, 2)  # compiled code loads on first use
+        times[n] = min(estimator_step_seconds(n, c["steps"]) for _ in range(c["repeats"]))
     lines = [
         "## Hentzen et al. 2019 Sec. V-C: cost per step on this machine (best of repeats)",
         "",
-        "| what | " + " | ".join(f"µs per step, {b}" for b in backends) + " |",
-        "|---|" + "---|" * len(backends),
-        f"| bare PyBullet step (four rotor forces) | {bare * 1e6:.1f} |" + " |" * (len(backends) - 1),
+        "| what | µs per step |",
+        "|---|---|",
+        f"| bare PyBullet step (four rotor forces) | {bare * 1e6:.1f} |",
     ]
-    lines += [
-        f"| {n} | " + " | ".join(f"{times[n, b] * 1e6:.1f}" for b in backends) + " |"
-        for n in config["estimators"]
-    ]
+    lines += [f"| {n} | {times[n] * 1e6:.1f} |" for n in config["estimators"]]
     if not {"ukf", "ekf"} <= set(config["estimators"]):
         return lines
-    ratios = ", ".join(f"{times['ukf', b] / times['ekf', b]:.2f} ({b})" for b in backends)
     paper = "Hentzen et al. 2019 measured 2.5 on its flight computer"
-    return [*lines, "", f"UKF/EKF cost ratio: {ratios} ({paper})"]
+    return [*lines, "", f"UKF/EKF cost ratio: {times['ukf'] / times['ekf']:.2f} ({paper})"]
 
 
 def _measurement_noise(sensors: dict) -> dict:

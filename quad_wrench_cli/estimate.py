@@ -123,7 +123,7 @@ def run(args: argparse.Namespace) -> int:
         vehicle = make_vehicle(args.vehicle)
         log = read_flight_log(args.log, vehicle)
         settings = apply_overrides({}, args.param)
-        estimator = make_estimator(args.estimator, vehicle, log.period, "auto", **settings)
+        estimator = make_estimator(args.estimator, vehicle, log.period, **settings)
         if isinstance(estimator, TruthFed) and log.wrench is None:
             raise ValueError(
                 f"the {args.estimator} returns the true wrench: it needs the log's columns fx, fy, fz, tx, "

@@ -110,9 +110,7 @@ def benchmark_table(config: Mapping[str, Any], out: Path) -> list[str]:
                 force = response(f.time, mean[:, 0], step["at"], size[2])
                 torque = response(f.time, mean[:, 5], step["at"], size[7])
                 cost = min(
-                    estimator_step_seconds(
-                        estimator, config["cost"]["steps"], vehicle=vehicle, backend="auto"
-                    )
+                    estimator_step_seconds(estimator, config["cost"]["steps"], vehicle=vehicle)
                     for _ in range(config["cost"]["repeats"])
                 )
                 responses.append(

@@ -246,14 +246,13 @@ def filter_bank_step_seconds(
     steps: int,
     seed: int = 0,
     dt: float = 0.005,
-    backend: str = "numpy",
     filter_by_filter: bool = False,
 ) -> float:
     """Seconds per step of a bank of ``count`` UKFs (all of them) fed hovering vehicles' noisy poses;
-    ``filter_by_filter`` runs a compiled bank on the filter-by-filter kernel even where it would run
-    on SIMD lanes (the baseline of the lanes)."""
+    ``filter_by_filter`` runs the bank on the filter-by-filter kernel even where it would run on SIMD
+    lanes (the baseline of the lanes)."""
     vehicle = make_vehicle("ardrone2")
-    bank = UnscentedFilterBank(vehicle, dt, None, count, backend)
+    bank = UnscentedFilterBank(vehicle, dt, None, count)
     if filter_by_filter:
         bank._step_kernel = ukf_bank_step
     rng = np.random.default_rng(seed)
@@ -268,11 +267,11 @@ def filter_bank_step_seconds(
 
 
 def estimator_step_seconds(
-    name: str, steps: int, seed: int = 0, dt: float = 0.005, backend: str = "numpy", vehicle: str = "ardrone2"
+    name: str, steps: int, seed: int = 0, dt: float = 0.005, vehicle: str = "ardrone2"
 ) -> float:
     """Seconds per ``step`` of estimator ``name`` fed a hovering ``vehicle``'s noisy pose (0.5 mm, 2 mrad)."""
     vehicle = make_vehicle(vehicle)
-    est = make_estimator(name, vehicle, dt, backend)
+    est = make_estimator(name, vehicle, dt)
     rng = np.random.default_rng(seed)
     position, q = np.array((0.0, 0.0, 1.0)), np.array((1.0, 0.0, 0.0, 0.0))
     positions = position + 5e-4 * rng.standard_normal((steps, 3))

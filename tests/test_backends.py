@@ -1,5 +1,7 @@
 """The compiled kernels against the numpy reference: the same flights to rounding, feature by feature
-and component by component (every component with a compiled form has a case here)."""
+and component by component (every component with a compiled form has a case here). The estimators
+have their kernels only, on both backends (their checks: ``tests/test_ukf.py``,
+``tests/test_reference_estimators.py``); their banks' bound step and restart are checked here."""
 
 from __future__ import annotations
 
@@ -30,7 +32,7 @@ from quad_wrench_env.engine.kernels import (
 from quad_wrench_env.estimators import make_estimator_bank
 from quad_wrench_env.kernels import NUMBA_AVAILABLE, bind, resolve_backend, specialised
 from quad_wrench_env.kernels.linalg import weighted_gram
-from quad_wrench_env.rotations import quat_exp, quat_multiply_rows
+from quad_wrench_env.rotations import quat_exp
 from quad_wrench_env.vehicle import GRAVITY, make_vehicle
 from tests.conftest import FAN_TRACKING
 
@@ -174,39 +176,6 @@ def test_every_component_with_a_compiled_form_has_a_backend_case():
             env.close()
     missing = _components_with_a_compiled_form() - covered
     assert not missing, f"components without a backend case in CASES: {sorted(missing)}"
-
-
-@needs_numba
-@pytest.mark.parametrize("name", ["ukf", "ekf", "observer"])
-@pytest.mark.parametrize(("count", "motion"), [(1, False), (5, False), (5, True)])
-def test_compiled_estimator_banks_equal_the_numpy_banks(name, count, motion):
-    """400 steps of noisy poses (and, with ``motion``, velocities and body rates) at random attitudes
-    and inputs: every bank's wrenches and states agree to 1e-9 across the two backends."""
-    vehicle = make_vehicle("ardrone2")
-    banks = [make_estimator_bank(name, vehicle, 0.005, count, backend=b) for b in ("numpy", "numba")]
-    rng = np.random.default_rng(0)
-    positions, quaternions = rng.normal(size=(count, 3)), quat_exp(0.3 * rng.normal(size=(count, 3)))
-    for bank in banks:
-        for i in range(count):
-            bank.reset(i, positions[i], quaternions[i])
-    thrusts, torques = np.full(count, vehicle.mass * GRAVITY + 0.1), 1e-3 * rng.normal(size=(count, 3))
-    for _ in range(400):
-        measured_p = positions + 1e-3 * rng.normal(size=(count, 3))
-        measured_q = quat_multiply_rows(quaternions, quat_exp(2e-3 * rng.normal(size=(count, 3))))
-        velocity = 0.01 * rng.normal(size=(count, 3)) if motion else None
-        rates = 0.01 * rng.normal(size=(count, 3)) if motion else None
-        for bank in banks:
-            bank.step(thrusts, torques, measured_p, measured_q, velocity, rates)
-    reference, compiled = banks
-    np.testing.assert_allclose(compiled.wrenches(), reference.wrenches(), atol=1e-9)
-    np.testing.assert_allclose(compiled.states(), reference.states(), atol=1e-9)
-    for bank in banks:  # what the envs read: both at once, from one kernel call on numba
-        states, wrenches = bank.estimates()
-        np.testing.assert_array_equal(states, bank.states())
-        np.testing.assert_array_equal(wrenches, bank.wrenches())
-    assert compiled.statuses() == reference.statuses() == ["ok"] * count
-    with pytest.raises(ValueError, match="non-finite"):
-        compiled.step(thrusts * np.nan, torques, measured_p, measured_q)
 
 
 def test_backend_names_are_checked():
@@ -412,13 +381,12 @@ def test_physics_constants_are_packed_where_their_declaration_says():
         physics_constants({**parts, "scales": rng.random(9)}, points)
 
 
-@pytest.mark.parametrize("backend", ["numpy", pytest.param("numba", marks=needs_numba)])
 @pytest.mark.parametrize("name", ["ukf", "ekf", "observer"])
-def test_a_bound_step_reads_its_arrays_afresh_and_equals_step(name, backend):
+def test_a_bound_step_reads_its_arrays_afresh_and_equals_step(name):
     """``bind_step`` (what the compiled env step calls) gives exactly what ``step`` gives with the
     same inputs, refilled in place between calls, and refuses a non-finite one by name."""
     vehicle, count = make_vehicle("ardrone2"), 3
-    stepped, bound = (make_estimator_bank(name, vehicle, 0.005, count, backend=backend) for _ in range(2))
+    stepped, bound = (make_estimator_bank(name, vehicle, 0.005, count) for _ in range(2))
     rng = np.random.default_rng(2)
     thrusts, torques = np.full(count, vehicle.mass * GRAVITY), np.zeros((count, 3))
     positions, quaternions = np.zeros((count, 3)), np.tile((1.0, 0.0, 0.0, 0.0), (count, 1))
@@ -440,51 +408,11 @@ def test_a_bound_step_reads_its_arrays_afresh_and_equals_step(name, backend):
     assert np.isfinite(bound.states()).all()
 
 
-@needs_numba
-@pytest.mark.parametrize("name", ["ekf", "observer"])
-def test_compiled_euler_estimates_equal_the_numpy_ones_at_any_attitude(name):
-    """The Euler-angle banks' states, wrenches and wrench covariances (quaternion, world-frame torque,
-    body rates) from the kernels match the numpy reference over the whole angle range (pitch short
-    of ±90°)."""
-    vehicle = make_vehicle("ardrone2")
-    banks = [make_estimator_bank(name, vehicle, 0.005, 50, backend=b) for b in ("numpy", "numba")]
-    rng = np.random.default_rng(1)
-    angles = rng.uniform(-np.pi, np.pi, (50, 3))
-    angles[:, 1] = rng.uniform(-1.5, 1.5, 50)
-    values = rng.normal(size=(50, 18))
-    for bank in banks:
-        if name == "ekf":
-            bank.x[:] = values
-            bank.x[:, 6:9] = angles
-        else:
-            for state, column in zip(
-                (bank.positions, bank.velocities, bank.euler_rates, bank.forces, bank.torques_generalised),
-                range(0, 15, 3),
-                strict=True,
-            ):
-                state[:] = values[:, column : column + 3]
-            bank.eulers[:] = angles
-        bank.version += 1
-    reference, compiled = banks
-    np.testing.assert_allclose(compiled.wrenches(), reference.wrenches(), rtol=1e-12, atol=1e-12)
-    np.testing.assert_allclose(compiled.states(), reference.states(), rtol=1e-12, atol=1e-12)
-    for got, wanted in zip(compiled.estimates(), (reference.states(), reference.wrenches()), strict=True):
-        np.testing.assert_allclose(got, wanted, rtol=1e-12, atol=1e-12)
-    if name == "ekf":
-        covariance = rng.normal(size=(50, 18, 18))
-        for bank in banks:
-            bank.P[:] = covariance @ covariance.transpose(0, 2, 1)
-        np.testing.assert_allclose(
-            compiled.wrench_covariances(), reference.wrench_covariances(), rtol=1e-12, atol=1e-12
-        )
-
-
-@pytest.mark.parametrize("backend", ["numpy", pytest.param("numba", marks=needs_numba)])
-def test_a_ukf_whose_state_overflows_restarts_from_the_measured_pose(backend):
+def test_a_ukf_whose_state_overflows_restarts_from_the_measured_pose():
     """A filter whose state leaves the finite numbers (here a force of 1e308 N) restarts at rest at
     the measured pose and reports it; its neighbour in the bank is untouched."""
     vehicle = make_vehicle("ardrone2")
-    bank = make_estimator_bank("ukf", vehicle, 0.005, 2, backend=backend)
+    bank = make_estimator_bank("ukf", vehicle, 0.005, 2)
     level = np.array((1.0, 0.0, 0.0, 0.0))
     for i in range(2):
         bank.reset(i, np.zeros(3), level)

@@ -132,3 +132,60 @@ def test_a_bank_gives_each_vehicle_what_its_single_estimator_gives(name):
     assert bank.statuses() == ["ok"] * count
     with pytest.raises(ValueError, match="non-finite"):
         bank.step(thrusts, torques, measured * np.nan, quaternions)
+    states, wrenches = bank.estimates()  # what the envs read: both at once, from one kernel call
+    np.testing.assert_array_equal(states, bank.states())
+    np.testing.assert_array_equal(wrenches, bank.wrenches())
+
+
+def _euler_kinematics(roll: float, pitch: float) -> np.ndarray:
+    """``T(η)`` with ``ω = T η̇`` for ZYX Euler angles (Yüksel et al. 2014, Sec. II), written here."""
+    sr, cr, sp, cp = np.sin(roll), np.cos(roll), np.sin(pitch), np.cos(pitch)
+    return np.array(((1.0, 0.0, -sp), (0.0, cr, sr * cp), (0.0, -sr, cr * cp)))
+
+
+@pytest.mark.parametrize("name", ["ekf", "observer"])
+def test_the_euler_angle_banks_report_in_the_world_frame_at_any_attitude(name):
+    """The banks that hold ZYX Euler angles (Hentzen et al.'s 2019 EKF, Yüksel et al.'s 2014
+    observer) turn them into the reported quaternion, body rates, world-frame torque and (EKF) its
+    covariance, over the whole angle range (pitch short of ±90°): against the package's numpy
+    rotations and ``T(η)`` written here, to rounding."""
+    count = 50
+    settings = {"rotor_spread": 0.0} if name == "ekf" else {}  # the filter's own covariance alone
+    bank = make_estimator_bank(name, make_vehicle("ardrone2"), 0.005, count, **settings)
+    rng = np.random.default_rng(1)
+    angles = rng.uniform(-np.pi, np.pi, (count, 3))
+    angles[:, 1] = rng.uniform(-1.5, 1.5, count)
+    values = rng.normal(size=(count, 18))
+    quaternions = quat_from_euler_zyx(angles[:, 0], angles[:, 1], angles[:, 2])
+    rotations = [rotation_matrix(q) for q in quaternions]
+    if name == "ekf":
+        bank.x[:] = values
+        bank.x[:, 6:9] = angles
+        body_rates, body_torques = values[:, 9:12], values[:, 15:18]
+    else:
+        for state, column in zip(
+            (bank.positions, bank.velocities, bank.euler_rates, bank.forces, bank.torques_generalised),
+            range(0, 15, 3),
+            strict=True,
+        ):
+            state[:] = values[:, column : column + 3]
+        bank.eulers[:] = angles
+        kinematics = [_euler_kinematics(roll, pitch) for roll, pitch, _ in angles]
+        body_rates = np.array([t @ rate for t, rate in zip(kinematics, values[:, 6:9], strict=True)])
+        body_torques = np.array(
+            [np.linalg.solve(t.T, torque) for t, torque in zip(kinematics, values[:, 12:15], strict=True)]
+        )
+    torques = np.array([r @ torque for r, torque in zip(rotations, body_torques, strict=True)])
+    states, wrenches = bank.estimates()
+    np.testing.assert_allclose(states[:, 6:10], quaternions, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(states[:, 10:13], body_rates, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(wrenches[:, 3:], torques, rtol=1e-12, atol=1e-12)
+    np.testing.assert_array_equal(states, bank.states())
+    np.testing.assert_array_equal(wrenches, bank.wrenches())
+    if name == "ekf":
+        covariance = rng.normal(size=(count, 18, 18))
+        bank.P[:] = covariance @ covariance.transpose(0, 2, 1)
+        rotate = np.tile(np.eye(6), (count, 1, 1))
+        rotate[:, 3:, 3:] = rotations
+        expected = rotate @ bank.P[:, 12:18, 12:18] @ rotate.transpose(0, 2, 1)
+        np.testing.assert_allclose(bank.wrench_covariances(), expected, rtol=1e-12, atol=1e-12)

@@ -8,15 +8,16 @@ import math
 import numpy as np
 import pytest
 
+import quad_wrench_env.estimators.ukf as ukf_module
 from quad_wrench_env.estimators.ukf import UnscentedFilterBank
-from quad_wrench_env.kernels import NUMBA_AVAILABLE
+from quad_wrench_env.kernels import COMPILED
 from quad_wrench_env.kernels.quaternions import qmul, to_mrp
 from quad_wrench_env.kernels.ukf import ukf_bank_step
 from quad_wrench_env.vehicle import GRAVITY, make_vehicle
 
-pytestmark = pytest.mark.skipif(not NUMBA_AVAILABLE, reason="numba is not installed")
+pytestmark = pytest.mark.skipif(not COMPILED, reason="lanes are compiled code (numba, no NUMBA_DISABLE_JIT)")
 
-if NUMBA_AVAILABLE:
+if COMPILED:
     import numba
 
     from quad_wrench_env.kernels import lanes
@@ -104,7 +105,7 @@ def _fly_banks(count: int, steps: int = 300):
     inputs: tilted, moving vehicles with noisy poses; at step 150 filter 0's covariance is made
     indefinite (the Cholesky fails) and at step 250 filter 1's thrust overflows the state."""
     vehicle = make_vehicle("ardrone2")
-    banks = [UnscentedFilterBank(vehicle, 0.005, None, count, "numba") for _ in range(2)]
+    banks = [UnscentedFilterBank(vehicle, 0.005, None, count) for _ in range(2)]
     rng = np.random.default_rng(count)
     positions = rng.normal(size=(count, 3))
     quaternions = rng.normal(size=(count, 4))
@@ -142,7 +143,7 @@ def test_lane_kernel_equals_the_filter_by_filter_kernel(count):
 
 def test_lane_kernel_refuses_non_finite_input_and_touches_nothing():
     vehicle, count = make_vehicle("ardrone2"), 9
-    bank = UnscentedFilterBank(vehicle, 0.005, None, count, "numba")
+    bank = UnscentedFilterBank(vehicle, 0.005, None, count)
     assert bank._step_kernel is ukf_lanes_step
     before = (bank.quaternions.copy(), bank.rests.copy(), bank.covariances.copy())
     thrusts, torques = np.full(count, vehicle.mass * GRAVITY), np.zeros((count, 3))
@@ -154,17 +155,21 @@ def test_lane_kernel_refuses_non_finite_input_and_touches_nothing():
         np.testing.assert_array_equal(array, saved)
 
 
-def test_banks_below_the_threshold_run_filter_by_filter():
+def test_banks_below_the_threshold_run_filter_by_filter(monkeypatch):
+    """And every bank where the kernels are not compiled (``NUMBA_DISABLE_JIT=1``): lanes have no
+    plain-Python form."""
     vehicle = make_vehicle("ardrone2")
-    assert UnscentedFilterBank(vehicle, 0.005, None, LANES_FROM - 1, "numba")._step_kernel is ukf_bank_step
-    assert UnscentedFilterBank(vehicle, 0.005, None, LANES_FROM, "numba")._step_kernel is ukf_lanes_step
+    assert UnscentedFilterBank(vehicle, 0.005, None, LANES_FROM - 1)._step_kernel is ukf_bank_step
+    assert UnscentedFilterBank(vehicle, 0.005, None, LANES_FROM)._step_kernel is ukf_lanes_step
+    monkeypatch.setattr(ukf_module, "COMPILED", False)
+    assert UnscentedFilterBank(vehicle, 0.005, None, LANES_FROM)._step_kernel is ukf_bank_step
 
 
 def test_a_filter_on_lanes_depends_on_its_own_inputs_only():
     """The same filters in reverse order (other lanes, other neighbours, the spare lanes elsewhere)
     give the same bits, filter for filter."""
     vehicle, count = make_vehicle("ardrone2"), 11
-    banks = [UnscentedFilterBank(vehicle, 0.005, None, count, "numba") for _ in range(2)]
+    banks = [UnscentedFilterBank(vehicle, 0.005, None, count) for _ in range(2)]
     rng = np.random.default_rng(4)
     positions = rng.normal(size=(count, 3))
     quaternions = rng.normal(size=(count, 4))

@@ -5,17 +5,23 @@ from __future__ import annotations
 
 import copy
 import functools
+import inspect
 import math
+import textwrap
 
 import gymnasium as gym
+import numba
 import numpy as np
 import pytest
 
-import quad_wrench_env  # registers the env ids
-import quad_wrench_env.estimators.ekf
+import quad_wrench_env  # noqa: F401  (registers the env ids)
+import quad_wrench_env.estimators.ekf as ekf_module
 import quad_wrench_env.estimators.observer as observer_module
 import quad_wrench_env.estimators.ukf as ukf_module
 from quad_wrench_env.estimators import EKFNoise, FilterNoise, make_estimator, make_estimator_bank
+from quad_wrench_env.kernels.ekf import ekf_bank_step, ekf_transition
+from quad_wrench_env.kernels.observer import observer_bank_step
+from quad_wrench_env.kernels.ukf import ukf_bank_step
 from quad_wrench_env.rotations import cross, quat_exp, quat_multiply, quat_multiply_rows, rotation_matrix
 from quad_wrench_env.vehicle import GRAVITY, Mixer, make_vehicle
 
@@ -134,30 +140,75 @@ def _max_gyroscopic() -> float:
     return max(float(np.abs(cross(w, INERTIA * w)).max()) for w in omegas)
 
 
-def _flip_gyroscopic(a, b):
-    return -cross(a, b)
+def mutated(kernel, *edits: tuple[str, str], **helpers):
+    """``kernel`` (one of the estimators' kernels) compiled anew from its source with each text of
+    ``edits`` replaced (each must occur exactly once) and the kernels it calls replaced by ``helpers``
+    (by name): a deliberate bug, to check that a test catches it. Seconds of compiling (not cached)."""
+    function = getattr(kernel, "py_func", kernel)
+    source = textwrap.dedent(inspect.getsource(function))
+    for text, replacement in edits:
+        assert source.count(text) == 1, text
+        source = source.replace(text, replacement)
+    namespace = {**function.__globals__, **helpers, "njit": lambda f=None, **_: f or (lambda g: g)}
+    exec(compile(source, f"<mutated {function.__name__}>", "exec"), namespace)
+    return numba.njit(error_model="numpy")(namespace[function.__name__])
 
 
-def _no_cross(a, b):
-    return 0.0 * cross(a, b)
+MUTATIONS = {
+    "ukf: gyroscopic sign flipped": lambda: {
+        (ukf_module, "ukf_bank_step"): mutated(
+            ukf_bank_step, *((f"torque[{i}] -= ", f"torque[{i}] += ") for i in range(3))
+        )
+    },
+    "ekf: gyroscopic sign flipped": lambda: {
+        (ekf_module, "ekf_bank_step"): mutated(
+            ekf_bank_step,
+            ekf_transition=mutated(ekf_transition, *((f" - c{i}) / ", f" + c{i}) / ") for i in range(3))),
+        )
+    },
+    "observer: ω × Jω dropped": lambda: {
+        (observer_module, "observer_bank_step"): mutated(
+            observer_bank_step, *((f"inner[{i}] += ", f"inner[{i}] += 0.0 * ") for i in range(3))
+        )
+    },
+    "observer: Coriolis dropped": lambda: {
+        (observer_module, "observer_bank_step"): mutated(
+            observer_bank_step,
+            *((f"inner[{i}] += ", f"inner[{i}] += 0.0 * ") for i in range(3)),
+            ("inner[i] = inertia[i] * (", "inner[i] = 0.0 * ("),
+        )
+    },
+}
+"""Deliberate bugs in the estimators' kernels, by name: what to put where (the bank modules' names
+of the kernels, which the banks read when they step)."""
 
 
-@pytest.mark.parametrize("mutation", [None, "gyroscopic sign flipped"])
+def _mutate(monkeypatch: pytest.MonkeyPatch, mutation: str | None) -> None:
+    if mutation:
+        for (module, name), kernel in MUTATIONS[mutation]().items():
+            monkeypatch.setattr(module, name, kernel)
+
+
+@pytest.mark.parametrize(
+    "mutation", [None, pytest.param("ukf: gyroscopic sign flipped", marks=pytest.mark.slow)]
+)
 def test_ukf_tracks_a_constant_wrench_in_manoeuvring_flight(monkeypatch, mutation):
     """Catches a wrong motion model away from hover (the gyroscopic term ω × Jω, the attitude
     kinematics, the rotation of τ_e into the body): every estimate after 2.5 s lies within 4 σ of
     the truth, σ from the filter's own covariance (seen: at most 1.8 σ over two seeds; 4 σ leaves
     room for the ~0.03 N the force model's start-of-step thrust direction misses, T|ω|dt/2).
     With the gyroscopic term's sign flipped (max |ω × Jω| ≈ 0.009 N·m, an error of twice that
-    against σ ≈ 0.001 N·m) it must fail; the mutated run is checked to fail here too."""
-    if mutation:
-        monkeypatch.setattr(ukf_module, "cross", _flip_gyroscopic)
+    against σ ≈ 0.001 N·m) it must fail; the mutated run (its kernel compiled anew: slow) is checked
+    to fail here too."""
+    _mutate(monkeypatch, mutation)
     wrenches, sigmas = fly_reference("ukf", seed=0)
     within = _errors(wrenches) < 4.0 * sigmas[SETTLED:]
     assert within.all() != bool(mutation), np.abs(wrenches[SETTLED:] - np.r_[F_EXT, TAU_EXT]).max(axis=0)
 
 
-@pytest.mark.parametrize("mutation", [None, "gyroscopic sign flipped"])
+@pytest.mark.parametrize(
+    "mutation", [None, pytest.param("ekf: gyroscopic sign flipped", marks=pytest.mark.slow)]
+)
 def test_ekf_tracks_a_constant_wrench_in_manoeuvring_flight(monkeypatch, mutation):
     """Catches a wrong motion model of Hentzen et al.'s (2019) EKF away from hover. Its covariance is
     overconfident in this flight (torque errors up to 5.7 of its σ: forward-Euler Euler-angle
@@ -165,15 +216,23 @@ def test_ekf_tracks_a_constant_wrench_in_manoeuvring_flight(monkeypatch, mutatio
     2 max|ω × Jω| ≈ 0.018 N·m a flipped gyroscopic sign costs (seen: 0.0054 correct, 0.016 flipped);
     force within 0.1 N (~3 σ of 0.022 N plus the ~0.03 N start-of-step thrust direction error;
     seen 0.066 N)."""
-    if mutation:
-        monkeypatch.setattr(quad_wrench_env.estimators.ekf, "cross", _flip_gyroscopic)
+    _mutate(monkeypatch, mutation)
     assert 2.0 * _max_gyroscopic() > 0.008
     errors = _errors(fly_reference("ekf", seed=1, motion=True)[0], window=20).max(axis=0)
     assert (errors[3:].max() < 0.008) != bool(mutation), errors
     assert errors[:3].max() < 0.1, errors
 
 
-@pytest.mark.parametrize("mutation", [None, "ω × Jω dropped", "Coriolis dropped"])
+@pytest.mark.parametrize(
+    "mutation",
+    [
+        None,
+        *(
+            pytest.param(f"observer: {m}", marks=pytest.mark.slow)
+            for m in ("ω × Jω dropped", "Coriolis dropped")
+        ),
+    ],
+)
 def test_observer_tracks_a_constant_wrench_in_manoeuvring_flight(monkeypatch, mutation):
     """Catches a wrong Coriolis term C(η, η̇) η̇ of Yüksel et al.'s (2014) observer away from hover. Fed the
     onboard estimator's velocity and body rates (0.01 noise; the observer's finite differences of
@@ -182,11 +241,7 @@ def test_observer_tracks_a_constant_wrench_in_manoeuvring_flight(monkeypatch, mu
     (seen: 0.0017). Dropping ω × Jω (up to 0.009 N·m) or the whole Coriolis term must exceed it
     (seen: 0.010, 0.017). Force within 0.15 N: its discretisation lags by c dt |a|/2 ≈ 0.1 N at the
     flight's 7.8 m/s² (see the report of issue 21) plus c σ_v ≈ 0.05 N of noise (seen: 0.11 N)."""
-    if mutation:
-        monkeypatch.setattr(observer_module, "cross", _no_cross)
-    if mutation == "Coriolis dropped":
-        rate = observer_module.euler_kinematics_rate
-        monkeypatch.setattr(observer_module, "euler_kinematics_rate", lambda *a: 0.0 * rate(*a))
+    _mutate(monkeypatch, mutation)
     # Yüksel et al.'s (2014) printed gains (unscaled: on this light vehicle a fast observer, whose lag hides
     # nothing)
     wrenches = fly_reference("observer", seed=0, motion=True, c_force=5.0, c_torque=0.5)[0]

@@ -9,7 +9,6 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-from quad_wrench_env.kernels import NUMBA_AVAILABLE
 from tests.conftest import FAN_TRACKING
 
 BLOCKS = {"force": np.s_[:3, :3], "torque": np.s_[3:, 3:], "force-torque": np.s_[:3, 3:]}
@@ -21,13 +20,13 @@ def _yaw_matrix(angle: float) -> np.ndarray:
     return np.array(((c, -s, 0.0), (s, c, 0.0), (0.0, 0.0, 1.0)))
 
 
-def _fly_yawed(estimator: str, backend: str, yaw: float) -> dict:
+def _fly_yawed(estimator: str, yaw: float) -> dict:
     """A short flight with no air and noise-free motion capture, started ``yaw`` beyond FanTracking's
     start heading and commanded a world velocity and yaw rate turned by ``yaw`` too: without a fan the
     world is the same in every horizontal direction, so the flight is the yaw-0 flight turned about
     the start point. Returns the last step's info."""
     env = gym.make(
-        FAN_TRACKING, estimator=estimator, backend=backend, fan={"enabled": False},
+        FAN_TRACKING, estimator=estimator, fan={"enabled": False},
         sensors={"position_noise": 0.0, "attitude_noise": 0.0},
     )  # fmt: skip
     task = env.unwrapped.task
@@ -50,16 +49,14 @@ def _fly_yawed(estimator: str, backend: str, yaw: float) -> dict:
         env.close()
 
 
-@pytest.mark.parametrize("backend", ["numpy", pytest.param("numba", marks=pytest.mark.skipif(
-    not NUMBA_AVAILABLE, reason="numba is not installed"))])  # fmt: skip
 @pytest.mark.parametrize("estimator", ["ukf", "ekf"])
-def test_the_wrench_covariance_is_symmetric_positive_and_turns_with_the_vehicle(estimator, backend):
+def test_the_wrench_covariance_is_symmetric_positive_and_turns_with_the_vehicle(estimator):
     """The filters' ``info["wrench_cov"]`` is a symmetric (to rounding) positive semi-definite 6x6
     matrix in the world frame: a flight turned by a known yaw α gives ``Rz(α) C Rz(α)ᵀ`` block by block
     (force, torque and the cross blocks), to rounding, where C is the unturned flight's; each block of
     C differs from its turned form by far more than that (the check could fail)."""
     alpha = 0.7
-    straight, turned = (_fly_yawed(estimator, backend, yaw) for yaw in (0.0, alpha))
+    straight, turned = (_fly_yawed(estimator, yaw) for yaw in (0.0, alpha))
     rotate = np.kron(np.eye(2), _yaw_matrix(alpha))  # diag(Rz, Rz) on [f, τ]
     np.testing.assert_allclose(turned["wrench_est"], rotate @ straight["wrench_est"], atol=1e-7)
     expected = rotate @ straight["wrench_cov"] @ rotate.T

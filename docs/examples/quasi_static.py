@@ -36,7 +36,6 @@ class QuasiStaticBank:
         dt: float,
         settings: QuasiStaticSettings | None,
         count: int,
-        backend: str = "numpy",
     ) -> None:
         self.mass, self.dt, self.count = vehicle.mass, dt, count
         settings = settings or QuasiStaticSettings()
@@ -95,8 +94,8 @@ class QuasiStaticEstimator(BankOfOne):
 
     name = "quasi_static"
 
-    def __init__(self, vehicle, dt, settings=None, backend="numpy") -> None:
-        self.bank = QuasiStaticBank(vehicle, dt, settings, count=1, backend=backend)
+    def __init__(self, vehicle, dt, settings=None) -> None:
+        self.bank = QuasiStaticBank(vehicle, dt, settings, count=1)
 
 
 def _settings(values):  # drop the motion-capture noise keys the env always passes

@@ -114,7 +114,6 @@ class Fleet:
             vehicle,
             dt,
             count,
-            backend=self.backend,
             **{**measurement_noise, **estimator_settings(cfg.estimator, cfg.estimator_params)},
         )
         self.truth_fed = isinstance(self._estimator, OracleBank)

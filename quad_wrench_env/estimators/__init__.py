@@ -28,13 +28,13 @@ class EstimatorEntry:
 
     ``settings(noise)`` turns the keyword settings of :func:`make_estimator` into the settings object
     (dropping the measurement-noise keys it does not use; unknown keys raise ``ValueError``);
-    ``single(vehicle, dt, settings, backend)`` builds one estimator and ``bank(vehicle, dt, settings,
-    count, backend)`` a batch of ``count``.
+    ``single(vehicle, dt, settings)`` builds one estimator and ``bank(vehicle, dt, settings, count)`` a
+    batch of ``count``.
     """
 
     settings: Callable[[dict[str, Any]], Any]
-    single: Callable[[VehicleParams, float, Any, str], Estimator]
-    bank: Callable[[VehicleParams, float, Any, int, str], EstimatorBank]
+    single: Callable[[VehicleParams, float, Any], Estimator]
+    bank: Callable[[VehicleParams, float, Any, int], EstimatorBank]
 
 
 def _ukf_noise(noise: dict[str, Any]) -> FilterNoise:
@@ -65,8 +65,8 @@ register(
     "oracle",
     EstimatorEntry(
         _oracle_settings,
-        lambda vehicle, dt, settings, backend: OracleEstimator(),
-        lambda vehicle, dt, settings, count, backend: OracleBank(count),
+        lambda vehicle, dt, settings: OracleEstimator(),
+        lambda vehicle, dt, settings, count: OracleBank(count),
     ),
 )
 ESTIMATORS = registered("estimator")
@@ -112,30 +112,29 @@ def _entry(name: str, dt: float) -> EstimatorEntry:
     return entry
 
 
-def make_estimator(
-    name: str, vehicle: VehicleParams, dt: float, backend: str = "numpy", **noise: Any
-) -> Estimator:
+def make_estimator(name: str, vehicle: VehicleParams, dt: float, **noise: Any) -> Estimator:
     """Build the estimator called ``name`` for ``vehicle``, stepped every ``dt`` seconds.
 
     ``noise`` holds the estimator's settings: for the UKF the fields of :class:`FilterNoise`, for the
     EKF those of :class:`EKFNoise`, for the observer those of :class:`ObserverGains`; the observer
-    and the oracle ignore the measurement-noise keys, which the env always passes. ``backend``
-    picks the arithmetic (numpy reference or compiled, see :mod:`quad_wrench_env.kernels`).
+    and the oracle ignore the measurement-noise keys, which the env always passes. The filters run
+    their kernels (compiled, or plain Python under ``NUMBA_DISABLE_JIT=1``, see
+    :mod:`quad_wrench_env.kernels`).
     """
     entry = _entry(name, dt)
-    return entry.single(vehicle, dt, entry.settings(noise), backend)
+    return entry.single(vehicle, dt, entry.settings(noise))
 
 
 def make_estimator_bank(
-    name: str, vehicle: VehicleParams, dt: float, count: int, backend: str = "numpy", **noise: Any
+    name: str, vehicle: VehicleParams, dt: float, count: int, **noise: Any
 ) -> EstimatorBank:
-    """``count`` estimators called ``name`` (settings and ``backend`` as :func:`make_estimator`),
-    stepped together as one batched computation."""
+    """``count`` estimators called ``name`` (settings as :func:`make_estimator`), stepped together as
+    one batched computation."""
     entry = _entry(name, dt)
     settings = entry.settings(noise)
     if not (isinstance(count, int) and count >= 1):
         raise ValueError(f"count={count!r} must be an integer >= 1")
-    return entry.bank(vehicle, dt, settings, count, backend)
+    return entry.bank(vehicle, dt, settings, count)
 
 
 __all__ = [

@@ -4,20 +4,19 @@ An :class:`EstimatorBank` holds one estimator per vehicle and steps them all at 
 computation, arrays with a leading dimension N in and out: ``UnscentedFilterBank``,
 ``ExtendedFilterBank``, ``ObserverBank`` and :class:`OracleBank` (a copy of the truth). Each
 single-vehicle estimator (the :class:`~quad_wrench_env.estimators.base.Estimator` protocol) is a bank
-of one, so there is one implementation of each algorithm.
+of one, and each filter bank steps by its kernel (:mod:`quad_wrench_env.kernels`) on every backend,
+so there is one implementation of each algorithm.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
-from functools import partial
 from typing import Protocol, runtime_checkable
 
 import numpy as np
 
 from quad_wrench_env.estimators.base import StateEstimate, WrenchEstimate
 from quad_wrench_env.kernels import bind
-from quad_wrench_env.rotations import quat_from_euler_zyx, rotation_matrices
 
 
 @runtime_checkable
@@ -83,16 +82,14 @@ def _kernel_inputs(thrusts, body_torques, positions, quaternions, velocities, bo
 
 
 class FilterBank:
-    """What the UKF, EKF and observer banks share: one ``step`` that runs the compiled kernel or the
-    numpy reference (``backend``), refuses non-finite inputs by name before anything enters a
-    filter, and counts ``version``, the changes of the bank's state (a key for cached values).
-    Subclasses implement ``_kernel`` (the compiled step and its arguments; it returns False,
-    changing nothing, on a non-finite input) and ``_numpy_step``."""
+    """What the UKF, EKF and observer banks share: one ``step`` that runs the bank's kernel (compiled,
+    or plain Python under ``NUMBA_DISABLE_JIT=1``, :mod:`quad_wrench_env.kernels`) and refuses
+    non-finite inputs by name before anything enters a filter. Subclasses implement ``_kernel`` (the
+    step kernel and its arguments; the kernel returns False, changing nothing, on a non-finite input)
+    and ``_estimates_kernel``."""
 
     name: str
-    backend: str
     count: int
-    version: int = 0
 
     def step(
         self,
@@ -104,16 +101,11 @@ class FilterBank:
         body_rates: np.ndarray | None = None,
     ) -> None:
         """One step of every filter (see :class:`EstimatorBank`)."""
-        if self.backend == "numba":
-            kernel, arguments = self._kernel(
-                *_kernel_inputs(thrusts, body_torques, positions, quaternions, velocities, body_rates)
-            )
-            if not kernel(*arguments):
-                self._refuse(thrusts, body_torques, positions, quaternions, velocities, body_rates)
-        else:
+        kernel, arguments = self._kernel(
+            *_kernel_inputs(thrusts, body_torques, positions, quaternions, velocities, body_rates)
+        )
+        if not kernel(*arguments):
             self._refuse(thrusts, body_torques, positions, quaternions, velocities, body_rates)
-            self._numpy_step(thrusts, body_torques, positions, quaternions, velocities, body_rates)
-        self.version += 1
 
     def bind_step(
         self,
@@ -125,20 +117,17 @@ class FilterBank:
         body_rates: np.ndarray | None = None,
     ) -> Callable[[], None]:
         """:meth:`step` on these input arrays, as a call without arguments that reads them afresh
-        each time (the caller refills them in place). On numba the kernel's compiled form and its
-        arguments, the bank's state arrays among them, are bound once (:func:`~quad_wrench_env.
-        kernels.bind`; the compiled step updates them in place): about 0.5 µs less per step than
-        :meth:`step`."""
+        each time (the caller refills them in place). The kernel, compiled for these arguments'
+        types, and its arguments, the bank's state arrays among them, are bound once
+        (:func:`~quad_wrench_env.kernels.bind`; the kernel updates them in place): about 0.5 µs less
+        per step than :meth:`step`."""
         inputs = (thrusts, body_torques, positions, quaternions, velocities, body_rates)
-        if self.backend != "numba":
-            return partial(self.step, *inputs)
         kernel, arguments = self._kernel(*_kernel_inputs(*inputs))
         kernel_step = bind(kernel, *arguments)
 
         def bound_step() -> None:
             if not kernel_step():
                 self._refuse(*inputs)
-            self.version += 1
 
         return bound_step
 
@@ -149,50 +138,23 @@ class FilterBank:
         )  # fmt: skip
 
     def estimates(self) -> tuple[np.ndarray, np.ndarray]:
-        """:meth:`states` and :meth:`wrenches` (see :class:`EstimatorBank`), on numba from one call
-        of the bank's ``_estimates_kernel``."""
-        if self.backend != "numba":
-            return self.states(), self.wrenches()
+        """:meth:`states` and :meth:`wrenches` (see :class:`EstimatorBank`) from one call of the
+        bank's ``_estimates_kernel``."""
         states, wrenches = np.empty((self.count, 13)), np.empty((self.count, 6))
         kernel, arguments = self._estimates_kernel()
         kernel(*arguments, states, wrenches)
         return states, wrenches
 
     def _estimates_kernel(self) -> tuple[Callable[..., None], tuple]:
-        """The compiled form of :meth:`estimates` and its arguments, less the two outputs."""
+        """The kernel of :meth:`estimates` and its arguments, less the two outputs."""
         raise NotImplementedError
 
     def _kernel(
         self, thrusts, body_torques, positions, quaternions, velocities, body_rates
     ) -> tuple[Callable[..., bool], tuple]:
-        """The compiled step and its arguments for these inputs (an empty array for a velocity or
+        """The step kernel and its arguments for these inputs (an empty array for a velocity or
         body-rate measurement the sensors do not make)."""
         raise NotImplementedError
-
-    def _numpy_step(self, thrusts, body_torques, positions, quaternions, velocities, body_rates) -> None:
-        raise NotImplementedError
-
-
-class EulerAttitudes:
-    """For the banks that hold ZYX Euler angles (EKF, observer): their quaternions and rotation
-    matrices, computed once per ``version`` of the bank's state. Subclasses give ``euler_angles``."""
-
-    version: int
-    _attitude_cache: tuple[int, np.ndarray, np.ndarray] = (-1, np.empty(0), np.empty(0))
-
-    def euler_angles(self) -> np.ndarray:
-        """(N, 3) roll, pitch, yaw."""
-        raise NotImplementedError
-
-    def attitudes(self) -> tuple[np.ndarray, np.ndarray]:
-        """Quaternions (N, 4) and body -> world rotation matrices (N, 3, 3)."""
-        version, q, R = self._attitude_cache
-        if version != self.version:
-            angles = self.euler_angles()
-            q = quat_from_euler_zyx(angles[:, 0], angles[:, 1], angles[:, 2])
-            R = rotation_matrices(q)
-            self._attitude_cache = (self.version, q, R)
-        return q, R
 
 
 class OracleBank:

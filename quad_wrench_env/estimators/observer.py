@@ -28,7 +28,8 @@ covariance (Yüksel et al. 2014 give none: its error dynamics ``ė = -L e`` are 
 not an invented one.
 
 :class:`ObserverBank` runs N observers as one batched computation (every array carries a leading
-vehicle axis); :class:`NonlinearWrenchObserver`, the single-vehicle estimator, is a bank of one.
+vehicle axis) by its kernel, :mod:`quad_wrench_env.kernels.observer`, the one implementation of the
+algebra; :class:`NonlinearWrenchObserver`, the single-vehicle estimator, is a bank of one.
 """
 
 from __future__ import annotations
@@ -39,8 +40,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from quad_wrench_env.config import check_numbers
-from quad_wrench_env.estimators.bank import BankOfOne, EulerAttitudes, FilterBank
-from quad_wrench_env.kernels import resolve_backend
+from quad_wrench_env.estimators.bank import BankOfOne, FilterBank
 from quad_wrench_env.kernels.observer import (
     observer_bank_step,
     observer_constants,
@@ -48,11 +48,7 @@ from quad_wrench_env.kernels.observer import (
     observer_states,
     observer_wrenches,
 )
-from quad_wrench_env.rotations import (
-    cross,
-    euler_zyx_from_quat,
-    wrap_angle,
-)
+from quad_wrench_env.rotations import euler_zyx_from_quat
 from quad_wrench_env.vehicle import GRAVITY, PRESETS, VehicleParams
 
 PAPER_001_VEHICLE = "yuksel1kg"
@@ -94,55 +90,14 @@ class ObserverGains:
         return c_force, c_torque
 
 
-def euler_kinematics(roll: np.ndarray, pitch: np.ndarray) -> np.ndarray:
-    """(n, 3, 3) ``T(η)`` with ``ω = T η̇`` (body rates from ZYX Euler-angle rates), Yüksel et al.
-    2014, Sec. II."""
-    sr, cr = np.sin(roll), np.cos(roll)
-    sp, cp = np.sin(pitch), np.cos(pitch)
-    out = np.zeros((len(roll), 3, 3))
-    out[:, 0, 0], out[:, 0, 2] = 1.0, -sp
-    out[:, 1, 1], out[:, 1, 2] = cr, sr * cp
-    out[:, 2, 1], out[:, 2, 2] = -sr, cr * cp
-    return out
-
-
-def euler_kinematics_rate(
-    roll: np.ndarray, pitch: np.ndarray, roll_rate: np.ndarray, pitch_rate: np.ndarray
-) -> np.ndarray:
-    """(n, 3, 3) ``Ṫ(η, η̇)``."""
-    sr, cr = np.sin(roll), np.cos(roll)
-    sp, cp = np.sin(pitch), np.cos(pitch)
-    out = np.zeros((len(roll), 3, 3))
-    out[:, 0, 2] = -cp * pitch_rate
-    out[:, 1, 1], out[:, 1, 2] = -sr * roll_rate, cr * cp * roll_rate - sr * sp * pitch_rate
-    out[:, 2, 1], out[:, 2, 2] = -cr * roll_rate, -sr * cp * roll_rate - cr * sp * pitch_rate
-    return out
-
-
-def _apply(matrices: np.ndarray, vectors: np.ndarray) -> np.ndarray:
-    return np.einsum("nij,nj->ni", matrices, vectors)
-
-
-def _apply_transposed(matrices: np.ndarray, vectors: np.ndarray) -> np.ndarray:
-    return np.einsum("nji,nj->ni", matrices, vectors)
-
-
-class ObserverBank(FilterBank, EulerAttitudes):
+class ObserverBank(FilterBank):
     """N momentum-type observers without acceleration (Yüksel et al. 2014 eqs. 9-15), stepped together."""
 
     name = "observer"
 
-    def __init__(
-        self,
-        vehicle: VehicleParams,
-        dt: float,
-        gains: ObserverGains | None,
-        count: int,
-        backend: str = "numpy",
-    ) -> None:
+    def __init__(self, vehicle: VehicleParams, dt: float, gains: ObserverGains | None, count: int) -> None:
         if count < 1:
             raise ValueError(f"count={count!r} must be at least 1 observer")
-        self.backend = resolve_backend(backend)
         self.vehicle = vehicle
         self.dt = dt
         self.count = count
@@ -166,18 +121,12 @@ class ObserverBank(FilterBank, EulerAttitudes):
             dt, self.mass, self.inertia, GRAVITY,
             (self.c_force, self.c_torque, self._force_decay, self._velocity_alpha, self._rate_alpha),
         )  # fmt: skip
-        """The compiled step's constants (:func:`~quad_wrench_env.kernels.observer.observer_constants`)."""
-        self.version = 0
-
-    def euler_angles(self) -> np.ndarray:
-        """(N, 3) the measured roll, pitch, yaw."""
-        return self.eulers
+        """The step kernel's constants (:func:`~quad_wrench_env.kernels.observer.observer_constants`)."""
 
     def reset(self, index: int | np.ndarray, position: np.ndarray, quaternion_wxyz: np.ndarray) -> None:
         """Start the observers ``index`` at rest with zero wrench (``ŵ = Ψ + c q̇ = 0``)."""
         self.positions[index] = position
         self.eulers[index] = euler_zyx_from_quat(np.asarray(quaternion_wxyz, dtype=float))
-        self.version += 1
         for state in (self.velocities, self.euler_rates, self.psi_force, self.psi_torque):
             state[index] = 0.0
         self.forces[index] = 0.0
@@ -190,77 +139,17 @@ class ObserverBank(FilterBank, EulerAttitudes):
             quaternions, velocities, body_rates, self.kernel_constants,
         )  # fmt: skip
 
-    def _numpy_step(self, thrusts, body_torques, positions, quaternions, velocities, body_rates) -> None:
-        self._measure(positions, quaternions, velocities, body_rates)
-        dt = self.dt
-        roll, pitch = self.eulers[:, 0], self.eulers[:, 1]
-        R = self.attitudes()[1]
-        # force block (eq. 13 with L = c/m): Ψ' = e^{-cT/m} Ψ + (1 - e^{-cT/m}) (m g e_z - ρ R e_z - c ẋ)
-        drive = -np.asarray(thrusts, dtype=float)[:, None] * R[:, :, 2] - self.c_force * self.velocities
-        drive[:, 2] += self.mass * GRAVITY
-        self.psi_force = self._force_decay * self.psi_force + (1.0 - self._force_decay) * drive
-        self.forces = self.psi_force + self.c_force * self.velocities
-        # torque block (eq. 13 with L = c 𝕁⁻¹), backward Euler: (𝕁 + c T) Ψ' = 𝕁 Ψ + c T (C η̇ - Tᵀτ̄ - c η̇)
-        T_eta = euler_kinematics(roll, pitch)
-        J_gen = T_eta.transpose(0, 2, 1) @ (self.inertia[:, None] * T_eta)
-        eta_rate = self.euler_rates
-        omega = _apply(T_eta, eta_rate)
-        T_dot = euler_kinematics_rate(roll, pitch, eta_rate[:, 0], eta_rate[:, 1])
-        coriolis = _apply_transposed(
-            T_eta, self.inertia * _apply(T_dot, eta_rate) + cross(omega, self.inertia * omega)
-        )
-        drive_torque = coriolis - _apply_transposed(T_eta, body_torques) - self.c_torque * eta_rate
-        gain = self.c_torque * dt
-        right = _apply(J_gen, self.psi_torque) + gain * drive_torque
-        self.psi_torque = np.linalg.solve(J_gen + gain * np.eye(3), right[:, :, None])[:, :, 0]
-        self.torques_generalised = self.psi_torque + self.c_torque * eta_rate
-
-    def _measure(
-        self,
-        positions: np.ndarray,
-        quaternions: np.ndarray,
-        velocities: np.ndarray | None,
-        body_rates: np.ndarray | None,
-    ) -> None:
-        euler = euler_zyx_from_quat(np.asarray(quaternions, dtype=float))
-        if velocities is not None:
-            self.velocities = np.array(velocities, dtype=float)
-        else:
-            raw = (positions - self.positions) / self.dt
-            self.velocities = self.velocities + self._velocity_alpha * (raw - self.velocities)
-        if body_rates is not None:
-            kinematics = euler_kinematics(euler[:, 0], euler[:, 1])
-            self.euler_rates = np.linalg.solve(kinematics, np.asarray(body_rates, dtype=float)[:, :, None])[
-                :, :, 0
-            ]
-        else:
-            raw = wrap_angle(euler - self.eulers) / self.dt
-            self.euler_rates = self.euler_rates + self._rate_alpha * (raw - self.euler_rates)
-        self.positions = np.array(positions, dtype=float)
-        self.eulers = euler
-        self.version += 1  # the cached attitudes belong to the old angles
-
-    def quaternions(self) -> np.ndarray:
-        return self.attitudes()[0]
-
     def wrenches(self) -> np.ndarray:
         """(N, 6) estimated ``[f, R T⁻ᵀ τ̂_gen]``, world frame."""
-        if self.backend == "numba":
-            out = np.empty((self.count, 6))
-            observer_wrenches(self.eulers, self.forces, self.torques_generalised, out)
-            return out
-        kinematics = euler_kinematics(self.eulers[:, 0], self.eulers[:, 1])
-        body = np.linalg.solve(kinematics.transpose(0, 2, 1), self.torques_generalised[:, :, None])[:, :, 0]
-        return np.concatenate((self.forces, _apply(self.attitudes()[1], body)), axis=1)
+        out = np.empty((self.count, 6))
+        observer_wrenches(self.eulers, self.forces, self.torques_generalised, out)
+        return out
 
     def states(self) -> np.ndarray:
         """(N, 13) position, velocity, quaternion and body rates ``T η̇``."""
-        if self.backend == "numba":
-            out = np.empty((self.count, 13))
-            observer_states(self.positions, self.eulers, self.velocities, self.euler_rates, out)
-            return out
-        body_rates = _apply(euler_kinematics(self.eulers[:, 0], self.eulers[:, 1]), self.euler_rates)
-        return np.concatenate((self.positions, self.velocities, self.quaternions(), body_rates), axis=1)
+        out = np.empty((self.count, 13))
+        observer_states(self.positions, self.eulers, self.velocities, self.euler_rates, out)
+        return out
 
     def _estimates_kernel(self):
         return observer_estimates, (
@@ -281,10 +170,8 @@ class NonlinearWrenchObserver(BankOfOne):
 
     name = "observer"
 
-    def __init__(
-        self, vehicle: VehicleParams, dt: float, gains: ObserverGains | None = None, backend: str = "numpy"
-    ) -> None:
-        self.bank = ObserverBank(vehicle, dt, gains, count=1, backend=backend)
+    def __init__(self, vehicle: VehicleParams, dt: float, gains: ObserverGains | None = None) -> None:
+        self.bank = ObserverBank(vehicle, dt, gains, count=1)
 
 
 def _alpha(dt: float, time_constant: float) -> float:

@@ -1,14 +1,17 @@
 """Compiled (numba) forms of the per-step hot paths: the estimators' kernels and the helpers every
 kernel shares (this package holds no engine or task code).
 
-numba is a core dependency: the compiled path is the product's speed. The numpy code stays the
-reference, selectable and tested (config ``backend``: ``"auto"`` picks numba when it imports,
+numba is a core dependency: the compiled path is the product's speed. The engine's numpy code stays
+the reference, selectable and tested (config ``backend``: ``"auto"`` picks numba when it imports,
 ``"numpy"`` forces the reference, ``"numba"`` requires it; ``QUAD_WRENCH_DISABLE_NUMBA=1`` makes
-``"auto"`` pick numpy, e.g. to check the reference alone). Each kernel loops
-over the vehicles (or filters) of a batch and repeats the reference's arithmetic step by step (the
-UKF of a larger bank runs eight filters at a time on SIMD lanes, :mod:`.lanes`); the tests run both
-paths and compare them. Compiled code is cached on disk (numba's ``cache=True``), so
-the compile cost (seconds) is paid once per machine, not per env.
+``"auto"`` pick numpy, e.g. to check the reference alone); the tests run both paths and compare
+them. The estimators have one implementation, their kernels, on every backend (each loops over the
+filters of a bank; the UKF of a larger bank runs eight filters at a time on SIMD lanes,
+:mod:`.lanes`). Under numba's ``NUMBA_DISABLE_JIT=1`` (or without numba) :func:`njit` leaves a
+kernel a plain Python function, to step through in a debugger: the same code, slower by orders of
+magnitude (:data:`COMPILED` is then False and the UKF bank runs filter by filter, the lanes having no
+Python form). Compiled code is cached on disk (numba's ``cache=True``), so the compile cost (seconds)
+is paid once per machine, not per env.
 """
 
 from __future__ import annotations
@@ -28,6 +31,9 @@ except ImportError:  # pragma: no cover - exercised where numba is absent
 
 NUMBA_AVAILABLE = _numba is not None and os.environ.get("QUAD_WRENCH_DISABLE_NUMBA", "") != "1"
 
+COMPILED = _numba is not None and not _numba.config.DISABLE_JIT
+"""Whether :func:`njit` compiles: numba imports and ``NUMBA_DISABLE_JIT`` is not set (module docstring)."""
+
 _warned_missing = False
 """Whether ``backend="auto"`` has said that numba does not import (once per process)."""
 
@@ -41,8 +47,9 @@ def resolve_backend(backend: str) -> str:
         if _numba is None and not _warned_missing:  # not silently 30-50x slower; the env var is a choice
             _warned_missing = True
             warnings.warn(
-                "numba does not import: backend='auto' runs the numpy reference, 30-50x slower "
-                "(pip install numba, a dependency of quad-wrench-env)",
+                "numba does not import: backend='auto' runs the numpy reference, 30-50x slower, and the "
+                "estimators' kernels as plain Python, slower still (pip install numba, a dependency of "
+                "quad-wrench-env)",
                 stacklevel=2,
             )
         return "numba" if NUMBA_AVAILABLE else "numpy"

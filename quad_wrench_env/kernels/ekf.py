@@ -1,6 +1,6 @@
-"""The step of a bank of extended Kalman wrench filters, compiled: the arithmetic of
-:class:`quad_wrench_env.estimators.ekf.ExtendedFilterBank` (Hentzen et al. 2019, Sec. III-A),
-filter by filter."""
+"""The step of a bank of extended Kalman wrench filters: the filter of
+:class:`quad_wrench_env.estimators.ekf.ExtendedFilterBank` (Hentzen et al. 2019, Sec. III-A), its only
+implementation, filter by filter."""
 
 from __future__ import annotations
 
@@ -50,6 +50,78 @@ def wrap(angle):
     return (angle + math.pi) % (2.0 * math.pi) - math.pi
 
 
+@njit(inline=True)
+def ekf_transition_jacobian(x, thrust, dt, mass, inertia, out):
+    """``F = ∂ transition/∂x = I + T A`` (18, 18) into ``out``, analytic, at the state ``x`` (18,)
+    with collective ``thrust`` (Hentzen et al. 2019, Sec. III-A; :func:`ekf_transition` is the
+    transition; the tests check this against its finite differences)."""
+    roll, pitch, yaw = x[6], x[7], x[8]
+    p_, q_, r_ = x[9], x[10], x[11]
+    jx, jy, jz = inertia[0], inertia[1], inertia[2]
+    sr, cr = math.sin(roll), math.cos(roll)
+    sp, cp, tp = math.sin(pitch), math.cos(pitch), math.tan(pitch)
+    sy, cy = math.sin(yaw), math.cos(yaw)
+    c = thrust / mass
+    out[:, :] = 0.0
+    for i in range(3):
+        out[i, 3 + i] = 1.0
+        out[3 + i, 12 + i] = 1.0 / mass
+        out[9 + i, 15 + i] = 1.0 / inertia[i]
+    # v' = (R e_z T + f)/m - g: columns of ∂(R e_z)/∂(φ, θ, ψ), times T̂/m
+    out[3, 6], out[4, 6] = (-cy * sp * sr + sy * cr) * c, (-sy * sp * sr - cy * cr) * c
+    out[5, 6] = -cp * sr * c
+    out[3, 7], out[4, 7], out[5, 7] = cy * cp * cr * c, sy * cp * cr * c, -sp * cr * c
+    out[3, 8], out[4, 8] = (-sy * sp * cr + cy * sr) * c, (cy * sp * cr + sy * sr) * c
+    # Euler rates W(φ, θ) ω: their derivatives in the angles, and W itself
+    out[6, 6], out[6, 7] = cr * tp * q_ - sr * tp * r_, (sr * q_ + cr * r_) / cp**2
+    out[7, 6] = -sr * q_ - cr * r_
+    out[8, 6], out[8, 7] = (cr * q_ - sr * r_) / cp, (sr * q_ + cr * r_) * sp / cp**2
+    out[6, 9], out[6, 10], out[6, 11] = 1.0, sr * tp, cr * tp
+    out[7, 10], out[7, 11] = cr, -sr
+    out[8, 10], out[8, 11] = sr / cp, cr / cp
+    # ω': -J⁻¹ (ω × Jω), whose derivative is -J⁻¹ (skew(ω) J - skew(J ω)), and J⁻¹ η_ext (above)
+    out[9, 10], out[9, 11] = (jy - jz) / jx * r_, (jy - jz) / jx * q_
+    out[10, 9], out[10, 11] = (jz - jx) / jy * r_, (jz - jx) / jy * p_
+    out[11, 9], out[11, 10] = (jx - jy) / jz * q_, (jx - jy) / jz * p_
+    for i in range(18):
+        for j in range(18):
+            out[i, j] *= dt
+        out[i, i] += 1.0
+
+
+@njit(inline=True)
+def ekf_transition(x, thrust, body_torque, dt, mass, inertia, gravity, r):
+    """The forward-Euler step of the noise-free dynamics (Hentzen et al. 2019, Sec. III-A; the module
+    docstring of :mod:`quad_wrench_env.estimators.ekf`) of the state ``x`` (18,), in place, with
+    collective ``thrust`` and ``body_torque`` (3,); ``r`` (3, 3) is scratch."""
+    roll, pitch, yaw = x[6], x[7], x[8]
+    p_, q_, r_ = x[9], x[10], x[11]
+    jx, jy, jz = inertia[0], inertia[1], inertia[2]
+    euler_matrix(roll, pitch, yaw, r)
+    sr, cr = math.sin(roll), math.cos(roll)
+    cp, tp = math.cos(pitch), math.tan(pitch)
+    accel0 = (r[0, 2] * thrust + x[12]) / mass
+    accel1 = (r[1, 2] * thrust + x[13]) / mass
+    accel2 = (r[2, 2] * thrust + x[14]) / mass - gravity
+    euler_rate0 = p_ + sr * tp * q_ + cr * tp * r_
+    euler_rate1 = cr * q_ - sr * r_
+    euler_rate2 = sr / cp * q_ + cr / cp * r_
+    c0 = q_ * (jz * r_) - r_ * (jy * q_)
+    c1 = r_ * (jx * p_) - p_ * (jz * r_)
+    c2 = p_ * (jy * q_) - q_ * (jx * p_)
+    for i in range(3):
+        x[i] += dt * x[3 + i]
+    x[3] += dt * accel0
+    x[4] += dt * accel1
+    x[5] += dt * accel2
+    x[6] += dt * euler_rate0
+    x[7] += dt * euler_rate1
+    x[8] += dt * euler_rate2
+    x[9] += dt * (body_torque[0] + x[15] - c0) / jx
+    x[10] += dt * (body_torque[1] + x[16] - c1) / jy
+    x[11] += dt * (body_torque[2] + x[17] - c2) / jz
+
+
 def ekf_constants(dt, mass, inertia, gravity, q_diagonal, noise_pose, noise_motion, p0) -> np.ndarray:
     """:func:`ekf_bank_step`'s constants in one array, in the order it reads them: ``dt``, ``mass``,
     ``inertia`` (3), ``gravity``, the diagonal of ``Q`` (18), the pose measurement variances (6), the
@@ -94,39 +166,10 @@ def ekf_bank_step(
     s = np.empty((size, size))
     s_root = np.empty((size, size))
     gain = np.empty((18, size))
-    jx, jy, jz = inertia[0], inertia[1], inertia[2]
     for n in range(count):
         xn, pn = x[n], p[n]
-        # -- predict: F = I + T A at the prior state, then the forward-Euler step (transition) --
-        roll, pitch, yaw = xn[6], xn[7], xn[8]
-        p_, q_, r_ = xn[9], xn[10], xn[11]
-        euler_matrix(roll, pitch, yaw, r)
-        sr, cr = math.sin(roll), math.cos(roll)
-        sp, cp, tp = math.sin(pitch), math.cos(pitch), math.tan(pitch)
-        sy, cy = math.sin(yaw), math.cos(yaw)
-        c = thrusts[n] / mass
-        a[:, :] = 0.0
-        for i in range(3):
-            a[i, 3 + i] = 1.0
-            a[3 + i, 12 + i] = 1.0 / mass
-            a[9 + i, 15 + i] = 1.0 / inertia[i]
-        a[3, 6], a[4, 6], a[5, 6] = (-cy * sp * sr + sy * cr) * c, (-sy * sp * sr - cy * cr) * c, -cp * sr * c
-        a[3, 7], a[4, 7], a[5, 7] = cy * cp * cr * c, sy * cp * cr * c, -sp * cr * c
-        a[3, 8], a[4, 8] = (-sy * sp * cr + cy * sr) * c, (cy * sp * cr + sy * sr) * c
-        a[6, 6], a[6, 7] = cr * tp * q_ - sr * tp * r_, (sr * q_ + cr * r_) / cp**2
-        a[7, 6] = -sr * q_ - cr * r_
-        a[8, 6], a[8, 7] = (cr * q_ - sr * r_) / cp, (sr * q_ + cr * r_) * sp / cp**2
-        a[6, 9], a[6, 10], a[6, 11] = 1.0, sr * tp, cr * tp
-        a[7, 10], a[7, 11] = cr, -sr
-        a[8, 10], a[8, 11] = sr / cp, cr / cp
-        a[9, 10], a[9, 11] = (jy - jz) / jx * r_, (jy - jz) / jx * q_
-        a[10, 9], a[10, 11] = (jz - jx) / jy * r_, (jz - jx) / jy * p_
-        a[11, 9], a[11, 10] = (jx - jy) / jz * q_, (jx - jy) / jz * p_
-        for i in range(18):
-            for j in range(18):
-                a[i, j] *= dt
-            a[i, i] += 1.0
-        # P' = F P Fᵀ + Q
+        # -- predict: F at the prior state, P' = F P Fᵀ + Q, then the forward-Euler step --
+        ekf_transition_jacobian(xn, thrusts[n], dt, mass, inertia, a)
         for i in range(18):
             for j in range(18):
                 t = 0.0
@@ -139,27 +182,7 @@ def ekf_bank_step(
                 for m in range(18):
                     t += fp[i, m] * a[j, m]
                 pn[i, j] = t + (q_diagonal[i] if i == j else 0.0)
-        # x' (transition): p, v, Euler angles, rates
-        accel0 = (r[0, 2] * thrusts[n] + xn[12]) / mass
-        accel1 = (r[1, 2] * thrusts[n] + xn[13]) / mass
-        accel2 = (r[2, 2] * thrusts[n] + xn[14]) / mass - gravity
-        euler_rate0 = p_ + sr * tp * q_ + cr * tp * r_
-        euler_rate1 = cr * q_ - sr * r_
-        euler_rate2 = sr / cp * q_ + cr / cp * r_
-        c0 = q_ * (jz * r_) - r_ * (jy * q_)
-        c1 = r_ * (jx * p_) - p_ * (jz * r_)
-        c2 = p_ * (jy * q_) - q_ * (jx * p_)
-        for i in range(3):
-            xn[i] += dt * xn[3 + i]
-        xn[3] += dt * accel0
-        xn[4] += dt * accel1
-        xn[5] += dt * accel2
-        xn[6] += dt * euler_rate0
-        xn[7] += dt * euler_rate1
-        xn[8] += dt * euler_rate2
-        xn[9] += dt * (body_torques[n, 0] + xn[15] - c0) / jx
-        xn[10] += dt * (body_torques[n, 1] + xn[16] - c1) / jy
-        xn[11] += dt * (body_torques[n, 2] + xn[17] - c2) / jz
+        ekf_transition(xn, thrusts[n], body_torques[n], dt, mass, inertia, gravity, r)
         # -- correct (Kalman update with the measured components) --
         mroll, mpitch, myaw = euler_from_quaternion(
             quaternions[n, 0], quaternions[n, 1], quaternions[n, 2], quaternions[n, 3]

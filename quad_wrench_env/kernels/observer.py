@@ -1,6 +1,6 @@
-"""The step of a bank of nonlinear wrench observers, compiled: the arithmetic of
-:class:`quad_wrench_env.estimators.observer.ObserverBank` (Yüksel et al. 2014, eqs. 9-15),
-vehicle by vehicle."""
+"""The step of a bank of nonlinear wrench observers: the observer of
+:class:`quad_wrench_env.estimators.observer.ObserverBank` (Yüksel et al. 2014, eqs. 9-15), its only
+implementation, vehicle by vehicle."""
 
 from __future__ import annotations
 
@@ -15,7 +15,8 @@ from quad_wrench_env.kernels.linalg import inputs_finite
 
 @njit
 def _kinematics(roll, pitch, out):
-    """``T(η)`` (``observer.euler_kinematics``) into ``out``."""
+    """``T(η)`` with ``ω = T η̇`` (body rates from ZYX Euler-angle rates, Yüksel et al. 2014, Sec. II)
+    into ``out``."""
     sr, cr = math.sin(roll), math.cos(roll)
     sp, cp = math.sin(pitch), math.cos(pitch)
     out[0, 0], out[0, 1], out[0, 2] = 1.0, 0.0, -sp
@@ -79,7 +80,7 @@ def observer_bank_step(
     rhs = np.empty(3)
     rate = np.empty(3)
     for n in range(count):
-        # -- measurements (ObserverBank._measure) --
+        # -- measurements: velocity and Euler-angle rates, measured or low-passed finite differences --
         roll, pitch, yaw = euler_from_quaternion(
             quaternions[n, 0], quaternions[n, 1], quaternions[n, 2], quaternions[n, 3]
         )

@@ -1,8 +1,8 @@
-"""The step of a bank of unscented wrench filters, compiled: the filter of
-:class:`quad_wrench_env.estimators.ukf.UnscentedFilterBank` (McKinnon & Schoellig 2016 eqs. 18-37), filter by
-filter, with its shortcuts (noise-only sigma points as ``B Q Bᵀ``, correction as a Kalman update) and two
-more rewrites that are exact in real arithmetic (``tests/test_backends.py`` holds the kernel to the
-numpy reference, which does neither, to 1e-9):
+"""The step of a bank of unscented wrench filters: the filter of
+:class:`quad_wrench_env.estimators.ukf.UnscentedFilterBank` (McKinnon & Schoellig 2016 eqs. 18-37), its only
+implementation, filter by filter, with its shortcuts (noise-only sigma points as ``B Q Bᵀ``, correction as a
+Kalman update) and two more rewrites that are exact in real arithmetic (``tests/test_ukf.py`` holds it, step
+by step, to a plain unscented filter with none of them, ``tests/reference_ukf.py``):
 
 * Sigma points are ``x ± √(L+κ) Lₚ[:, c]`` with ``Lₚ`` the lower Cholesky factor, so a column
   ``c ≥ 6`` leaves the attitude and the rates (error state 0-5) at the mean. Given those, the model
