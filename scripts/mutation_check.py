@@ -438,13 +438,13 @@ MUTATIONS = (
         (
             (
                 "quad_wrench_env/envs/vector.py",
-                "return next_observations, rewards, terminated, truncated, info",
-                "return step_observations, rewards, terminated, truncated, info",
+                "return next_observations, result.rewards, terminated, truncated, info",
+                "return step_observations, result.rewards, terminated, truncated, info",
             ),
             (
                 "quad_wrench_env/envs/vector.py",
-                "next_observations, step_observations, rewards, terminated, truncated, terms, entries",
-                "step_observations, step_observations, rewards, terminated, truncated, terms, entries",
+                "next_observations, result.observations, result.rewards, result.terminated",
+                "result.observations, result.observations, result.rewards, result.terminated",
             ),
         ),
         ("tests/test_vector_env.py", "tests/test_reference_task.py", "tests/test_sb3.py"),
@@ -553,13 +553,13 @@ MUTATIONS = (
         ("tests/test_reward_terms_by_hand.py",),
     ),
     Mutation(
-        "DisturbanceRejection effort summed, not averaged",
+        "the shared effort term summed, not averaged (DisturbanceRejection, ForceExertion)",
         "rewards",
         (
             (
-                "quad_wrench_env/tasks/disturbance_rejection.py",
-                '"effort": -r.effort_weight * np.mean(actions * actions, axis=1),',
-                '"effort": -r.effort_weight * np.sum(actions * actions, axis=1),',
+                "quad_wrench_env/tasks/terms.py",
+                "return -weight * np.mean(actions * actions, axis=1)",
+                "return -weight * np.sum(actions * actions, axis=1)",
             ),
         ),
         ("tests/test_reward_terms_by_hand.py",),
