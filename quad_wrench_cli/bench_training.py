@@ -174,6 +174,11 @@ def report(config_file: str | Path, steps: int | None, repeats: int) -> None:
     from quad_wrench_env.config import build, load_yaml
 
     config = build(TrainConfig, load_yaml(config_file))
+    if config.env_groups:
+        raise ValueError(
+            f"env_groups={config.env_groups!r}: the benchmark times one env in 1 and more processes; "
+            "time a config without groups"
+        )
     steps = steps or 4 * config.num_envs * config.hyperparameters.get("n_steps", 64)
     title = (
         f"training path of {config_file} ({config.env_id}, {config.num_envs} vehicles, env {config.env}), "

@@ -149,6 +149,15 @@ def test_training_config_takes_env_processes() -> None:
         TrainConfig(num_envs=8, env_processes=2, env_groups=[{"vehicle": "ardrone2"}])
     with pytest.raises(ValueError, match=r"env_groups set \['history'\]"):
         TrainConfig(num_envs=8, env_processes=2, env_groups=[{"history": 2}, {}])
+    with pytest.raises(ValueError, match=r"env_groups set \['policy_hz'\]"):
+        TrainConfig(num_envs=8, env_processes=2, env_groups=[{"policy_hz": 25}, {}])
+    single = train_config({"num_envs": 2, "env": {"estimator": "oracle"}},
+                          {"env_groups": [{"vehicle": "hummingbird"}]})  # fmt: skip
+    adapter, env = training_env(single)  # one process, one group: the group's preset flies
+    try:
+        assert adapter.venv.cfg.vehicle == "hummingbird"
+    finally:
+        env.close()
     groups = [{"vehicle": "ardrone2"}, {"vehicle": "hummingbird"}]
     two = train_config({"env": {"estimator": "ukf"}, "evaluation": {"env": {"episode_seconds": 5.0}}},
                        {"env_processes": 2, "env_groups": groups})  # fmt: skip

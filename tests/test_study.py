@@ -107,11 +107,16 @@ def test_a_run_meets_the_comparisons_world_with_its_estimator_and_its_arms_own_s
     """The base's training world (a short episode, a curriculum, a drawn heading) stays behind: in the
     comparison every agent meets the same episodes; the estimator trained on and the arm's (and
     ``common``'s) env overrides come along."""
-    base = {**BASE, "env": {"episode_seconds": 2.0, "estimator": "ekf", "fan": {"speed": 3.0}}}
+    base = {**BASE, "env": {"episode_seconds": 2.0, "estimator": "ekf", "estimator_params": "paper",
+                            "fan": {"speed": 3.0}}}  # fmt: skip
     arms = {"oracle": {"env.estimator": "oracle"}, "ekf": {}}
     config = _config(base=base, common={"env.history": 3}, arms=arms)
-    assert config.flying_env("ekf", 0) == {"estimator": "ekf", "history": 3}
-    assert config.flying_env("oracle", 1) == {"estimator": "oracle", "history": 3}
+    assert config.flying_env("ekf", 0) == {"estimator": "ekf", "estimator_params": "paper", "history": 3}
+    assert config.flying_env("oracle", 1) == {
+        "estimator": "oracle",
+        "estimator_params": "paper",
+        "history": 3,
+    }
 
 
 def test_an_arm_whose_env_the_task_refuses_stops_the_study_before_any_run(tmp_path):

@@ -28,7 +28,7 @@ from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.vec_env import VecNormalize
 
 from quad_wrench_env.agents.normalize import CompiledVecNormalize
-from quad_wrench_env.config import build, check_numbers, load_yaml, set_keys
+from quad_wrench_env.config import build, check_numbers, load_yaml, merged, set_keys
 
 
 @dataclass(frozen=True)
@@ -193,9 +193,9 @@ class TrainConfig:
     env_groups: list[dict[str, Any]] = field(default_factory=list)
     """Env settings of each process's vehicles on top of ``env`` (empty: none; else one mapping per
     process, ``env_processes`` of them), e.g. ``[{vehicle: ardrone2}, {vehicle: hummingbird}]``:
-    one policy trained across two presets. Settings that give observations and actions their meaning
-    (:data:`MEANING_KEYS`) are the run's, not a group's. The evaluation scores every group's env on
-    its seeds and keeps the mean."""
+    one policy trained across two presets (each group's settings merged into ``env`` key by key).
+    :data:`RUN_KEYS` are the run's, not a group's. The evaluation scores every group's env on its
+    seeds and keeps the mean."""
 
     def __post_init__(self) -> None:
         if self.algorithm not in ALGORITHMS:
@@ -219,11 +219,11 @@ class TrainConfig:
                     f"env_groups has {len(self.env_groups)} entries; give one per process "
                     f"(env_processes={self.env_processes})"
                 )
-            shared = sorted({key for group in self.env_groups for key in group} & set(MEANING_KEYS))
+            shared = sorted({key for group in self.env_groups for key in group} & set(RUN_KEYS))
             if shared:
                 raise ValueError(
-                    f"env_groups set {shared}: what an observation or action means is the run's (set it "
-                    "in env), not a group's"
+                    f"env_groups set {shared}: what an observation or action means and the control "
+                    "period are the run's (set them in env), not a group's"
                 )
         check_numbers("train", self, ("max_minutes",), positive=False)
         check_numbers("train", self, ("clip_observations",))
@@ -235,6 +235,10 @@ class TrainConfig:
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"{name}={getattr(self, name)!r} must be true or false")
 
+
+RUN_KEYS = (*MEANING_KEYS, "policy_hz", "physics_hz")
+"""Env settings every vehicle of a run shares (:attr:`TrainConfig.env_groups` refuses them): what an
+observation or an action means, and the control and physics periods."""
 
 ALGORITHMS = ("ppo", "sac", "recurrent_ppo")
 """The learners: stable-baselines3's PPO and SAC, and sb3-contrib's ``RecurrentPPO`` (an LSTM policy:
@@ -317,10 +321,10 @@ def check_training(config: TrainConfig, folder: str | Path, resume: bool = False
                 options=e.options,
                 **{**settings, "episode_seconds": 0.1},
             ).mean
-        if e.metric not in metrics:
-            raise ValueError(
-                f"evaluation.metric={e.metric!r}; allowed for {config.env_id}: {sorted(metrics)}"
-            )
+            if e.metric not in metrics:
+                raise ValueError(
+                    f"evaluation.metric={e.metric!r}; allowed for {config.env_id}: {sorted(metrics)}"
+                )
     except (ValueError, FileNotFoundError) as error:
         raise TrainingConfigError(str(error)) from None
 
@@ -380,7 +384,7 @@ def training_env(config: TrainConfig) -> tuple[Any, VecNormalize]:
     from quad_wrench_env.envs.processes import ProcessVectorEnv
     from quad_wrench_env.envs.sb3_vec_env import SB3VecEnv
 
-    if config.env_processes > 1:
+    if config.env_processes > 1 or config.env_groups:
         venv = ProcessVectorEnv(
             config.env_id, config.num_envs, config.env_processes, config.env_groups or None, **config.env
         )
@@ -540,8 +544,9 @@ def train(config: TrainConfig, folder: str | Path, resume: bool = False, progres
 
 def evaluation_envs(config: TrainConfig) -> list[dict[str, Any]]:
     """The env settings the evaluation during training scores (the mean over them is kept): the
-    training env with ``evaluation.env`` on top, once per entry of ``env_groups`` (with it) or once."""
-    return [{**config.env, **group, **config.evaluation.env} for group in config.env_groups or [{}]]
+    training env (with an entry of ``env_groups`` merged in, once per entry, or once) and
+    ``evaluation.env`` replacing its keys."""
+    return [{**merged(config.env, group), **config.evaluation.env} for group in config.env_groups or [{}]]
 
 
 def latest_snapshot(folder: Path) -> Path:

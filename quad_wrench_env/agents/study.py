@@ -106,14 +106,15 @@ class StudyConfig:
 
     def flying_env(self, label: str, seed: int) -> dict[str, Any]:
         """The env settings a run of arm ``label`` brings to the comparison: its training env's
-        estimator (what it was trained to read) and the arm's own ``env`` overrides (and ``common``'s);
+        estimator and its settings (:data:`ESTIMATOR_KEYS`: what it was trained to read) and the arm's
+        own ``env`` overrides (and ``common``'s);
         the settings that give its observations and actions their meaning follow the policy anyway
         (:func:`quad_wrench_env.agents.evaluate.flying_settings`). The base's world (scenario draws,
         curricula such as a drawn start gap, a disturbance's heading spread) stays behind: every agent
         meets the comparison's episodes."""
         trained = self.run_config(label, seed).env
         own = set_keys({}, {**self.common, **self.arms[label]}).get("env", {})
-        return {**({"estimator": trained["estimator"]} if "estimator" in trained else {}), **own}
+        return {**{key: trained[key] for key in ESTIMATOR_KEYS if key in trained}, **own}
 
     def base_values(self) -> dict[str, Any]:
         return load_yaml(self.base) if isinstance(self.base, str) else dict(self.base)
@@ -123,6 +124,11 @@ class StudyConfig:
 
     def _vehicles(self) -> int:
         return max(self.run_config(label, self.seeds[0]).num_envs for label in self.arms)
+
+
+ESTIMATOR_KEYS = ("estimator", "estimator_params")
+"""The training env's settings a study's run brings to the comparison whatever its arm: the estimator
+it was trained to read. A base that leaves the estimator to the task's default flies the comparison's."""
 
 
 def _is_seed(value: Any) -> bool:

@@ -8,8 +8,9 @@ The ``num_envs`` vehicles are split into ``processes`` groups of consecutive veh
 they go (``numpy.array_split``). The last group flies in this process; each other group flies in a
 worker process of its own (a :class:`~quad_wrench_env.envs.vector.QuadWrenchVectorEnv` of that
 group). ``group_env`` (one mapping per process, the workers' first) puts settings of its own on
-top of each group's env, e.g. ``[{"vehicle": "ardrone2"}, {"vehicle": "hummingbird"}]`` to train one
-policy across two presets; the groups must agree on the observation and action layouts. A step
+top of each group's env (merged key by key), e.g. ``[{"vehicle": "ardrone2"}, {"vehicle":
+"hummingbird"}]`` to train one policy across two presets; the groups must agree on the observation
+and action layouts and the control period (``TrainConfig`` refuses groups that set them). A step
 hands each worker its vehicles' actions, steps this process's group meanwhile, and joins the
 results in vehicle order. A vehicle's episode depends only on its own seed, actions and
 options (the same bits in a vector env of any size, ``tests/test_determinism.py``), so the split
@@ -44,6 +45,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
+from quad_wrench_env.config import merged
 from quad_wrench_env.envs.base import closed_error
 from quad_wrench_env.envs.vector import QuadWrenchVectorEnv, Transition
 
@@ -260,8 +262,8 @@ class ProcessVectorEnv:
             raise ValueError(
                 f"group_env has {len(group_env)} entries; give one per process ({processes}) or none"
             )
-        # each group's env settings: env_kwargs with its entry of group_env (e.g. a vehicle preset) on top
-        kwargs = [{**env_kwargs, **(group_env[k] if group_env else {})} for k in range(processes)]
+        # each group's env settings: env_kwargs with its entry of group_env (e.g. a vehicle preset) merged in
+        kwargs = [merged(env_kwargs, group_env[k] if group_env else {}) for k in range(processes)]
         split = np.array_split(np.arange(num_envs), processes)
         self.groups = [range(int(group[0]), int(group[-1]) + 1) for group in split]
         """The vehicles of each process (``numpy.array_split``'s sizes): the workers' first, this
@@ -274,7 +276,7 @@ class ProcessVectorEnv:
         self._closed = False
         self._finalizer = weakref.finalize(self, _stop, self._connections, self._workers, self._memories)
         try:
-            for group, settings in zip(self.groups[:-1], kwargs, strict=False):
+            for group, settings in zip(self.groups[:-1], kwargs[:-1], strict=True):
                 mine, theirs = context.Pipe()
                 worker = context.Process(
                     target=_serve, args=(theirs, env_id, len(group), settings), daemon=True

@@ -139,7 +139,7 @@ class JetCrossing:
     jet_sides: tuple[str, ...] = ("-y",)
     """Where the outlet stands: ``"-y"`` (blowing along +y, the default), ``"+y"`` (blowing along -y);
     with both, one is drawn per episode. A policy trained on one side learns where the jet pushes
-    instead of reading the wrench (docs/results.md, "DisturbanceRejection learns")."""
+    instead of reading the wrench (docs/results.md, "DisturbanceRejection without the shortcut")."""
     jet_diameter: float = 0.6
     jet_spread: float = 0.42
     jet_turbulence_intensity: float = 0.0
@@ -387,6 +387,8 @@ class DisturbanceRejection(TaskDefaults):
         self._wind_direction = np.array(fig.wind_direction) / math.hypot(*fig.wind_direction)
         self.scenario = np.zeros(count, dtype=int)
         """Each vehicle's scenario (index into :data:`SCENARIOS`)."""
+        self.jet_side = np.zeros(count, dtype=int)
+        """Each vehicle's jet side (index into ``jet_crossing.jet_sides``) in a jet crossing."""
         self.disturbance_speed = np.zeros(count)
         """Each vehicle's ``jet_speed`` (jet_crossing) or ``wind_speed`` (figure8), m/s; else 0."""
         self._cache: tuple[int, dict[str, np.ndarray]] = (-1, {})
@@ -430,6 +432,7 @@ class DisturbanceRejection(TaskDefaults):
             speed = jet_speed if jet_speed is not None else float(rng.choice(jc.jet_speeds))
             side = int(rng.integers(len(self.jets))) if len(self.jets) > 1 else 0
             self.jets[side].speed_scale[index] = jc.outlet_speed(speed)
+            self.jet_side[index] = side
         elif scenario == "gusts":
             g = cfg.gusts
             heading = rng.uniform(0.0, 2.0 * math.pi)
@@ -545,11 +548,10 @@ class DisturbanceRejection(TaskDefaults):
         index = int(self.scenario[vehicle])
         name, speed = SCENARIOS[index], float(self.disturbance_speed[vehicle])
         gust, start = math.hypot(*self.bump.shape[vehicle, :2]), float(self.bump.shape[vehicle, 3])
-        sides = [side for side, jet in zip(self.cfg.jet_crossing.jet_sides, self.jets, strict=True)
-                 if jet.speed_scale[vehicle, 0] > 0.0]  # fmt: skip
+        side = self.cfg.jet_crossing.jet_sides[self.jet_side[vehicle]]
         wind = self.turbulence.weather[vehicle, :2] / max(speed, 1e-12)
         detail = {
-            "jet_crossing": f"jet {speed:.1f} m/s across the path from {''.join(sides)}",
+            "jet_crossing": f"jet {speed:.1f} m/s across the path from {side}",
             "table_pass": "ground effect over the table",
             "gusts": f"turbulence, a gust of {gust:.1f} m/s at t = {start:.1f} s",
             "figure8": f"steady wind {speed:.1f} m/s" + (
