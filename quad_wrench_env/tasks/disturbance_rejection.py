@@ -430,6 +430,7 @@ class DisturbanceRejection(TaskDefaults):
         if scenario == "jet_crossing":
             jc = cfg.jet_crossing
             speed = jet_speed if jet_speed is not None else float(rng.choice(jc.jet_speeds))
+            # one side draws nothing: the default episodes keep their random numbers bit for bit
             side = int(rng.integers(len(self.jets))) if len(self.jets) > 1 else 0
             self.jets[side].speed_scale[index] = jc.outlet_speed(speed)
             self.jet_side[index] = side
