@@ -332,11 +332,17 @@ MUTATIONS = (
         (
             (
                 "quad_wrench_env/estimators/noise.py",
-                "    force_walk: float = 4e-3",
-                "    force_walk: float = 4e-5",
+                '    "force_walk": 4e-3,',
+                '    "force_walk": 4e-5,',
             ),
         ),
         ("tests/test_ukf.py", "tests/test_reference_estimators.py"),
+    ),
+    Mutation(
+        "filter noise not sized to the vehicle",
+        "ukf",
+        (("quad_wrench_env/estimators/noise.py", "    return force_scale, torque_scale", "    return 1.0, 1.0"),),
+        ("tests/test_ukf.py", "tests/test_wrench_covariance.py"),
     ),
     Mutation(
         "observer Coriolis term dropped",

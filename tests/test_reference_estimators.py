@@ -28,7 +28,7 @@ from quad_wrench_env.vehicle import GRAVITY, Mixer, make_vehicle
 DT = 0.005
 VEHICLE = make_vehicle("ardrone2")
 MASS, INERTIA = VEHICLE.mass, np.array(VEHICLE.inertia)
-NOISE = FilterNoise()
+NOISE = FilterNoise().for_vehicle(VEHICLE)
 POSITION_NOISE, ATTITUDE_NOISE = NOISE.position, NOISE.attitude
 """The motion-capture noise the filters' defaults assume (0.5 mm, 2 mrad), and what they are fed here."""
 MOTION_NOISE = EKFNoise().velocity, EKFNoise().body_rate
@@ -337,7 +337,8 @@ def test_a_ukf_with_a_100x_smaller_force_walk_rises_outside_the_band():
         "ukf", STEP_AT + RISE_BAND[1] * predicted + 0.5, force_walk=NOISE.force_walk / 100
     )
     assert slow > RISE_BAND[1] * predicted, (slow, predicted)
-    assert predicted_rise_time(FilterNoise(force_walk=NOISE.force_walk / 100)) > RISE_BAND[1] * predicted
+    slow_noise = FilterNoise(force_walk=NOISE.force_walk / 100).for_vehicle(VEHICLE)
+    assert predicted_rise_time(slow_noise) > RISE_BAND[1] * predicted
 
 
 def test_observer_rises_as_exp_minus_c_t_over_m():

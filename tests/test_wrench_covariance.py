@@ -9,6 +9,7 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
+from quad_wrench_env.vehicle import PRESETS
 from tests.conftest import FAN_TRACKING
 
 BLOCKS = {"force": np.s_[:3, :3], "torque": np.s_[3:, 3:], "force-torque": np.s_[:3, 3:]}
@@ -144,11 +145,16 @@ def test_the_rotor_spread_covariance_is_the_spread_of_the_rotors_wrench():
     np.testing.assert_allclose(reported / scale, expected / scale, atol=0.02)
 
 
-def test_the_torque_nees_in_hover_is_within_its_band_with_the_rotor_spread():
+def test_the_torque_nees_in_hover_is_within_its_band_on_every_preset():
     """Acceptance (issue 32): the UKF's torque NEES in hover, averaged over 20 runs (vehicle i of one
     vector env: seed i; no air, 10 s, position hold, after 2 s), lies within the 95 % chi-square band of
-    that average, ``χ²_{60}(0.025, 0.975) / 20`` (derived here with scipy), at 90 % of the steps or more,
-    on the two heavier presets the tasks fly; without the rotors' spread in the covariance it was 90-440."""
+    that average, ``χ²_{60}(0.025, 0.975) / 20`` (derived here with scipy), its lower edge halved, at 90 %
+    of the steps or more, on every vehicle preset. The halving: in hover the true external torque is
+    constant (zero), and a filter that models it as a random walk is cautious there by ``1/(2 - K)``
+    (its steady-state error variance ``K r/(2 - K)`` against its reported ``K r``, for a gain K on a
+    directly measured walk), at most 2x. Without the rotors' spread in the covariance the average was
+    90-440 (overconfident); with the ardrone2's absolute noise settings on every vehicle, 0.05 on
+    crazyflie2 (far too cautious): the per-preset defaults (``FilterNoise.for_vehicle``)."""
     from scipy.stats import chi2
 
     from quad_wrench_cli.consistency import flown
@@ -156,8 +162,8 @@ def test_the_torque_nees_in_hover_is_within_its_band_with_the_rotor_spread():
 
     low, high = chi2.ppf((0.025, 0.975), 60) / 20
     flight = {"agent": "hold", "env": {"episode_seconds": 10.0, "fan": {"enabled": False}}}
-    for vehicle in ("hummingbird", "yuksel1kg"):
+    for vehicle in PRESETS:
         f = flown(FAN_TRACKING, flight, "hover", vehicle, "ukf", list(range(20)), 2.0)
         error = (f.estimate - f.truth)[:, :, 3:]
         average = nees(error, f.covariance[:, :, 3:, 3:]).mean(axis=1)
-        assert np.mean((average >= low) & (average <= high)) >= 0.9, vehicle
+        assert np.mean((average >= low / 2) & (average <= high)) >= 0.9, (vehicle, average.mean())

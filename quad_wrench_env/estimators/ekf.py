@@ -64,7 +64,7 @@ class ExtendedFilterBank(FilterBank):
         self.vehicle = vehicle
         self.dt = dt
         self.count = count
-        self.noise = noise or EKFNoise()
+        self.noise = (noise or EKFNoise()).for_vehicle(vehicle)
         self._rotor_spread = rotor_spread_body(vehicle, self.noise.rotor_spread)
         n = self.noise
         self.mass = vehicle.mass

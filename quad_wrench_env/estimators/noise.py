@@ -3,14 +3,17 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
+from typing import TypeVar
 
 import numpy as np
 
 from quad_wrench_env.config import check_numbers
 from quad_wrench_env.kernels import njit
 from quad_wrench_env.kernels.quaternions import matrix
-from quad_wrench_env.vehicle import GRAVITY, Mixer, VehicleParams
+from quad_wrench_env.vehicle import GRAVITY, PRESETS, Mixer, VehicleParams
+
+NoiseT = TypeVar("NoiseT", bound="FilterNoise")
 
 
 @dataclass
@@ -24,14 +27,15 @@ class FilterNoise:
     so that they can be compared with the same variance settings (Hentzen et al. 2019 Sec. V-C).
     """
 
-    thrust: float = 0.05
-    """η_ct (N): thrust model error and 8-bit speed quantization, per body axis."""
-    motor_torque: float = 3e-3
-    """η_τm (N·m): motor torque model error, per body axis."""
-    force_walk: float = 4e-3
-    """η_fe (N per step): random walk of the external force."""
-    torque_walk: float = 2e-4
-    """η_τe (N·m per step): random walk of the external torque."""
+    thrust: float | None = None
+    """η_ct (N): thrust model error and 8-bit speed quantization, per body axis; None: derived for the
+    vehicle (:meth:`for_vehicle`)."""
+    motor_torque: float | None = None
+    """η_τm (N·m): motor torque model error, per body axis; None: derived for the vehicle."""
+    force_walk: float | None = None
+    """η_fe (N per step): random walk of the external force; None: derived for the vehicle."""
+    torque_walk: float | None = None
+    """η_τe (N·m per step): random walk of the external torque; None: derived for the vehicle."""
     position: float = 5e-4
     """Motion-capture position noise (m)."""
     attitude: float = 2e-3
@@ -40,8 +44,10 @@ class FilterNoise:
     initial_rates: float = 0.05
     initial_position: float = 0.01
     initial_velocity: float = 0.05
-    initial_torque: float = 0.02
-    initial_force: float = 0.2
+    initial_torque: float | None = None
+    """N·m; None: derived for the vehicle."""
+    initial_force: float | None = None
+    """N; None: derived for the vehicle."""
     kappa: float = 2.0
     rotor_spread: float = 0.02
     """Relative sd of each rotor's thrust coefficient about the nominal (the env's ``kf_spread``, 0.02 by
@@ -49,8 +55,56 @@ class FilterNoise:
     *reported* covariance of the wrench (:func:`rotor_spread_covariance`), never the estimate."""
 
     def __post_init__(self) -> None:
-        check_numbers("estimator_params", self, tuple(k for k in vars(self) if k != "rotor_spread"))
+        given = tuple(k for k in vars(self) if k != "rotor_spread" and getattr(self, k) is not None)
+        check_numbers("estimator_params", self, given)
         check_numbers("estimator_params", self, ("rotor_spread",), positive=False)
+
+    def for_vehicle(self: NoiseT, vehicle: VehicleParams) -> NoiseT:
+        """These settings with every ``None`` replaced by its default for ``vehicle``
+        (:data:`REFERENCE_NOISE` scaled by :func:`vehicle_scales`); given values stay as they are."""
+        force_scale, torque_scale = vehicle_scales(vehicle)
+        derived = {
+            name: value * (force_scale if name in FORCE_KEYS else torque_scale)
+            for name, value in REFERENCE_NOISE.items()
+            if getattr(self, name) is None
+        }
+        return replace(self, **derived)
+
+
+REFERENCE_VEHICLE = "ardrone2"
+"""The preset the defaults were sized for: McKinnon & Schoellig's (2016) AR.Drone 2.0, whose UKF they
+are."""
+REFERENCE_NOISE: dict[str, float] = {
+    "thrust": 0.05,
+    "force_walk": 4e-3,
+    "initial_force": 0.2,
+    "motor_torque": 3e-3,
+    "torque_walk": 2e-4,
+    "initial_torque": 0.02,
+}
+"""The vehicle-dependent settings on :data:`REFERENCE_VEHICLE` (N, N per step, N; N·m, N·m per step,
+N·m): the thrust model's error and the external force's random walk and initial sd (about 1.2 %, 0.1 %
+and 5 % of its weight), the motor-torque model's error and the external torque's walk and initial sd
+(0.56 %, 0.04 % and 3.8 % of weight x arm)."""
+FORCE_KEYS = frozenset({"thrust", "force_walk", "initial_force"})
+"""The settings that are forces (the rest of :data:`REFERENCE_NOISE` are torques)."""
+
+
+def vehicle_scales(vehicle: VehicleParams) -> tuple[float, float]:
+    """``(force scale, torque scale)`` of ``vehicle`` against :data:`REFERENCE_VEHICLE`: the ratio of the
+    weights ``m g`` and of the moments ``m g l`` (l the rotor arm), exactly 1.0 on the reference.
+
+    Every force a filter models scales with the thrust that holds the vehicle up: the thrust model's error
+    (a relative error of the rotor coefficients and of the speed quantisation, McKinnon & Schoellig 2016
+    eq. 4), the air and contact forces it meets (sized to hold it against them) and the belief at reset;
+    every torque with a rotor's share of that thrust at its lever arm, the largest torque its rotors can
+    make about the centre of mass. A filter tuned in absolute units on one vehicle is too wide by the
+    ratio on a lighter one (on the 27 g crazyflie2, 16x in force and 71x in torque) and too narrow on a
+    heavier one, which its NEES shows (``quad-wrench compare estimators --only nees``)."""
+    reference = PRESETS[REFERENCE_VEHICLE]
+    force_scale = vehicle.mass / reference.mass
+    torque_scale = vehicle.mass * vehicle.arm / (reference.mass * reference.arm)
+    return force_scale, torque_scale
 
 
 def rotor_spread_body(vehicle: VehicleParams, spread: float) -> np.ndarray:

@@ -82,7 +82,7 @@ class UnscentedFilterBank(FilterBank):
             raise ValueError(f"count={count!r} must be at least 1 filter")
         self.vehicle = vehicle
         self.dt = dt
-        self.noise = noise or FilterNoise()
+        self.noise = (noise or FilterNoise()).for_vehicle(vehicle)
         self._rotor_spread = rotor_spread_body(vehicle, self.noise.rotor_spread)
         n = self.noise
         self.count = count
