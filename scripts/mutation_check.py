@@ -341,7 +341,13 @@ MUTATIONS = (
     Mutation(
         "filter noise not sized to the vehicle",
         "ukf",
-        (("quad_wrench_env/estimators/noise.py", "    return force_scale, torque_scale", "    return 1.0, 1.0"),),
+        (
+            (
+                "quad_wrench_env/estimators/noise.py",
+                "    return force_scale, torque_scale",
+                "    return 1.0, 1.0",
+            ),
+        ),
         ("tests/test_ukf.py", "tests/test_wrench_covariance.py"),
     ),
     Mutation(

@@ -68,7 +68,9 @@ def test_the_filter_is_the_plain_unscented_filter_step_by_step():
     the covariance agree within ROUNDING of the filter's standard deviations."""
     states, inputs = reference_flight()
     estimator = make_estimator("ukf", VEHICLE, DT)
-    reference = ReferenceUKF(VEHICLE.mass, np.array(VEHICLE.inertia), DT, GRAVITY, FilterNoise().for_vehicle(VEHICLE))
+    reference = ReferenceUKF(
+        VEHICLE.mass, np.array(VEHICLE.inertia), DT, GRAVITY, FilterNoise().for_vehicle(VEHICLE)
+    )
     for filter_ in (estimator, reference):
         filter_.reset(states[0, 4:7], states[0, :4])
     rng = np.random.default_rng(0)
