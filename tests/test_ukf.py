@@ -110,6 +110,8 @@ def test_a_broken_covariance_is_reinitialised_and_reported():
 def test_noise_settings_are_validated():
     with pytest.raises(ValueError, match="force_walk=-1"):
         FilterNoise(force_walk=-1.0)
+    with pytest.raises(ValueError, match="kappa=None"):  # only the vehicle-sized settings may be None
+        FilterNoise(kappa=None)
 
 
 def test_default_noise_is_sized_to_the_vehicle():

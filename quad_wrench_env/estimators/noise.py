@@ -55,8 +55,8 @@ class FilterNoise:
     *reported* covariance of the wrench (:func:`rotor_spread_covariance`), never the estimate."""
 
     def __post_init__(self) -> None:
-        given = tuple(k for k in vars(self) if k != "rotor_spread" and getattr(self, k) is not None)
-        check_numbers("estimator_params", self, given)
+        unchecked = {"rotor_spread", *(k for k in REFERENCE_NOISE if getattr(self, k) is None)}
+        check_numbers("estimator_params", self, tuple(k for k in vars(self) if k not in unchecked))
         check_numbers("estimator_params", self, ("rotor_spread",), positive=False)
 
     def for_vehicle(self: NoiseT, vehicle: VehicleParams) -> NoiseT:
@@ -72,8 +72,8 @@ class FilterNoise:
 
 
 REFERENCE_VEHICLE = "ardrone2"
-"""The preset the defaults were sized for: McKinnon & Schoellig's (2016) AR.Drone 2.0, whose UKF they
-are."""
+"""The preset the defaults were tuned on here: McKinnon & Schoellig's (2016) AR.Drone 2.0 (the paper
+gives no covariance values)."""
 REFERENCE_NOISE: dict[str, float] = {
     "thrust": 0.05,
     "force_walk": 4e-3,
