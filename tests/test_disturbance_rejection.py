@@ -392,3 +392,24 @@ def test_compensation_helps_where_paper_003_says_it_does():
     assert deviation["PID + comp"] < 0.6 * deviation["PID"]
     assert deviation["MPC + comp"] < 0.6 * deviation["MPC"]
     assert deviation["MPC + slack"] < 0.8 * deviation["MPC"]
+
+
+def test_the_preview_is_the_references_velocity_that_far_ahead():
+    """``preview_seconds`` T adds ``v_ref(t + T) - v_ref(t)``: checked against the env's own
+    ``info["reference_velocity"]`` read T seconds later on the figure-8 (whose reference turns
+    continuously), with the policy's steps at 50 Hz (T = 0.2 s = 10 steps)."""
+    env = gym.make(ENV_ID, preview_seconds=0.2, action_type="velocity")
+    layout = env.unwrapped.obs_layout
+    obs, info = env.reset(seed=0, options={"scenario": "figure8", "wind_speed": 0.0})
+    observed, velocities = [], [info["reference_velocity"]]
+    for _ in range(40):
+        observed.append(obs[layout["reference_velocity_ahead"]])
+        obs, _, terminated, truncated, info = env.step(np.zeros(4, dtype=np.float32))
+        velocities.append(info["reference_velocity"])
+        assert not (terminated or truncated)
+    for k in range(30):
+        np.testing.assert_allclose(observed[k], velocities[k + 10] - velocities[k], atol=1e-5)
+    assert np.abs(np.array(observed)).max() > 0.05  # the figure-8 does turn within 0.2 s
+    env.close()
+    with pytest.raises(ValueError, match="preview_seconds=-0.1"):
+        gym.make(ENV_ID, preview_seconds=-0.1)

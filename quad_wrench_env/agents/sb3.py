@@ -58,10 +58,13 @@ class ObservationScaling:
             return cls(data["mean"], data["var"], float(data["clip"]), float(data["epsilon"]))
 
 
-MEANING_KEYS = ("action_type", "action_limits", "observe_wrench", "history", "observe_tracking_error")
-"""Env settings that change what an action or an observation means (``history`` its size too;
-``action_limits`` the command an action stands for; ``observe_tracking_error`` is
-DisturbanceRejection's own and counts only where the config has it)."""
+MEANING_KEYS = (
+    "action_type", "action_limits", "observe_wrench", "history", "observe_tracking_error", "preview_seconds",
+)  # fmt: skip
+"""Env settings that change what an action or an observation means (``history`` and
+``preview_seconds`` its size too; ``action_limits`` the command an action stands for;
+``observe_tracking_error`` and ``preview_seconds`` are DisturbanceRejection's own and count only where
+the config has them)."""
 
 
 class SB3Policy:

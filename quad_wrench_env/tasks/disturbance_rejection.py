@@ -45,6 +45,10 @@ index  name                meaning
 28-30  reference_velocity  the reference's velocity now (m/s, world frame)
 =====  ==================  ======================================================
 
+With ``preview_seconds`` T > 0 the observation adds ``reference_velocity_ahead`` (31-33):
+``v_ref(t + T) - v_ref(t)``, the reference's velocity change over the next T seconds (m/s, world frame;
+about T times its acceleration), the feed-forward PID and MPC take from the reference.
+
 With ``observe_tracking_error=True`` the same columns hold the tracking error as the vehicle sees it
 instead (what PID and MPC, which read the reference, refuse):
 
@@ -106,6 +110,8 @@ REFERENCE_BLOCKS = (("reference_position", 3, 20.0), ("reference_velocity", 3, 2
 """The task's observation blocks ``(name, width, bound)`` by default."""
 ERROR_BLOCKS = (("position_error", 3, 20.0), ("velocity_error", 3, 20.0))
 """Its blocks with ``observe_tracking_error``."""
+PREVIEW_BLOCK = ("reference_velocity_ahead", 3, 20.0)
+"""The block ``preview_seconds`` > 0 adds after them."""
 EASE = 1.0
 """Seconds over which the reference's speed eases up and down at each end of a straight move."""
 
@@ -322,11 +328,21 @@ class DisturbanceRejectionConfig(EnvConfig):
     """The task's observation blocks: the reference (False) or the tracking error from the vehicle's
     estimate, ``p_ref - p̂`` and ``v_ref - v̂`` (True: the same numbers relative to the vehicle, which
     a learned policy need not learn to subtract)."""
+    preview_seconds: float = 0.0
+    """s; > 0 adds the block ``reference_velocity_ahead``, ``v_ref(t + T) - v_ref(t)``: how the
+    reference's velocity changes over the next ``T`` (about ``T`` times its acceleration), the
+    feed-forward that PID and MPC take from the reference they read. 0: no block."""
 
     def __post_init__(self) -> None:
         super().__post_init__()
         if not isinstance(self.observe_tracking_error, bool):
             raise ValueError(f"observe_tracking_error={self.observe_tracking_error!r} must be true or false")
+        preview = self.preview_seconds
+        finite = (
+            isinstance(preview, (int, float)) and not isinstance(preview, bool) and math.isfinite(preview)
+        )
+        if not (finite and preview >= 0):
+            raise ValueError(f"preview_seconds={preview!r} must be a finite number >= 0 (s; 0: no preview)")
         self.scenarios = tuple(self.scenarios)
         if not self.scenarios or any(s not in SCENARIOS for s in self.scenarios):
             raise ValueError(f"scenarios={list(self.scenarios)!r} must name one or more of {list(SCENARIOS)}")
@@ -365,6 +381,8 @@ class DisturbanceRejection(TaskDefaults):
         self.vehicle = vehicle
         if cfg.observe_tracking_error:
             self.observation_blocks = ERROR_BLOCKS
+        if cfg.preview_seconds > 0.0:
+            self.observation_blocks = (*self.observation_blocks, PREVIEW_BLOCK)
         jc, tp, fig = cfg.jet_crossing, cfg.table_pass, cfg.figure8
         x, y = jc.path
         self.jets = [
@@ -537,7 +555,10 @@ class DisturbanceRejection(TaskDefaults):
             states, _ = fleet.estimates()
             position, velocity = position - states[:, :3], velocity - states[:, 3:6]
         out[:, :3] = position
-        out[:, 3:] = velocity
+        out[:, 3:6] = velocity
+        if self.cfg.preview_seconds > 0.0:
+            _, ahead = self.reference(fleet.time + self.cfg.preview_seconds, self.scenario)
+            out[:, 6:9] = ahead - numbers["reference_velocity"]
 
     def info(self, fleet: Fleet) -> dict[str, np.ndarray]:
         return dict(self._numbers(fleet))
