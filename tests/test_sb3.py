@@ -112,6 +112,24 @@ def test_an_untrained_policy_is_never_kept_and_unnormalised_runs_work(tmp_path):
     assert policy.scaling is None and not (folder / "best" / "scaling.npz").exists()
 
 
+def test_learning_rate_end_lowers_the_optimisers_rate_linearly_over_the_run(tmp_path):
+    """With ``learning_rate_end`` the optimiser's rate follows the line from the start rate to the end
+    rate over the run's progress (SB3 sets it before each update from the steps taken so far: the last
+    update, after the last rollout, runs at the end rate)."""
+    start, end, total = 1e-3, 1e-5, 2048
+    hyperparameters = {**HYPERPARAMETERS["ppo"], "learning_rate": start}
+    values = {**SMALL, "total_steps": total, "hyperparameters": hyperparameters, "learning_rate_end": end}
+    folder = train(build(TrainConfig, values), tmp_path / "run", progress=False)
+    model = PPO.load(folder / "final" / "model.zip")
+    assert model.policy.optimizer.param_groups[0]["lr"] == pytest.approx(end, rel=1e-9)
+    assert model.lr_schedule(0.25) == pytest.approx(start + 0.75 * (end - start), rel=1e-9)
+    folder = train(build(TrainConfig, {**values, "learning_rate_end": None}), tmp_path / "c", progress=False)
+    constant = PPO.load(folder / "final" / "model.zip")
+    assert constant.policy.optimizer.param_groups[0]["lr"] == start
+    with pytest.raises(ValueError, match="learning_rate_end=-1"):
+        build(TrainConfig, {"learning_rate_end": -1.0})
+
+
 def test_bad_training_config_names_the_key():
     with pytest.raises(ValueError, match="algorithm='a2c'"):
         build(TrainConfig, {"algorithm": "a2c"})

@@ -176,6 +176,10 @@ class TrainConfig:
     seed: int = 0
     hyperparameters: dict[str, Any] = field(default_factory=dict)
     """Keyword arguments of the SB3 algorithm (``n_steps``, ``batch_size``, ``learning_rate``, ...)."""
+    learning_rate_end: float | None = None
+    """None: ``learning_rate`` stays constant; a number: the learning rate falls linearly from
+    ``hyperparameters.learning_rate`` (or the algorithm's default) to this over ``total_steps``
+    (SB3's ``LinearSchedule`` on its progress; a run stopped by ``max_minutes`` ends part way down)."""
     net_arch: list[int] = field(default_factory=lambda: [64, 64])
     activation: str = "tanh"
     log_std_init: float = 0.0
@@ -230,6 +234,13 @@ class TrainConfig:
                 )
         check_numbers("train", self, ("max_minutes",), positive=False)
         check_numbers("train", self, ("clip_observations",))
+        if self.learning_rate_end is not None:
+            check_numbers("train", self, ("learning_rate_end",), positive=False)
+            if not isinstance(self.hyperparameters.get("learning_rate", 0.0), (int, float)):
+                raise ValueError(
+                    f"learning_rate_end={self.learning_rate_end!r} schedules a number; "
+                    f"hyperparameters.learning_rate={self.hyperparameters['learning_rate']!r} is not one"
+                )
         if not (isinstance(self.log_std_init, (int, float)) and math.isfinite(self.log_std_init)):
             raise ValueError(f"log_std_init={self.log_std_init!r} must be a finite number")
         if self.log_std_init != 0.0 and self.algorithm == "sac":
@@ -332,6 +343,11 @@ def check_training(config: TrainConfig, folder: str | Path, resume: bool = False
         raise TrainingConfigError(str(error)) from None
 
 
+def _default(algorithm: type[BaseAlgorithm], name: str) -> Any:
+    """The default of keyword argument ``name`` of ``algorithm``'s constructor."""
+    return inspect.signature(algorithm.__init__).parameters[name].default
+
+
 def _algorithm(name: str) -> type[BaseAlgorithm]:
     from sb3_contrib import RecurrentPPO
     from stable_baselines3 import PPO, SAC
@@ -415,9 +431,16 @@ def new_model(config: TrainConfig, env: Any, tensorboard_log: str | None = None)
     policy_kwargs = {"net_arch": list(config.net_arch), "activation_fn": activation}
     if config.algorithm != "sac":
         policy_kwargs["log_std_init"] = config.log_std_init
-    return _algorithm(config.algorithm)(
+    algorithm = _algorithm(config.algorithm)
+    hyperparameters = dict(config.hyperparameters)
+    if config.learning_rate_end is not None:
+        from stable_baselines3.common.utils import LinearSchedule
+
+        start = hyperparameters.get("learning_rate", _default(algorithm, "learning_rate"))
+        hyperparameters["learning_rate"] = LinearSchedule(start, config.learning_rate_end, 1.0)
+    return algorithm(
         POLICY_CLASSES[config.algorithm], env, seed=config.seed, device="cpu", verbose=0,
-        policy_kwargs=policy_kwargs, tensorboard_log=tensorboard_log, **config.hyperparameters,
+        policy_kwargs=policy_kwargs, tensorboard_log=tensorboard_log, **hyperparameters,
     )  # fmt: skip
 
 
