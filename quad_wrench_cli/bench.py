@@ -10,17 +10,16 @@ Tables printed (all measured in this run, best of ``--repeats`` for timings):
 1. floors: one bare PyBullet step of one body with its state read and either four rotor forces
    applied (the issue's definition of the limit) or one resultant force and torque (what the envs
    apply), and the same per body in a 64-body world;
-2. the single FanTracking env per estimator and backend (numba kernels, numpy reference): µs per
-   policy step and per physics step (4 per policy step), each floor as a share of ours, policy
-   steps/s, simulated seconds per wall second with resets counted at the default episode length,
-   and the mean reset time;
+2. the single FanTracking env per estimator: µs per policy step and per physics step (4 per policy
+   step), each floor as a share of ours, policy steps/s, simulated seconds per wall second with
+   resets counted at the default episode length, and the mean reset time;
    then the UKF env timed with the floors in alternating blocks in one process (a share a drifting
    machine cannot move), and the same env with the fan, Dryden turbulence, a second jet and ground
-   effect over a table all on (compiled), against the plain one measured alternately in the same run;
+   effect over a table all on, against the plain one measured alternately in the same run;
 3. the vector env of 64 vehicles on one core: µs per vehicle and physics step, its ratio to the
    64-body floors per body, vehicle-seconds per wall second;
-4. the cost of each part of a step (UKF env, each backend; the 64-vehicle vector env on numba, per
-   vehicle), timed in isolation;
+4. the cost of each part of a step (UKF env; the 64-vehicle vector env, per vehicle), timed in
+   isolation;
 5. peak memory of this process; with ``--soak-minutes`` the rates and resident memory of the first
    and last ten simulated minutes of one long run;
 6. with ``--peers`` only, the peers, each in a virtual environment of its own under ``--peers-dir``
@@ -59,10 +58,8 @@ from quad_wrench_env.bench import (
 )
 from quad_wrench_env.config import config_path
 from quad_wrench_env.estimators import ESTIMATORS
-from quad_wrench_env.kernels import NUMBA_AVAILABLE
 
 POLICY_HZ, SUBSTEPS, EPISODE_SECONDS, VECTOR_ENVS = 50, 4, 30.0, 64
-BACKENDS = ("numba", "numpy") if NUMBA_AVAILABLE else ("numpy",)
 STEPS, REPEATS = 2000, 3
 """Defaults of ``--steps`` and ``--repeats``."""
 
@@ -108,26 +105,22 @@ def soak(minutes: float) -> str:
 
 def env_rows(args: argparse.Namespace, floors: dict[str, float]) -> list[list[str]]:
     rows = []
-    for backend in BACKENDS:
-        for estimator in ESTIMATORS:
-            runs = [
-                env_step_seconds(args.steps, estimator=estimator, backend=backend)
-                for _ in range(args.repeats)
+    for estimator in ESTIMATORS:
+        runs = [env_step_seconds(args.steps, estimator=estimator) for _ in range(args.repeats)]
+        step, reset = min(r[0] for r in runs), min(r[1] for r in runs)
+        physics = step / SUBSTEPS
+        per_episode = EPISODE_SECONDS * POLICY_HZ * step + reset
+        rows.append(
+            [
+                f"FanTracking-v1, {estimator}",
+                f"{step * 1e6:.0f}",
+                f"{physics * 1e6:.1f}",
+                *(f"{floor / physics:.1%}" for floor in floors.values()),
+                f"{1 / step:.0f}",
+                f"{EPISODE_SECONDS / per_episode:.1f}",
+                f"{reset * 1e3:.2f}",
             ]
-            step, reset = min(r[0] for r in runs), min(r[1] for r in runs)
-            physics = step / SUBSTEPS
-            per_episode = EPISODE_SECONDS * POLICY_HZ * step + reset
-            rows.append(
-                [
-                    f"FanTracking-v1, {estimator}, {backend}",
-                    f"{step * 1e6:.0f}",
-                    f"{physics * 1e6:.1f}",
-                    *(f"{floor / physics:.1%}" for floor in floors.values()),
-                    f"{1 / step:.0f}",
-                    f"{EPISODE_SECONDS / per_episode:.1f}",
-                    f"{reset * 1e3:.2f}",
-                ]
-            )
+        )
     return rows
 
 
@@ -146,7 +139,7 @@ table, all on: the open engine's cost on the compiled path (limit: 1.3x the plai
 def disturbance_rows(args: argparse.Namespace) -> list[list[str]]:
     """Plain FanTracking against it with every disturbance on, UKF, compiled, timed in alternating
     blocks in one process (``paired_step_seconds``)."""
-    plain = {"estimator": "ukf", "backend": "numba"}
+    plain = {"estimator": "ukf"}
     base, heavy = (
         seconds / SUBSTEPS
         for seconds in paired_step_seconds(
@@ -154,22 +147,22 @@ def disturbance_rows(args: argparse.Namespace) -> list[list[str]]:
         )
     )
     return [
-        ["FanTracking-v1, ukf, numba", f"{base * 1e6:.1f}", "1.00x"],
+        ["FanTracking-v1, ukf", f"{base * 1e6:.1f}", "1.00x"],
         ["+ Dryden, second jet, ground effect over a table", f"{heavy * 1e6:.1f}", f"{heavy / base:.2f}x"],
     ]
 
 
 def vector_rows(args: argparse.Namespace, floors: dict[str, float]) -> list[list[str]]:
     rows = []
-    for estimator, backend in (("ukf", "numba"), ("oracle", "numba"), ("ukf", "numpy")):
+    for estimator in ("ukf", "oracle"):
         step = min(
-            vector_step_seconds(args.steps // 8, VECTOR_ENVS, estimator=estimator, backend=backend)
+            vector_step_seconds(args.steps // 8, VECTOR_ENVS, estimator=estimator)
             for _ in range(args.repeats)
         )
         per_vehicle = step / SUBSTEPS / VECTOR_ENVS
         rows.append(
             [
-                f"FanTracking-v1 x {VECTOR_ENVS}, {estimator}, {backend}",
+                f"FanTracking-v1 x {VECTOR_ENVS}, {estimator}",
                 f"{per_vehicle * 1e6:.2f}",
                 *(f"{per_vehicle / floor:.1f}x" for floor in floors.values()),
                 f"{VECTOR_ENVS / POLICY_HZ / step:.0f}",
@@ -300,23 +293,19 @@ def run(args: argparse.Namespace) -> int:
         )
         + "\n"
     )
-    if NUMBA_AVAILABLE:
-        shares = paired_floor_shares(args.steps // 4, 4 * args.repeats, estimator="ukf", backend="numba")
-        show(
-            markdown_table(
-                ["single env, timed with the floors in alternating blocks", "µs/physics step",
-                 *(f"floor ({floor}) / ours" for floor in FLOORS)],
-                [["FanTracking-v1, ukf, numba", f"{shares['physics step'] * 1e6:.1f}",
-                  *(f"{shares[floor]:.1%}" for floor in FLOORS)]],
-            )
-            + "\n"
-        )  # fmt: skip
-        show(
-            markdown_table(
-                ["disturbances on the compiled path", "µs/physics step", "vs plain"], disturbance_rows(args)
-            )
-            + "\n"
+    shares = paired_floor_shares(args.steps // 4, 4 * args.repeats, estimator="ukf")
+    show(
+        markdown_table(
+            ["single env, timed with the floors in alternating blocks", "µs/physics step",
+             *(f"floor ({floor}) / ours" for floor in FLOORS)],
+            [["FanTracking-v1, ukf", f"{shares['physics step'] * 1e6:.1f}",
+              *(f"{shares[floor]:.1%}" for floor in FLOORS)]],
         )
+        + "\n"
+    )  # fmt: skip
+    show(
+        markdown_table(["every disturbance on", "µs/physics step", "vs plain"], disturbance_rows(args)) + "\n"
+    )
     show(
         markdown_table(
             [
@@ -329,19 +318,12 @@ def run(args: argparse.Namespace) -> int:
         )
         + "\n"
     )
-    part_tables = [(f"ukf env, {backend}", "µs", args.steps, 1, backend) for backend in BACKENDS]
-    if NUMBA_AVAILABLE:  # a call steps all 64 vehicles: fewer calls than the single env's
-        part_tables.append(
-            (
-                f"ukf vector env x {VECTOR_ENVS}, numba",
-                "µs per vehicle",
-                max(args.steps // 8, 20),
-                VECTOR_ENVS,
-                "numba",
-            )
-        )
-    for title, unit, calls, num_envs, backend in part_tables:
-        parts = component_seconds(calls, num_envs=num_envs, backend=backend)
+    part_tables = [  # a call steps all 64 vehicles: fewer calls than the single env's
+        ("ukf env", "µs", args.steps, 1),
+        (f"ukf vector env x {VECTOR_ENVS}", "µs per vehicle", max(args.steps // 8, 20), VECTOR_ENVS),
+    ]
+    for title, unit, calls, num_envs in part_tables:
+        parts = component_seconds(calls, num_envs=num_envs, estimator="ukf")
         rows = [[name, f"{seconds * 1e6:.2f}"] for name, seconds in parts.items()]
         show(markdown_table([f"part of a step ({title})", unit], rows) + "\n")
     print(

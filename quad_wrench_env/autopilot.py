@@ -31,8 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from quad_wrench_env.engine.world import RigidBodyState
-from quad_wrench_env.rotations import cross, quat_from_euler_zyx, rotation_matrices, rows_times, wrap_angle
+from quad_wrench_env.rotations import cross, rows_times
 from quad_wrench_env.vehicle import GRAVITY, Mixer, VehicleParams
 
 _E_Z = np.array((0.0, 0.0, 1.0))
@@ -97,8 +96,9 @@ class AutopilotGains:
 
 
 class Autopilot:
-    """Cascaded controllers of ``count`` vehicles producing motor-speed commands from velocity,
-    attitude or wrench setpoints; every argument and state carries a leading dimension N."""
+    """The cascade's gains, mixer and state for ``count`` vehicles (each with a leading dimension N):
+    the compiled ``controls`` kernel (:mod:`quad_wrench_env.engine.kernels`) flies it every physics
+    step on these numbers; here are the episode start's reset and trim."""
 
     def __init__(
         self, vehicle: VehicleParams, dt: float, gains: AutopilotGains | None = None, count: int = 1
@@ -111,7 +111,6 @@ class Autopilot:
         self._velocity_i = np.array((g.velocity_i, g.velocity_i, g.climb_i))
         self._attitude_p = np.array((g.attitude_p, g.attitude_p, g.yaw_p))
         self.mixer = Mixer(vehicle)
-        self._inverse_t = self.mixer.inverse.T.copy()
         self._inertia = np.array(vehicle.inertia)
         self._w2_min = vehicle.min_rotor_speed**2
         self._w2_max = vehicle.max_rotor_speed**2
@@ -153,98 +152,6 @@ class Autopilot:
         self.velocity_integral[index] = (
             thrust_vector / self.vehicle.mass - GRAVITY * _E_Z
         ) / self._velocity_i
-
-    # -- outer loops -------------------------------------------------------------------------
-    def velocity_command(
-        self, state: RigidBodyState, velocity: np.ndarray, yaw_rate: np.ndarray
-    ) -> np.ndarray:
-        """(N, 4) motor speeds that track (N, 3) world-frame velocities (m/s) and (N,) yaw rates (rad/s)."""
-        error = velocity - state.velocity
-        proportional = self.gains.setpoint_weight * velocity - state.velocity
-        accel = self._velocity_p * proportional + self._velocity_i * self.velocity_integral
-        thrust_vector = self.vehicle.mass * (accel + GRAVITY * _E_Z)
-        thrust_vector, tilt_limited = self._limit_tilt(thrust_vector)
-        integrate = ~(tilt_limited | self.saturated)
-        self.velocity_integral += (error * self.dt) * integrate[:, None]
-        self._advance_yaw(state, yaw_rate)
-        desired = attitude_from_thrust(thrust_vector, self.yaw_setpoint)
-        thrust = np.einsum("ni,ni->n", thrust_vector, state.rotation[:, :, 2])
-        return self._attitude_to_motors(state, desired, thrust)
-
-    def attitude_command(
-        self,
-        state: RigidBodyState,
-        roll: np.ndarray,
-        pitch: np.ndarray,
-        yaw_rate: np.ndarray,
-        thrust: np.ndarray,
-    ) -> np.ndarray:
-        """(N, 4) motor speeds for (N,) rolls and pitches (rad), yaw rates (rad/s) and collective
-        thrusts (N)."""
-        self._advance_yaw(state, yaw_rate)
-        desired = rotation_matrices(quat_from_euler_zyx(roll, pitch, self.yaw_setpoint))
-        return self._attitude_to_motors(state, desired, thrust)
-
-    def wrench_command(self, thrust: np.ndarray, body_torque: np.ndarray) -> np.ndarray:
-        """(N, 4) motor speeds for (N,) collective thrusts (N) and (N, 3) body torques (N·m), through
-        the mixer."""
-        return self._mix(np.column_stack((thrust, body_torque)))
-
-    # -- inner loops -------------------------------------------------------------------------
-    def _advance_yaw(self, state: RigidBodyState, yaw_rate: np.ndarray) -> None:
-        r = state.rotation
-        yaw = np.arctan2(r[:, 1, 0], r[:, 0, 0])
-        ahead = wrap_angle(self.yaw_setpoint + yaw_rate * self.dt - yaw)
-        limit = self.gains.max_yaw_error
-        self.yaw_setpoint[:] = yaw + np.clip(ahead, -limit, limit)  # in place: the compiled step holds it
-
-    def _limit_tilt(self, thrust_vector: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        vertical = np.maximum(thrust_vector[:, 2], 0.1 * self.vehicle.mass * GRAVITY)
-        horizontal = thrust_vector[:, :2]
-        max_horizontal = vertical * math.tan(self.gains.max_tilt)
-        norm = np.hypot(horizontal[:, 0], horizontal[:, 1])
-        too_wide = norm > max_horizontal
-        limited = too_wide | (vertical != thrust_vector[:, 2])
-        scale = np.where(too_wide, max_horizontal / np.where(too_wide, norm, 1.0), 1.0)
-        return np.column_stack((horizontal * scale[:, None], vertical)), limited
-
-    def _attitude_to_motors(
-        self, state: RigidBodyState, desired: np.ndarray, thrust: np.ndarray
-    ) -> np.ndarray:
-        g = self.gains
-        r = state.rotation
-        e = np.swapaxes(desired, 1, 2) @ r
-        e = e - np.swapaxes(e, 1, 2)  # R_dᵀR - RᵀR_d
-        attitude_error = 0.5 * np.stack((e[:, 2, 1], e[:, 0, 2], e[:, 1, 0]), axis=1)
-        rates = np.clip(-self._attitude_p * attitude_error, -g.max_rate, g.max_rate)
-        return self._rates_to_motors(state, rates, thrust)
-
-    def _rates_to_motors(self, state: RigidBodyState, rates: np.ndarray, thrust: np.ndarray) -> np.ndarray:
-        g = self.gains
-        omega = state.body_rates
-        error = rates - omega
-        self.rate_integral += (error * self.dt) * ~self.saturated[:, None]
-        angular_accel = g.rate_p * error + g.rate_i * self.rate_integral
-        torque = self._inertia * angular_accel + cross(omega, self._inertia * omega)
-        return self._mix(np.column_stack((thrust, torque)))
-
-    def _mix(self, thrust_and_torque: np.ndarray) -> np.ndarray:
-        """(N, 4) rotor speeds for (N, 4) ``[c_t, tau]``; yaw torque is given up first, then speeds
-        are clipped."""
-        without_yaw = rows_times(thrust_and_torque[:, :3], self._inverse_t[:3])
-        yaw_part = thrust_and_torque[:, 3:] * self._inverse_t[3]
-        lo, hi = self._w2_min, self._w2_max
-        unsaturated = without_yaw + yaw_part
-        over = (yaw_part > 0.0) & (unsaturated > hi)
-        under = (yaw_part < 0.0) & (unsaturated < lo)
-        bound = np.where(over, hi, lo)
-        safe_part = np.where(over | under, yaw_part, 1.0)
-        ratios = np.where(over | under, np.maximum(0.0, (bound - without_yaw) / safe_part), 1.0)
-        scale = np.minimum(1.0, ratios.min(axis=1))
-        squared = without_yaw + scale[:, None] * yaw_part
-        clipped = np.clip(squared, lo, hi)
-        self.saturated[:] = (scale < 1.0) | np.any(clipped != squared, axis=1)
-        return np.sqrt(clipped)
 
 
 def attitude_from_thrust(thrust_vector: np.ndarray, yaw: np.ndarray) -> np.ndarray:

@@ -163,9 +163,10 @@ def _time(call, calls: int, repeats: int = 3) -> float:
 
 
 def component_seconds(calls: int, num_envs: int = 1, **env_kwargs) -> dict[str, float]:
-    """Seconds per call and vehicle of each part of a step, timed in isolation on a live env (its
-    own backend): the single env, or with ``num_envs`` > 1 the vector env (compiled backend only).
-    The parts of one physics step, then the per-policy-step work."""
+    """Seconds per call and vehicle of each part of a step, timed in isolation on a live env: the
+    single env, or with ``num_envs`` > 1 the vector env. The parts of one physics step (PyBullet's
+    calls as the compiled step makes them, the estimator, the kernels and glue as the rest of the whole
+    step), then the per-policy-step work."""
     if num_envs == 1:
         env = gym.make("QuadWrench/FanTracking-v1", **env_kwargs)
         env.reset(seed=0, options={"offset_y": 0.4})
@@ -185,49 +186,25 @@ def component_seconds(calls: int, num_envs: int = 1, **env_kwargs) -> dict[str, 
         fleet = base.fleet
         action = np.zeros((num_envs, 4))
         base.step(action[0] if num_envs == 1 else action)
-        compiled = fleet.compiled
-        if compiled is None:
-            if num_envs > 1:
-                raise ValueError(
-                    f"num_envs={num_envs} times the compiled backend only; allowed: 1 with numpy"
-                )
-            state = fleet.state
-            loads = fleet.external_loads(state, slice(None))
-            nominal = fleet.autopilot.mixer.wrench(fleet.rotors.speeds[0])[None]
-            parts = {
-                "autopilot + motors": lambda: fleet.rotors.step(fleet.actions.motor_command(action, state)),
-                "disturbances (wind, drag, point loads)": lambda: fleet.external_loads(state, slice(None)),
-                "PyBullet apply + step": lambda: fleet.world.step(loads[:, :3], loads[:, 3:], state.position),
-                "PyBullet read + state": fleet.world.state,
-                "sensors (noise, motion capture, motor speeds)": lambda: fleet.mocap.measure(
-                    state.position, state.quaternion, fleet.noise.take()[:, 3:9]
-                ),
-                f"estimator ({fleet.estimator.name})": lambda: fleet.estimator.step(
-                    nominal[:, 0], nominal[:, 1:], state.position, state.quaternion
-                ),
-            }
-        else:  # PyBullet's calls as the compiled step makes them (one vehicle: World.step_one)
-            loads = [
-                tuple(part[0].tolist()) for part in (compiled.forces, compiled.torques, fleet.state.position)
-            ]
-            parts = {
-                "compiled: autopilot, motors, disturbances": lambda: compiled.physics_steps(action, 1),
-                "PyBullet apply + step": (
-                    (lambda: fleet.world.step_one(*loads))
-                    if compiled.single
-                    else lambda: fleet.world.step(compiled.forces, compiled.torques, fleet.state.position)
-                ),
-                "PyBullet read": compiled.read_world,
-            }
+        compiled = fleet.compiled  # PyBullet's calls as the step makes them (one vehicle: step_one)
+        parts_one = (compiled.forces, compiled.torques, fleet.state.position)
+        loads = [tuple(part[0].tolist()) for part in parts_one]
+        parts = {
+            "compiled: autopilot, motors, disturbances": lambda: compiled.physics_steps(action, 1),
+            "PyBullet apply + step": (
+                (lambda: fleet.world.step_one(*loads))
+                if compiled.single
+                else lambda: fleet.world.step(compiled.forces, compiled.torques, fleet.state.position)
+            ),
+            "PyBullet read": compiled.read_world,
+        }
         out = {f"physics step: {name}": _time(call, calls) for name, call in parts.items()}
-        if compiled is not None:  # the whole compiled step, less what is timed on its own
-            whole = out.pop("physics step: compiled: autopilot, motors, disturbances")
-            estimator = _time(compiled.estimate, calls)
-            pybullet = out["physics step: PyBullet apply + step"] + out["physics step: PyBullet read"]
-            out["physics step: kernels (autopilot, motors, disturbances, sensors) + glue"] = (
-                whole - pybullet - estimator
-            )
-            out[f"physics step: estimator ({fleet.estimator.name}, compiled)"] = estimator
+        whole = out.pop("physics step: compiled: autopilot, motors, disturbances")  # less what is timed alone
+        estimator = _time(compiled.estimate, calls)
+        pybullet = out["physics step: PyBullet apply + step"] + out["physics step: PyBullet read"]
+        rest = whole - pybullet - estimator
+        out["physics step: kernels (autopilot, motors, disturbances, sensors) + glue"] = rest
+        out[f"physics step: estimator ({fleet.estimator.name}, compiled)"] = estimator
         out["policy step: observation, reward, termination, info"] = _time(
             lambda: (
                 fleet.observations(action),

@@ -47,18 +47,6 @@ class Rotors:
             (self._alpha_up, self._alpha_down, v.min_rotor_speed, v.max_rotor_speed, self._drag_coefficient)
         )
 
-    def step(self, commanded: np.ndarray) -> np.ndarray:
-        """Advance the motors one physics step towards (N, 4) ``commanded`` speeds (limited to their
-        range)."""
-        target = np.clip(commanded, self.vehicle.min_rotor_speed, self.vehicle.max_rotor_speed)
-        error = target - self.speeds
-        self.speeds += np.where(error >= 0.0, self._alpha_up, self._alpha_down) * error
-        return self.speeds
-
-    def thrust_and_torque(self) -> np.ndarray:
-        """(N, 4) true ``[c_t, tau_x, tau_y, tau_z]`` in the body frame from the current speeds."""
-        return np.einsum("nij,nj->ni", self.allocations, self.speeds * self.speeds)
-
     def thrusts(self, index: np.ndarray | slice = slice(None)) -> np.ndarray:
         """(n, 4) true thrust ``k_i·Ω_i²`` of each rotor of vehicles ``index`` (N)."""
         speeds = self.speeds[index]

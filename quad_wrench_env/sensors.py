@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from quad_wrench_env.config import check_numbers
-from quad_wrench_env.rotations import quat_exp, quat_multiply_rows
+from quad_wrench_env.engine.kernels import quantized_speed
 
 
 @dataclass
@@ -52,68 +52,34 @@ class SensorConfig:
 
 
 class MotionCapture:
-    """Noisy, optionally delayed pose measurements of N vehicles.
-
-    The noise comes in as standard normal draws (six per vehicle and step, from
-    each vehicle's own generator), so that a batch of vehicles and the same vehicles flown one by
-    one see the same noise.
-    """
+    """The motion capture's delay line of N vehicles (its numbers are measured by the compiled
+    step's ``sense`` kernel, :mod:`quad_wrench_env.engine.kernels`): per vehicle the slot written
+    next, then ``latency_steps`` poses ``[position, quaternion]``; empty without latency. The fleet
+    makes :attr:`delay_line` a view of its step buffer."""
 
     def __init__(self, config: SensorConfig, count: int = 1) -> None:
         self.config = config
         latency = config.latency_steps
-        self._positions = np.zeros((latency, count, 3))
-        self._quaternions = np.zeros((latency, count, 4))
-        self._head = 0
+        self.delay_line = np.zeros((count, 1 + 7 * latency if latency else 0))
 
     def reset(self, index: int, position: np.ndarray, quaternion: np.ndarray) -> None:
         """Start an episode of vehicle ``index``; until ``latency_steps`` have passed its start
         pose is what is seen."""
-        self._positions[:, index] = position
-        self._quaternions[:, index] = quaternion
-
-    def delayed(self, positions: np.ndarray, quaternions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """The true poses ``latency_steps`` physics steps ago, given the poses now (one call per step)."""
-        latency = self.config.latency_steps
-        if not latency:
-            return positions, quaternions
-        head = self._head
-        oldest = self._positions[head].copy(), self._quaternions[head].copy()
-        self._positions[head], self._quaternions[head] = positions, quaternions
-        self._head = (head + 1) % latency
-        return oldest
-
-    def measure(
-        self, positions: np.ndarray, quaternions: np.ndarray, normals: np.ndarray
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """Measured ``(positions (N, 3), quaternions (N, 4) [w, x, y, z])`` for the true poses now;
-        ``normals`` (N, 6) standard normal draws."""
-        cfg = self.config
-        positions, quaternions = self.delayed(positions, quaternions)
-        measured_position = positions + cfg.position_noise * normals[:, :3]
-        rotation_error = quat_exp(cfg.attitude_noise * normals[:, 3:6])
-        measured = quat_multiply_rows(quaternions, rotation_error)
-        return measured_position, measured / np.linalg.norm(measured, axis=1, keepdims=True)
-
-    def measure_motion(
-        self, velocity: np.ndarray, body_rates: np.ndarray, normals: np.ndarray
-    ) -> tuple[np.ndarray | None, np.ndarray | None]:
-        """Velocities and body rates (N, 3) from the onboard state estimators, or ``(None, None)``
-        without one; ``normals`` (N, 6) standard normal draws."""
-        cfg = self.config
-        if not cfg.state_estimator:
-            return None, None
-        return velocity + cfg.velocity_noise * normals[:, :3], body_rates + cfg.body_rate_noise * normals[
-            :, 3:6
-        ]
+        line = self.delay_line[index]
+        for slot in range(self.config.latency_steps):
+            line[1 + 7 * slot : 4 + 7 * slot] = position
+            line[4 + 7 * slot : 8 + 7 * slot] = quaternion
 
 
 class MotorSpeedSensor:
-    """Motor speeds as the vehicle reports them: rounded to ``bits`` bits over [0, max_speed]."""
+    """Motor speeds as the vehicle reports them: rounded to ``bits`` bits over [0, max_speed] (the
+    ``sense`` kernel rounds them to :attr:`levels` steps of :attr:`step`)."""
 
     def __init__(self, max_speed: float, bits: int) -> None:
         self.levels = float(2**bits - 1)
         self.step = max_speed / self.levels
 
     def measure(self, speeds: np.ndarray) -> np.ndarray:
-        return np.clip(np.round(speeds / self.step), 0.0, self.levels) * self.step
+        """The reported speeds of (..., 4) true ``speeds`` (the kernel's rounding, element by element)."""
+        reported = [quantized_speed(float(v), self.levels, self.step) for v in np.ravel(speeds)]
+        return np.array(reported).reshape(np.shape(speeds))

@@ -35,3 +35,25 @@ def assert_usage_error(argv: list[str], message: str, capsys: pytest.CaptureFixt
     assert exit_.value.code == 2
     assert "error: " in err and message in err, err
     assert "Traceback" not in err
+
+
+def controls_on_a_copy(fleet, actions, instant_motors: bool = True, buffer=None):
+    """The engine's ``controls`` kernel (autopilot and motors) for ``fleet``'s vehicles from (N, 4)
+    ``actions``, on ``buffer`` (a copy of the fleet's step buffer when None: the flight is left alone)
+    and a copy of its saturation flags; returns that buffer's fields by name
+    (:func:`~quad_wrench_env.engine.kernels.step_views`) and the mixer's flags (``"saturated"``). With
+    ``instant_motors`` the motors' lag gains are 1, so ``speeds`` is the command (clipped to the
+    motors' range)."""
+    import numpy as np
+
+    from quad_wrench_env.engine.kernels import CONSTANT_FIELDS, STEP_FIELDS, controls, offsets, step_views
+
+    buffer = fleet.buffer.copy() if buffer is None else buffer
+    constants = fleet.compiled.constants.copy()
+    if instant_motors:
+        start = offsets(CONSTANT_FIELDS)["motors"]
+        constants[start : start + 2] = 1.0  # alpha up and down: the speed reaches the command in one step
+    saturated = fleet.autopilot.saturated.copy()
+    controls(np.asarray(actions, dtype=float), buffer, saturated, constants)
+    fields = dict(zip((name for name, _ in STEP_FIELDS), step_views(buffer, fleet.count), strict=True))
+    return {**fields, "saturated": saturated}

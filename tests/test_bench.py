@@ -40,7 +40,7 @@ def test_paired_timing_gives_one_figure_per_setting_and_steps_every_env(monkeypa
         return env
 
     monkeypatch.setattr(bench.gym, "make", make)
-    settings = [{"estimator": "oracle", "backend": "numpy"}, {"estimator": "observer", "backend": "numpy"}]
+    settings = [{"estimator": "oracle"}, {"estimator": "observer"}]
     figures = paired_step_seconds(steps=3, blocks=2, settings=settings)
     assert len(figures) == 2 and all(math.isfinite(f) and f > 0 for f in figures)
     assert [m["kwargs"] for m in made] == settings
@@ -48,17 +48,14 @@ def test_paired_timing_gives_one_figure_per_setting_and_steps_every_env(monkeypa
 
 
 def test_the_parts_of_a_step_are_the_documented_keys():
-    """Catches a part dropped from or renamed in the per-component breakdown (numpy backend)."""
-    parts = component_seconds(2, backend="numpy", estimator="ekf")
-    assert set(parts) == {
-        "physics step: autopilot + motors",
-        "physics step: disturbances (wind, drag, point loads)",
-        "physics step: PyBullet apply + step",
-        "physics step: PyBullet read + state",
-        "physics step: sensors (noise, motion capture, motor speeds)",
-        "physics step: estimator (ekf)",
-        "policy step: observation, reward, termination, info",
-    }
-    assert all(math.isfinite(seconds) for seconds in parts.values())
-    with pytest.raises(ValueError, match="num_envs=2"):
-        component_seconds(1, num_envs=2, backend="numpy")
+    """Catches a part dropped from or renamed in the per-component breakdown, single and vector env."""
+    for num_envs in (1, 2):
+        parts = component_seconds(2, num_envs=num_envs, estimator="ekf")
+        assert set(parts) == {
+            "physics step: PyBullet apply + step",
+            "physics step: PyBullet read",
+            "physics step: kernels (autopilot, motors, disturbances, sensors) + glue",
+            "physics step: estimator (ekf, compiled)",
+            "policy step: observation, reward, termination, info",
+        }
+        assert all(math.isfinite(seconds) for seconds in parts.values())

@@ -11,7 +11,6 @@ import pytest
 
 from quad_wrench_env.agents.evaluate import run_episode
 from quad_wrench_env.engine.world import Tool, World
-from quad_wrench_env.kernels import NUMBA_AVAILABLE
 from quad_wrench_env.scene import Ceiling, Wall
 from quad_wrench_env.tasks.force_exertion import ForceExertion
 from quad_wrench_env.vehicle import GRAVITY, PRESETS
@@ -99,7 +98,7 @@ def test_friction_at_the_tip_is_coulombs(side, slides):
 def test_the_hull_touching_a_wall_is_a_crash():
     """Without a tool, flying into a wall ends the episode as a crash (it did not before the tool came)."""
     env = gym.make(
-        "QuadWrench/FanTracking-v1", estimator="oracle", backend="numpy", fan={"enabled": False},
+        "QuadWrench/FanTracking-v1", estimator="oracle", fan={"enabled": False},
         scene=[{"kind": "wall", "x": 2.6}],
     )  # fmt: skip
     try:
@@ -131,7 +130,7 @@ DRAG_FREE = {"drag_area": 0.0, "rotor_drag_decel": 0.0}
 
 @pytest.mark.parametrize("surface", ["wall", "ceiling"])
 def test_starts_near_the_surface_with_the_target_in_the_observation(make_env, surface):
-    env = make_env(ENV_ID, backend="numpy")
+    env = make_env(ENV_ID)
     obs, info = env.reset(seed=1, options={"surface": surface, "target_force": 0.7})
     base = env.unwrapped
     assert (base.cfg.vehicle, base.cfg.action_type, base.cfg.estimator) == ("yuksel1kg", "wrench", "observer")
@@ -149,7 +148,7 @@ def test_the_contact_force_is_in_the_true_wrench_and_the_oracles_estimate(make_e
     """Drag-free, no push: once the tip presses the ceiling, the only external force is the contact's,
     so ``wrench_true``'s force equals ``contact_force`` and the oracle reports it; the torque is the
     tip's lever arm crossed with it."""
-    env = make_env(ENV_ID, backend="numpy", estimator="oracle", vehicle_params=DRAG_FREE, kf_spread=0.0)
+    env = make_env(ENV_ID, estimator="oracle", vehicle_params=DRAG_FREE, kf_spread=0.0)
     env.reset(seed=0, options={"surface": "ceiling", "target_force": 1.0})
     touched = False
     for _ in range(60):
@@ -164,7 +163,7 @@ def test_the_contact_force_is_in_the_true_wrench_and_the_oracles_estimate(make_e
 
 
 def test_push_option_acts_on_the_centre_of_mass(make_env):
-    env = make_env(ENV_ID, backend="numpy", estimator="oracle", vehicle_params=DRAG_FREE)
+    env = make_env(ENV_ID, estimator="oracle", vehicle_params=DRAG_FREE)
     _, info = env.reset(seed=0, options={"surface": "wall", "push": 1.0})
     np.testing.assert_allclose(info["wrench_true"], [1.0, 0, 0, 0, 0, 0], atol=1e-9)
 
@@ -178,7 +177,7 @@ def test_push_option_acts_on_the_centre_of_mass(make_env):
     ],
 )
 def test_bad_options_are_refused(make_env, options, match):
-    env = make_env(ENV_ID, backend="numpy")
+    env = make_env(ENV_ID)
     with pytest.raises(ValueError, match=match):
         env.reset(seed=0, options=options)
 
@@ -187,7 +186,7 @@ def test_a_start_gap_range_is_drawn_per_episode_from_the_seed(make_env):
     """``start_gap=[low, high]`` (a training curriculum) draws each episode's gap from the seed: the
     same seed the same gap, different seeds different gaps, all within the range; a bad range is
     refused by name."""
-    env = make_env(ENV_ID, backend="numpy", start_gap=[0.0, 0.05])
+    env = make_env(ENV_ID, start_gap=[0.0, 0.05])
     gaps = []
     for seed in (3, 4, 3):
         env.reset(seed=seed, options={"surface": "wall"})
@@ -195,12 +194,12 @@ def test_a_start_gap_range_is_drawn_per_episode_from_the_seed(make_env):
     assert gaps[0] == gaps[2] != gaps[1]
     assert all(0.0 <= g <= 0.05 for g in gaps)
     with pytest.raises(ValueError, match=r"start_gap=\[0.05, 0.01\]"):
-        make_env(ENV_ID, backend="numpy", start_gap=[0.05, 0.01])
+        make_env(ENV_ID, start_gap=[0.05, 0.01])
 
 
 def test_the_task_needs_its_tool(make_env):
     with pytest.raises(ValueError, match="tool.enabled=False"):
-        make_env(ENV_ID, backend="numpy", tool={"enabled": False})
+        make_env(ENV_ID, tool={"enabled": False})
 
 
 def test_metrics_by_hand():
@@ -220,9 +219,7 @@ def test_the_approach_shaping_telescopes_to_the_potential_difference(make_env):
     """With γ = 1 the shaping terms of an episode sum to Φ(end) - Φ(start) = -w·(gap_end - gap_start):
     potential-based, so it cannot change which policy is best. Flying up into the ceiling closes the
     5 cm gap: the sum is +w·0.05."""
-    env = make_env(
-        ENV_ID, backend="numpy", estimator="oracle", reward={"discount": 1.0, "approach_weight": 10.0}
-    )
+    env = make_env(ENV_ID, estimator="oracle", reward={"discount": 1.0, "approach_weight": 10.0})
     env.reset(seed=0, options={"surface": "ceiling", "target_force": 1.0})
     total = 0.0
     for _ in range(60):
@@ -251,7 +248,7 @@ def test_ida_pbc_presses_the_wall_with_the_target_force(make_env, vehicle, param
     5-10 s, 0.75 N at 14 s). The target 0.75 N is 1 N scaled by the thrust margins (7.4 N of 9.8 N)."""
     from quad_wrench_env.agents import make_agent
 
-    env = make_env(ENV_ID, backend="numpy", vehicle=vehicle)
+    env = make_env(ENV_ID, vehicle=vehicle)
     episode = run_episode(
         make_agent("ida_pbc", params=params), env, 2, {"surface": "wall", "target_force": target}
     )
@@ -289,38 +286,6 @@ def test_the_stiff_set_keeps_the_tip_on_a_rough_ceiling_longer():
             values.append(np.mean(touching[int(np.argmax(touching)) :]))
         fractions[name] = np.mean(values)
     assert fractions["QC2"] > fractions["QC1"]
-
-
-@pytest.mark.skipif(not NUMBA_AVAILABLE, reason="numba is not installed")
-def test_compiled_contact_flight_equals_the_numpy_reference():
-    """Two vehicles, one pushed at the wall and one climbing into the ceiling (the push's compiled load
-    and the contacts read after the compiled step), 100 policy steps on both backends: the contact
-    forces, the true wrench and the positions agree to rounding."""
-    envs = {
-        b: gym.make_vec(
-            ENV_ID, num_envs=2, vectorization_mode="vector_entry_point", backend=b, estimator="oracle"
-        )
-        for b in ("numpy", "numba")
-    }
-    try:
-        for env in envs.values():
-            env.reset(seed=3)
-            env.unwrapped.reset_vehicles(
-                range(2), [3, 4], [{"surface": "wall", "push": 0.5}, {"surface": "ceiling"}]
-            )
-        action = np.array(((0.0, 0.0, 0.0, 0.0), (0.08, 0.0, 0.0, 0.0)), dtype=np.float32)
-        touched = False
-        for _ in range(100):
-            (a, _, ta, _, ia), (b, _, tb, _, ib) = (env.step(action) for env in envs.values())
-            np.testing.assert_allclose(a, b, rtol=1e-5, atol=1e-6)
-            for key in ("contact_force", "wrench_true", "position"):
-                np.testing.assert_allclose(ia[key], ib[key], rtol=1e-7, atol=1e-7, err_msg=key)
-            np.testing.assert_array_equal(ta, tb)
-            touched = touched or np.linalg.norm(ia["contact_force"][1]) > 0.05
-        assert touched
-    finally:
-        for env in envs.values():
-            env.close()
 
 
 def test_the_contact_torque_is_the_lever_arm_crossed_with_the_contact_force():

@@ -8,8 +8,8 @@ float64 number the env reports (the true position, velocity and wrench, the esti
 observation for equality. What makes this hold on any CPU: all vehicles fly at PyBullet's origin
 (no frame shift rounds their positions), the compiled kernels loop vehicle by vehicle or run the
 same IEEE operations on SIMD lanes, never sums regrouped by the vector width (the UKF's covariance
-sum runs in order on one filter and on the lanes alike), and the numpy reference multiplies rows by
-:func:`~quad_wrench_env.rotations.rows_times` instead of BLAS, whose kernels group sums by the
+sum runs in order on one filter and on the lanes alike), and the numpy code at resets multiplies rows
+by :func:`~quad_wrench_env.rotations.rows_times` instead of BLAS, whose kernels group sums by the
 number of rows. Bits across machines are not promised (libm, the compile target).
 """
 
@@ -119,7 +119,7 @@ def test_a_vehicle_gives_the_same_bits_at_any_index_of_a_vector_env_of_any_size(
     """Each task with its default estimator on the compiled path (the UKF of FanTracking runs filter
     by filter in banks of 1-2 and on SIMD lanes from 3). Catches frames that shift positions (they
     differed by 1e-14 m from the first step) and sums regrouped by the vector width (1e-13 N)."""
-    compared = compare_at_every_size(env_id, backend="numba")
+    compared = compare_at_every_size(env_id)
     assert min(compared) >= 25, f"too short a flight to compare: {compared} steps"
 
 
@@ -129,21 +129,12 @@ def test_other_vehicles_restarting_leave_a_vehicle_its_bits(env_id):
     vehicles' states from PyBullet and must leave the others' (the compiled step's) bits alone.
     Re-reading every vehicle changed the others in the last bit, so a training run on vehicles in
     two processes differed from the same run in one (0.40 vs 0.11 m after 500 k steps)."""
-    compare_at_every_size(env_id, sizes=((2, 1), (9, 8)), restart_every=7, backend="numba")
+    compare_at_every_size(env_id, sizes=((2, 1), (9, 8)), restart_every=7)
 
 
 @pytest.mark.parametrize("estimator", ["ekf", "observer", "oracle"])
 def test_every_estimator_gives_the_same_bits_in_a_fleet(estimator):
-    compare_at_every_size(
-        "QuadWrench/FanTracking-v1", sizes=((3, 2), (9, 8)), estimator=estimator, backend="numba"
-    )
-
-
-@pytest.mark.parametrize("env_id", ["QuadWrench/FanTracking-v1", "QuadWrench/ForceExertion-v0"])
-def test_the_numpy_reference_gives_the_same_bits_in_a_fleet(env_id):
-    """The reference's row products are summed in order (``rows_times``): with ``@`` a vehicle of
-    three differed from one alone in the last bit from the first step on AVX-512 OpenBLAS."""
-    compare_at_every_size(env_id, sizes=((1, 0), (3, 1), (9, 8)), steps=20, backend="numpy")
+    compare_at_every_size("QuadWrench/FanTracking-v1", sizes=((3, 2), (9, 8)), estimator=estimator)
 
 
 def test_the_same_bits_hold_when_the_kernels_are_compiled_for_another_cpu(tmp_path):
@@ -153,7 +144,7 @@ def test_the_same_bits_hold_when_the_kernels_are_compiled_for_another_cpu(tmp_pa
     script = (
         f"import sys, json; sys.path.insert(0, {str(here)!r}); import test_determinism as t; "
         "print(json.dumps(t.compare_at_every_size('QuadWrench/FanTracking-v1', sizes=((1, 0), (9, 8)), "
-        "steps=30, backend='numba')))"
+        "steps=30)))"
     )
     environment = {
         **os.environ,

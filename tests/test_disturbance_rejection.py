@@ -12,12 +12,10 @@ import pytest
 
 from quad_wrench_env.agents import make_agent
 from quad_wrench_env.agents.evaluate import run_episode
-from quad_wrench_env.kernels import NUMBA_AVAILABLE
 from quad_wrench_env.tasks.disturbance_rejection import SCENARIOS, DisturbanceRejection
 from quad_wrench_env.vehicle import GRAVITY
 
 ENV_ID = "QuadWrench/DisturbanceRejection-v0"
-needs_numba = pytest.mark.skipif(not NUMBA_AVAILABLE, reason="numba is not installed")
 STILL_AIR = {"w20": 0.0, "peak": [0.0, 0.0]}
 """The ``gusts`` scenario with neither turbulence nor a bump: a hover in still air."""
 
@@ -28,7 +26,7 @@ def _reference(env, t: np.ndarray, scenario: str) -> tuple[np.ndarray, np.ndarra
 
 
 def test_layout_defaults_and_spaces(make_env):
-    env = make_env(ENV_ID, estimator="oracle", backend="numpy")
+    env = make_env(ENV_ID, estimator="oracle")
     base = env.unwrapped
     assert (base.cfg.vehicle, base.cfg.action_type) == ("hummingbird", "attitude")
     layout = base.obs_layout
@@ -70,7 +68,7 @@ def test_observed_tracking_error_is_reference_minus_estimate(make_env):
 def test_reference_velocity_is_the_derivative_of_the_reference_position(make_env, scenario):
     """Central differences of the position (1 ms) against the velocity the task reports, over the
     whole episode: continuous, no step for a controller's differencing to blow up."""
-    env = make_env(ENV_ID, backend="numpy")
+    env = make_env(ENV_ID)
     t = np.linspace(0.0, 15.0, 3001)
     h = 1e-3
     ahead, _ = _reference(env, t + h, scenario)
@@ -102,7 +100,7 @@ def test_figure8_wind_heading_is_drawn_within_its_spread(make_env):
 
 
 def test_references_follow_the_papers_paths(make_env):
-    env = make_env(ENV_ID, backend="numpy")
+    env = make_env(ENV_ID)
     cfg = env.unwrapped.cfg
     jc, tp = cfg.jet_crossing, cfg.table_pass
     position, velocity = _reference(env, np.array((0.0, 0.99, 15.0)), "jet_crossing")
@@ -127,7 +125,7 @@ def test_references_follow_the_papers_paths(make_env):
 def test_jet_blows_at_jet_speed_where_it_crosses_the_path(make_env, speed):
     """The centre speed on the path, 1 m from a 0.6 m outlet with spread 0.42, is the option's: the
     outlet blows at ``U0 = speed·√2·b/D`` with ``b = sqrt(0.3² + (0.42·1)²)`` (momentum flux kept)."""
-    env = make_env(ENV_ID, estimator="oracle", backend="numpy")
+    env = make_env(ENV_ID, estimator="oracle")
     env.reset(seed=0, options={"jet_speed": speed})
     task = env.unwrapped.task
     b = math.hypot(0.3, 0.42)
@@ -166,8 +164,7 @@ def test_jet_sides_put_the_outlet_on_either_side_and_draw_one_per_episode(make_e
 
 def test_each_vehicle_meets_only_its_own_scenarios_disturbance():
     """Four vehicles, one per scenario: the jet and the steady wind blow for their own vehicle only."""
-    env = gym.make_vec(ENV_ID, num_envs=4, vectorization_mode="vector_entry_point", estimator="oracle",
-                       backend="numpy")  # fmt: skip
+    env = gym.make_vec(ENV_ID, num_envs=4, vectorization_mode="vector_entry_point", estimator="oracle")
     try:
         env.reset(seed=5)
         options = [
@@ -204,7 +201,7 @@ def test_each_vehicle_meets_only_its_own_scenarios_disturbance():
     ],
 )
 def test_bad_options_are_refused_by_name(make_env, options, match):
-    env = make_env(ENV_ID, backend="numpy")
+    env = make_env(ENV_ID)
     with pytest.raises(ValueError, match=match):
         env.reset(seed=0, options=options)
 
@@ -221,11 +218,11 @@ def test_bad_options_are_refused_by_name(make_env, options, match):
 )
 def test_bad_config_names_the_value(make_env, kwargs, match):
     with pytest.raises(ValueError, match=match):
-        make_env(ENV_ID, backend="numpy", **kwargs)
+        make_env(ENV_ID, **kwargs)
 
 
 def test_default_episodes_mix_every_scenario_and_the_papers_speeds(make_env):
-    env = make_env(ENV_ID, backend="numpy")
+    env = make_env(ENV_ID)
     task = env.unwrapped.task
     seen = set()
     for seed in range(40):
@@ -253,7 +250,7 @@ FORCE = np.array((0.5, -0.3))
 
 def _hover_under_push(agent_params: dict, seconds: float):
     env = gym.make(
-        ENV_ID, estimator="oracle", backend="numpy", episode_seconds=seconds, gusts=STILL_AIR, kf_spread=0.0,
+        ENV_ID, estimator="oracle", episode_seconds=seconds, gusts=STILL_AIR, kf_spread=0.0,
         external_wrench=[[0.0, 100.0, *FORCE, 0.0, 0.0, 0.0, 0.0]],
     )  # fmt: skip
     try:
@@ -282,9 +279,9 @@ def test_pid_with_the_true_force_cancels_a_constant_push():
 
 def test_pid_refuses_an_env_it_cannot_fly(make_env):
     with pytest.raises(ValueError, match="needs action_type='attitude'"):
-        make_agent("pid").reset(make_env(ENV_ID, backend="numpy", action_type="velocity"))
+        make_agent("pid").reset(make_env(ENV_ID, action_type="velocity"))
     with pytest.raises(ValueError, match="reference_position"):
-        make_agent("pid").reset(make_env(action_type="attitude", backend="numpy"))
+        make_agent("pid").reset(make_env(action_type="attitude"))
     with pytest.raises(ValueError, match=r"pid\.k_p_xy"):
         make_agent("pid", k_p_xy="fast")
 
@@ -293,7 +290,7 @@ def test_pid_tilts_against_the_estimated_force():
     """At rest on the reference with an estimated push +x of m·g·tan 10°, the compensated command is a
     pitch of -10° (R_y(θ)·e_z = (sin θ, 0, cos θ): the thrust leans towards -x, against the push) and
     a thrust of m·g/cos 10°."""
-    env = gym.make(ENV_ID, estimator="oracle", backend="numpy")
+    env = gym.make(ENV_ID, estimator="oracle")
     try:
         obs, _ = env.reset(seed=0, options={"scenario": "gusts"})
         layout, cfg = env.unwrapped.obs_layout, env.unwrapped.cfg
@@ -317,7 +314,6 @@ GAINS = {"pid": {"bandwidth": 3.5}, "mpc": {"position_weight": [1298.89, 1298.89
 """The tuned gains of ``configs/reproduce_hentzen.yaml``."""
 
 
-@needs_numba
 @pytest.mark.parametrize("agent", ["pid", "mpc"])
 @pytest.mark.parametrize("vehicle", ["ardrone2", "crazyflie2", "hummingbird", "yuksel1kg"])
 def test_both_controllers_fly_the_figure8_on_every_preset(vehicle, agent):
@@ -331,41 +327,6 @@ def test_both_controllers_fly_the_figure8_on_every_preset(vehicle, agent):
         env.close()
     assert episode.termination_reason is None
     assert DisturbanceRejection.metrics(episode.trace)["mean_tracking_error"] < 0.1
-
-
-@needs_numba
-def test_compiled_flight_equals_the_numpy_reference_in_every_scenario():
-    """Four vehicles, one per scenario (the jet, the table and ground effect, the gusts, the steady
-    wind with turbulence), 100 policy steps of small random actions on both backends: the
-    task's numbers agree to rounding, as FanTracking's do (tests/test_backends.py)."""
-    options = [{"jet_speed": 12.0}, {"scenario": "table_pass"}, {"scenario": "gusts"}, {"wind_speed": 12.1}]
-    envs = {
-        b: gym.make_vec(
-            ENV_ID,
-            num_envs=4,
-            vectorization_mode="vector_entry_point",
-            backend=b,
-            gusts={"start": [0.0, 1.0]},
-        )
-        for b in ("numpy", "numba")
-    }
-    try:
-        for env in envs.values():
-            env.reset(seed=2)
-            env.unwrapped.reset_vehicles(range(4), [2, 3, 4, 5], options)
-        actions = np.random.default_rng(4).uniform(-0.2, 0.2, (100, 4, 4)).astype(np.float32)
-        for k, action in enumerate(actions):
-            (a, _, ta, _, ia), (b, _, tb, _, ib) = (env.step(action) for env in envs.values())
-            if k == 0:  # before any autoreset draws another scenario
-                assert np.linalg.norm(ia["wrench_true"][0, :2]) > 0.1  # the jet pushes vehicle 0 ...
-                assert abs(ia["wind_velocity"][3, 1]) > 10.0  # ... the steady wind blows on vehicle 3
-            np.testing.assert_allclose(a, b, rtol=1e-5, atol=1e-6)
-            for key in ("wrench_true", "wind_velocity", "position", "reference_position", "tracking_error"):
-                np.testing.assert_allclose(ia[key], ib[key], rtol=1e-7, atol=1e-9, err_msg=key)
-            np.testing.assert_array_equal(ta, tb)
-    finally:
-        for env in envs.values():
-            env.close()
 
 
 @pytest.mark.slow

@@ -14,11 +14,9 @@ from quad_wrench_env.disturbances.ground_effect import GroundEffect, ground_effe
 from quad_wrench_env.disturbances.jet import Jet, JetConfig
 from quad_wrench_env.disturbances.jet_kernels import fixed_jet_velocity
 from quad_wrench_env.disturbances.one_cosine import OneCosineConfig, OneCosineGust, one_cosine_velocity
-from quad_wrench_env.kernels import NUMBA_AVAILABLE
 from quad_wrench_env.scene import Ceiling, Table, Wall, surface_tops
 from quad_wrench_env.vehicle import GRAVITY
 
-needs_numba = pytest.mark.skipif(not NUMBA_AVAILABLE, reason="numba is not installed")
 NO_TABLE = np.zeros((1, 0))
 """The empty ``table`` (and stateless ``state``) argument of a component's kernels."""
 STEADY = {"offset_y": 0.0, "fan_motion": "static"}
@@ -87,7 +85,7 @@ def test_dryden_filter_has_sigma_and_correlation_length_at_any_step(physics_hz):
     peer = np.empty((steps, streams, 3))
     for k in range(steps):
         normals = rng.standard_normal((streams, 3))
-        gust.advance(dt, rest, rest, normals)
+        dryden_advance(gust.kernel_parameters(), gust.weather, gust.gust, rest, rest, dt, normals)
         wind[k] = gust.velocity_at(points, times, slice(None))[:, 0]
         unscaled = decay * unscaled + sigma * normals
         peer[k] = unscaled
@@ -142,11 +140,10 @@ def test_one_cosine_gust_follows_its_formula(hold):
     after = field[TIMES == START + 1.5 * DURATION, 0]
     np.testing.assert_allclose(after, [PEAK if hold else PEAK / 2], atol=1e-12)
     np.testing.assert_allclose(field[-1, 0], PEAK if hold else 0.0, atol=1e-12)
-    if NUMBA_AVAILABLE:
-        out = np.random.default_rng(4).standard_normal(points.shape)
-        before = out.copy()
-        one_cosine_velocity(gust.kernel_parameters(), gust.shape, NO_TABLE, points, TIMES, out)
-        np.testing.assert_allclose(out - before, field, atol=1e-12)
+    out = np.random.default_rng(4).standard_normal(points.shape)
+    before = out.copy()
+    one_cosine_velocity(gust.kernel_parameters(), gust.shape, NO_TABLE, points, TIMES, out)
+    np.testing.assert_allclose(out - before, field, atol=1e-12)
 
 
 # -- fixed jet ------------------------------------------------------------------------------------
@@ -270,18 +267,11 @@ def test_a_higher_cap_leaves_the_formula_alone_below_it():
     hubs = np.tile((0.0, 0.0, height), (1, 4, 1))
     thrusts = np.ones((1, 4))
     np.testing.assert_allclose(effect.added_thrust(hubs, np.eye(3)[None], thrusts), 1.5)
-    if NUMBA_AVAILABLE:
-        out = np.zeros((1, 4))
-        ground_effect_thrust(
-            effect.kernel_parameters(),
-            np.zeros((1, 0)),
-            np.zeros((1, 0)),
-            hubs,
-            np.eye(3)[None],
-            thrusts,
-            out,
-        )
-        np.testing.assert_allclose(out, 1.5)
+    out = np.zeros((1, 4))
+    ground_effect_thrust(
+        effect.kernel_parameters(), np.zeros((1, 0)), np.zeros((1, 0)), hubs, np.eye(3)[None], thrusts, out
+    )
+    np.testing.assert_allclose(out, 1.5)
 
 
 def test_a_table_counts_only_under_a_rotor_above_its_top():
@@ -314,7 +304,6 @@ def _hover(make_env, table: dict):
     height = table["height"] + 0.08
     env = make_env(
         fan={"enabled": False, "height": height}, estimator="oracle", ground_effect=True, scene=[table],
-        backend="numpy",
     )  # fmt: skip
     env.reset(seed=0, options=STEADY)
     for _ in range(100):
@@ -398,7 +387,7 @@ def test_info_wind_velocity_is_the_gust_plus_the_jet_at_the_centre_of_mass(make_
     or counted twice."""
     jet = {"model": "jet", "position": [2.3, -3.0, 1.0], "direction": [0.0, 1.0, 0.0], "speed": 3.0}
     gust = {"model": "one_cosine", "peak": PEAK.tolist(), "start": START, "duration": DURATION, "hold": False}
-    env = make_env(wind=[gust, jet], fan={"enabled": False}, estimator="oracle", backend="numpy")
+    env = make_env(wind=[gust, jet], fan={"enabled": False}, estimator="oracle")
     env.reset(seed=0, options=STEADY)
     field = Jet(JetConfig(**{k: v for k, v in jet.items() if k != "model"}))
     seen = []
@@ -413,15 +402,15 @@ def test_info_wind_velocity_is_the_gust_plus_the_jet_at_the_centre_of_mass(make_
     assert at_jet[1] == pytest.approx(0.83, abs=0.05)  # u_c at 3 m: 3·0.5/(√2·1.28)
 
 
-# -- compiled kernels against the numpy reference --------------------------------------------------
-@needs_numba
+# -- compiled kernels against the reset-time forms and the filter's formula ---------------------------
 @pytest.mark.parametrize("mean", [(1.2, -0.7, 0.1), (0.3, 0.0, 0.2)], ids=["mean-above-1", "mean-below-1"])
 def test_dryden_kernels_match_the_reference(mean):
-    """``dryden_velocity`` and ``dryden_advance`` (argument order of base.py's table) against
-    ``DrydenGust`` on random gusts, points, airspeeds and normals, to 1e-9; airspeeds from 0 to several
-    m/s about mean winds above and below 1 m/s take every branch of V = max(airspeed, |mean|, 1 m/s).
-    Catches a kernel reading params in another order, a different V, or writing another vehicle's
-    row."""
+    """``dryden_velocity`` against ``DrydenGust.velocity_at`` and ``dryden_advance`` (argument order of
+    base.py's table) against the exact first-order filter written here, ``g' = a·g + σ·sqrt(1 - a²)·η``
+    with ``a = exp(-V·dt/L)``, on random gusts, points, airspeeds and normals, to 1e-9; airspeeds from
+    0 to several m/s about mean winds above and below 1 m/s take every branch of
+    V = max(airspeed, |mean|, 1 m/s). Catches a kernel reading params in another order, a different V,
+    or writing another vehicle's row."""
     rng = np.random.default_rng(11)
     gust = DrydenGust(DrydenConfig(w20=3.0, altitude=1.5, mean=mean), 8)
     gust.gust[:] = rng.standard_normal((8, 3))
@@ -437,13 +426,15 @@ def test_dryden_kernels_match_the_reference(mean):
     position = rng.uniform(-3.0, 3.0, (8, 3))
     for dt in (1.0 / 200, 1.0 / 400, 0.3):
         normals = rng.standard_normal((8, 3))
-        compiled = gust.gust.copy()
-        dryden_advance(params, gust.weather, compiled, position, velocity, dt, normals)
-        gust.advance(dt, position, velocity, normals)
-        np.testing.assert_allclose(compiled, gust.gust, atol=1e-9)
+        mean = gust.weather[:, :3]
+        airspeed = np.linalg.norm(velocity - mean, axis=1)
+        speed = np.maximum(np.maximum(airspeed, np.linalg.norm(mean, axis=1)), 1.0)
+        decay = np.exp(-speed[:, None] * dt / gust.length)
+        expected = decay * gust.gust + gust.sigma * np.sqrt(1.0 - decay * decay) * normals
+        dryden_advance(params, gust.weather, gust.gust, position, velocity, dt, normals)
+        np.testing.assert_allclose(gust.gust, expected, atol=1e-9)
 
 
-@needs_numba
 @pytest.mark.parametrize("hold", [True, False])
 def test_one_cosine_kernel_matches_the_reference(hold):
     """``one_cosine_velocity`` at random times (before, during, after) to 1e-9."""
@@ -458,7 +449,6 @@ def test_one_cosine_kernel_matches_the_reference(hold):
     np.testing.assert_allclose(out, gust.velocity_at(points, times, slice(None)), atol=1e-9)
 
 
-@needs_numba
 def test_fixed_jet_kernel_matches_the_reference():
     """``fixed_jet_velocity`` at random points in front of, beside and behind the outlet, in and beyond
     the core, to 1e-9: catches the kernel's packed origin, direction or core length out of step with
@@ -475,7 +465,6 @@ def test_fixed_jet_kernel_matches_the_reference():
     np.testing.assert_allclose(out - before, reference, atol=1e-9)
 
 
-@needs_numba
 def test_ground_effect_kernel_matches_the_reference():
     """``ground_effect_thrust`` on random hubs over, beside and under two tables, down to the cap, to
     1e-9: catches the kernel unpacking the tops in another order or skipping the cap."""
@@ -511,7 +500,7 @@ def test_an_hour_of_dryden_gusts_at_the_vehicle_has_the_specified_statistics(mak
     spec = {"model": "dryden", "w20": 1.0, "altitude": 1.0, "mean": [MEAN_WIND, 0.0, 0.0]}
     env = make_env(
         wind=[spec], fan={"enabled": False}, estimator="oracle", physics_hz=physics_hz, policy_hz=50,
-        episode_seconds=3600.0, backend="numba" if NUMBA_AVAILABLE else "numpy",
+        episode_seconds=3600.0,
     )  # fmt: skip
     env.reset(seed=1, options=STEADY)
     steps = 3600 * 50
@@ -527,37 +516,6 @@ def test_an_hour_of_dryden_gusts_at_the_vehicle_has_the_specified_statistics(mak
     np.testing.assert_allclose(std / sigma, 1.0, atol=0.1)
     np.testing.assert_allclose(rho, math.exp(-1.0), atol=0.1)
     assert np.all(np.abs(position - (2.3, 0.0, 1.0)).max(axis=0) < (0.5, 0.5, 0.1))  # held in place
-
-
-@pytest.mark.slow
-@pytest.mark.skipif(not NUMBA_AVAILABLE, reason="numba is not installed")
-def test_compiled_env_matches_numpy_with_every_new_component(make_env):
-    """Every new component at once (Dryden gusts, a bump, a jet across the vehicle, the ground effect
-    over a table, half over its edge) through ``backend="numba"`` and ``"numpy"``: the same seeds give
-    the same wind, external wrench and position for 5 s. Catches the engine composing a component's
-    kernel with the wrong table, state view or noise columns."""
-    config = {
-        "wind": [
-            {"model": "dryden", "w20": 1.0, "altitude": 1.0, "mean": [1.0, 0.5, 0.0]},
-            {"model": "one_cosine", "peak": [0.5, 0.0, 0.0], "start": 1.0, "duration": 1.0, "hold": False},
-            {"model": "jet", "position": [2.3, -3.0, 1.0], "direction": [0.0, 1.0, 0.0], "speed": 3.0},
-        ],
-        "ground_effect": True,
-        "scene": [{"kind": "table", "center": [1.8, 0.0], "size": [1.0, 1.0], "height": 0.85}],
-        "fan": {"enabled": False, "height": 1.0},
-        "estimator": "oracle",
-    }
-    runs = []
-    for backend in ("numpy", "numba"):
-        env = make_env(backend=backend, **config)
-        env.reset(seed=5, options=STEADY)
-        trace = []
-        for _ in range(250):
-            _, _, terminated, truncated, info = env.step(np.zeros(4))
-            assert not (terminated or truncated)
-            trace.append(np.concatenate((info["wind_velocity"], info["wrench_true"], info["position"])))
-        runs.append(np.array(trace))
-    np.testing.assert_allclose(runs[1], runs[0], rtol=1e-7, atol=1e-9)
 
 
 @pytest.mark.parametrize(

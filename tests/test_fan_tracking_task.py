@@ -104,10 +104,9 @@ def test_bad_offset_option_names_it(make_env):
         env.reset(seed=0, options={"offset_y": "abc"})
 
 
-@pytest.mark.parametrize("backend", ["numpy", "numba"])
-def test_reward_terms_by_hand(make_env, backend):
+def test_reward_terms_by_hand(make_env):
     """A still fan at y0 = 0: after one step the terms follow from the true position alone."""
-    env = make_env(backend=backend, estimator="oracle", fan={"turbulence_intensity": 0.0})
+    env = make_env(estimator="oracle", fan={"turbulence_intensity": 0.0})
     env.reset(seed=0, options={"fan_motion": "static", "offset_y": 0.4})
     action = np.array((0.5, 0.0, 0.0, -0.5), dtype=np.float32)
     _, reward, _, _, info = env.step(action)
@@ -124,10 +123,9 @@ def test_reward_terms_by_hand(make_env, backend):
     assert math.exp(-0.8 / 0.5) > 0.15  # signal at the 0.8 m start, unlike exp(-(0.8/0.3)²) = 8e-4
 
 
-@pytest.mark.parametrize("backend", ["numpy", "numba"])
-def test_observe_wrench_false_zeroes_the_wrench_blocks_only(make_env, backend):
-    seen = make_env(backend=backend)
-    hidden = make_env(backend=backend, observe_wrench=False)
+def test_observe_wrench_false_zeroes_the_wrench_blocks_only(make_env):
+    seen = make_env()
+    hidden = make_env(observe_wrench=False)
     a, info_a = seen.reset(seed=1)
     b, info_b = hidden.reset(seed=1)
     layout = seen.unwrapped.obs_layout

@@ -24,9 +24,9 @@ from quad_wrench_env.agents.ida_pbc import (
     rotation_zyx,
     steady_yaw,
 )
-from quad_wrench_env.autopilot import Autopilot
-from quad_wrench_env.engine.actions import ActionLimits, ActionMap, ActionScaling
+from quad_wrench_env.engine.actions import ActionLimits, ActionScaling
 from quad_wrench_env.vehicle import GRAVITY, Mixer, make_vehicle
+from tests.conftest import controls_on_a_copy
 
 E_Z = np.array((0.0, 0.0, 1.0))
 P = np.diag((1.0, -1.0, -1.0))
@@ -61,15 +61,17 @@ def _forward_map(vehicle, speeds: np.ndarray) -> np.ndarray:
 
 
 # -- the wrench action ----------------------------------------------------------------------------------
-def test_wrench_action_mixer_round_trip():
-    """``Autopilot.wrench_command`` then the rotors give back the commanded thrust and body torques, and
-    the ``wrench`` action scales are those the policy divides by: ``(1 + a0) m g`` and
-    ``a_{1..3}·(l, l, k_m/k_f)·m g/2``. Only commands the motors can make are drawn (every ``Ω²`` of the
-    independent map's inverse within ``[Ω_min², Ω_max²]``), so no saturation handling acts. Tolerance:
-    ``Ω = sqrt(Ω²)`` then ``Ω²`` loses a few ulps, ~1e-15 relative; 1e-9 leaves room."""
+def test_wrench_action_mixer_round_trip(make_env):
+    """The ``wrench`` action through the engine's ``controls`` kernel gives motor speeds whose thrust
+    and body torques (the independent forward map and the mixer) are the commanded ones, and its
+    scales are those the policy divides by: ``(1 + a0) m g`` and ``a_{1..3}·(l, l, k_m/k_f)·m g/2``.
+    Only commands the motors can make are drawn (every ``Ω²`` of the independent map's inverse within
+    ``[Ω_min², Ω_max²]``), so no saturation handling acts. Tolerance: ``Ω = sqrt(Ω²)`` then ``Ω²``
+    loses a few ulps, ~1e-15 relative; 1e-9 leaves room."""
     vehicle = make_vehicle("yuksel1kg")
-    autopilot = Autopilot(vehicle, dt=0.005)
-    action_map = ActionMap(ActionScaling.for_vehicle("wrench", vehicle, ActionLimits()), autopilot)
+    env = make_env(**_env_kwargs())
+    env.reset(seed=0)
+    fleet = env.unwrapped.fleet
     weight = vehicle.mass * GRAVITY
     scale = np.array((weight, *(0.5 * weight * np.array((vehicle.arm, vehicle.arm, vehicle.km_over_kf)))))
     reference = np.array([_forward_map(vehicle, np.sqrt(row)) for row in np.eye(4)]).T  # Ω² -> wrench
@@ -82,11 +84,11 @@ def test_wrench_action_mixer_round_trip():
         if np.any(squared < vehicle.min_rotor_speed**2) or np.any(squared > vehicle.max_rotor_speed**2):
             continue
         checked += 1
-        speeds = autopilot.wrench_command(command[:1], command[None, 1:])[0]
+        fields = controls_on_a_copy(fleet, action[None])
+        speeds = fields["speeds"][0]
+        assert not fields["saturated"].any()
         np.testing.assert_allclose(_forward_map(vehicle, speeds), command, rtol=1e-9, atol=1e-12)
         np.testing.assert_allclose(Mixer(vehicle).wrench(speeds), command, rtol=1e-9, atol=1e-12)
-        via_action = action_map.motor_command(action[None], None)[0]
-        np.testing.assert_allclose(_forward_map(vehicle, via_action), command, rtol=1e-9, atol=1e-12)
 
 
 # -- Sec. IV: eqs. (37)-(47) ----------------------------------------------------------------------------
@@ -291,7 +293,7 @@ def test_balance_with_the_observer_meets_the_acceptance(make_env):
     while not done:
         observation, _, terminated, truncated, info = env.step(policy.act(observation))
         done = terminated or truncated
-        thrust = base.fleet.rotors.thrust_and_torque()[0, 0]
+        thrust = base.fleet.fields["rotor_wrench"][0, 0]  # the true rotors' c_t in the last physics step
         rotation = base.world.state().rotation[0]
         times.append(info["time"])
         velocities.append(info["velocity"].copy())
@@ -338,7 +340,7 @@ def test_policy_scales_are_the_action_scales(make_env):
     for _ in range(50):
         action = policy.act(observation)
         if np.all(np.abs(action) < 1.0):
-            speeds = base.fleet.actions.motor_command(action[None].astype(float), None)[0]
+            speeds = controls_on_a_copy(base.fleet, action[None])["speeds"][0]
             wanted = np.array((policy.last["rho"], *policy.last["body_torque"]))
             np.testing.assert_allclose(_forward_map(base.vehicle, speeds), wanted, rtol=1e-5, atol=1e-6)
         observation, *_ = env.step(action)

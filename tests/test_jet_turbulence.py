@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from quad_wrench_env.disturbances.jet import Jet, JetConfig
-from quad_wrench_env.kernels import NUMBA_AVAILABLE
+from quad_wrench_env.disturbances.jet_kernels import fixed_jet_advance, fixed_jet_velocity
 
 DT, STEPS, COPIES = 0.005, 20_000, 20
 """The physics step, steps per run (100 s) and independent copies (vehicles) of the field."""
@@ -30,7 +30,7 @@ def _axis_speed_and_half_width(distance: float) -> tuple[float, float]:
     return SCALE * min(1.0, DIAMETER / (math.sqrt(2.0) * b)), b
 
 
-def _velocities(jet: Jet, backend: str) -> np.ndarray:
+def _velocities(jet: Jet) -> np.ndarray:
     """(STEPS, COPIES, 3) air velocity at :data:`POINT` for each copy, stepped with its own draws."""
     rng = np.random.default_rng(11)
     for i in range(COPIES):
@@ -38,27 +38,18 @@ def _velocities(jet: Jet, backend: str) -> np.ndarray:
     points = np.broadcast_to(POINT, (COPIES, 1, 3)).copy()
     position, velocity = points[:, 0, :].copy(), np.zeros((COPIES, 3))
     out = np.empty((STEPS, COPIES, 3))
-    if backend == "numba":
-        from quad_wrench_env.disturbances.jet_kernels import fixed_jet_advance, fixed_jet_velocity
-
-        params, air, time = jet.kernel_parameters(), np.zeros((COPIES, 1, 3)), np.zeros(COPIES)
+    params, air, time = jet.kernel_parameters(), np.zeros((COPIES, 1, 3)), np.zeros(COPIES)
     for k in range(STEPS):
         normals = rng.standard_normal((COPIES, 3))
-        if backend == "numba":
-            fixed_jet_advance(params, jet.speed_scale, jet.turbulence, position, velocity, DT, normals)
-            air[:] = 0.0
-            fixed_jet_velocity(params, jet.speed_scale, jet.turbulence, points, time, air)
-            out[k] = air[:, 0, :]
-        else:
-            jet.advance(DT, position, velocity, normals)
-            out[k] = jet.velocity_at(points, np.zeros(COPIES), slice(None))[:, 0, :]
+        fixed_jet_advance(params, jet.speed_scale, jet.turbulence, position, velocity, DT, normals)
+        air[:] = 0.0
+        fixed_jet_velocity(params, jet.speed_scale, jet.turbulence, points, time, air)
+        out[k] = air[:, 0, :]
     return out
 
 
-@pytest.mark.parametrize("backend", ["numpy", pytest.param("numba", marks=pytest.mark.skipif(
-    not NUMBA_AVAILABLE, reason="numba is not installed"))])  # fmt: skip
 @pytest.mark.parametrize(("intensity", "length"), [(0.15, 0.3), (0.1, None)])
-def test_the_jet_turbulence_has_the_intensity_and_length_scale_asked_for(intensity, length, backend):
+def test_the_jet_turbulence_has_the_intensity_and_length_scale_asked_for(intensity, length):
     """100 s of 20 copies at a point on the axis (outlet speed set per vehicle, as DisturbanceRejection
     does): each component's sd is ``I·u_c`` and its autocorrelation time ``L/u_c`` (L the half-width
     there when none is given), within 4 sd of their estimates for this many correlated samples."""
@@ -72,7 +63,7 @@ def test_the_jet_turbulence_has_the_intensity_and_length_scale_asked_for(intensi
     time_scale = (b if length is None else length) / u
     a = math.exp(-DT / time_scale)
 
-    air = _velocities(jet, backend)
+    air = _velocities(jet)
     np.testing.assert_allclose(air.mean(axis=(0, 1)), (0.0, u, 0.0), atol=0.02 * u)
     series = (air - air.mean(axis=0)).reshape(STEPS, -1)  # 60 series: 20 copies x 3 components
     samples = series.size

@@ -21,9 +21,7 @@ SIZE = 25  # FanTracking's observation
 
 
 def _normalizer(rng: np.random.Generator) -> VecNormalize:
-    venv = SB3VecEnv(
-        gym.make_vec(FAN_TRACKING, num_envs=2, vectorization_mode="vector_entry_point", backend="numpy")
-    )
+    venv = SB3VecEnv(gym.make_vec(FAN_TRACKING, num_envs=2, vectorization_mode="vector_entry_point"))
     normalize = VecNormalize(venv, clip_obs=3.0)
     normalize.obs_rms.mean = rng.normal(0.0, 2.0, SIZE)
     normalize.obs_rms.var = rng.uniform(0.01, 4.0, SIZE)
@@ -54,7 +52,7 @@ def test_the_scaling_is_vecnormalizes_and_survives_its_file(tmp_path):
 
 
 def _model(seed: int) -> PPO:
-    env = gym.make(FAN_TRACKING, backend="numpy")
+    env = gym.make(FAN_TRACKING)
     try:
         return PPO("MlpPolicy", env, n_steps=64, device="cpu", seed=seed)
     finally:

@@ -16,6 +16,7 @@ from quad_wrench_env.engine.world import World
 from quad_wrench_env.rotations import quat_from_euler_zyx
 from quad_wrench_env.rotors import Rotors
 from quad_wrench_env.vehicle import GRAVITY, make_vehicle
+from tests.conftest import controls_on_a_copy
 
 DT = 1.0 / 200.0
 STEPS = 200
@@ -114,20 +115,30 @@ def test_torque_is_applied_in_the_world_frame():
         w.close()
 
 
-def test_motor_lag_is_first_order():
+def test_motor_lag_is_first_order(make_env):
+    """The engine's motors (``controls`` kernel, the ``motors`` action): one time constant towards a
+    command closes 1 - 1/e of the gap, up and down with their own constants, exactly for the discrete
+    lag; a command beyond the range stops at the motors' limit."""
     vehicle = make_vehicle("hummingbird", motor_time_constant_up=0.05, motor_time_constant_down=0.1)
-    rotors = Rotors(vehicle, DT)
-    rotors.reset(0, np.random.default_rng(0), 0.0)
-    rotors.speeds[0] = 300.0
+    lags = {"motor_time_constant_up": 0.05, "motor_time_constant_down": 0.1}
+    env = make_env(vehicle="hummingbird", action_type="motors", estimator="oracle", fan={"enabled": False},
+                   vehicle_params=lags)  # fmt: skip
+    env.reset(seed=0)
+    fleet = env.unwrapped.fleet
+    buffer = fleet.buffer.copy()
+    speeds = controls_on_a_copy(fleet, np.zeros((1, 4)), False, buffer)["speeds"]  # a view of ``buffer``
+    speeds[:] = 300.0
+    command = np.full((1, 4), 2.0 * 700.0 / vehicle.max_rotor_speed - 1.0)  # 700 rad/s
     for _ in range(10):  # one time constant up
-        rotors.step(np.full((1, 4), 700.0))
-    np.testing.assert_allclose(rotors.speeds, 300.0 + 400.0 * (1 - math.exp(-1)), rtol=1e-9)
-    start = rotors.speeds.copy()
-    for _ in range(20):  # one time constant down
-        rotors.step(np.zeros((1, 4)))
-    np.testing.assert_allclose(rotors.speeds, start * math.exp(-1), rtol=1e-9)
-    rotors.step(np.full((1, 4), 1e6))
-    assert np.all(rotors.speeds <= vehicle.max_rotor_speed)
+        controls_on_a_copy(fleet, command, False, buffer)
+    np.testing.assert_allclose(speeds, 300.0 + 400.0 * (1 - math.exp(-1)), rtol=1e-9)
+    start, low = speeds.copy(), vehicle.min_rotor_speed
+    for _ in range(20):  # one time constant down, towards the lowest speed
+        controls_on_a_copy(fleet, np.full((1, 4), -1.0), False, buffer)
+    np.testing.assert_allclose(speeds, low + (start - low) * math.exp(-1), rtol=1e-9)
+    for _ in range(400):
+        controls_on_a_copy(fleet, np.ones((1, 4)), False, buffer)
+    np.testing.assert_allclose(speeds, vehicle.max_rotor_speed, rtol=1e-12)
 
 
 def test_rotor_drag_decelerates_as_specified():

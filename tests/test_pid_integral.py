@@ -24,7 +24,7 @@ G_TAN_30 = GRAVITY * math.tan(math.radians(30.0))
 
 @pytest.fixture
 def env():
-    env = gym.make(ENV_ID, backend="numpy", estimator="oracle")
+    env = gym.make(ENV_ID, estimator="oracle")
     env.reset(seed=0, options={"scenario": "gusts"})
     yield env
     env.close()

@@ -197,7 +197,7 @@ def _lagged_response(target_speeds: np.ndarray, steps: int) -> tuple[float, np.n
 
 def _hovering(make_env, action_type: str, **kwargs):
     env = make_env(
-        estimator="oracle", fan={"enabled": False}, backend="numpy", kf_spread=0.0, action_type=action_type,
+        estimator="oracle", fan={"enabled": False}, kf_spread=0.0, action_type=action_type,
         **kwargs,
     )  # fmt: skip
     env.reset(seed=0, options={"offset_y": 0.0, "fan_motion": "static"})
@@ -365,28 +365,33 @@ def test_transit_time_is_the_integral_of_the_inverse_centreline_speed(x):
     assert float(jet.transit_time(np.asarray(x))) == pytest.approx(expected, rel=1e-9)
 
 
-def test_the_rate_loop_adds_the_torque_that_keeps_a_rotation_steady():
+def test_the_rate_loop_adds_the_torque_that_keeps_a_rotation_steady(make_env):
     """Euler's equation J·dω/dt = τ - ω × Jω: holding a rotation needs τ = ω × Jω on top of the
     loop's own law. Level, on its yaw set-point (no attitude error, desired rates zero) and spinning
     at ω (small enough that the mixer does not saturate: yaw authority is ~0.07 N·m), the commanded
-    body torque (read back through the nominal mixer) must be J·(k_p·(-ω) + k_i·(-ω·dt)) + ω × Jω (one
-    step of the rate integrator); a loop without the gyroscopic term misses by |ω × Jω| ≈ 5e-4 N·m
-    here, far above the mixer's float rounding (~1e-12 N·m)."""
-    from quad_wrench_env.autopilot import Autopilot
-    from quad_wrench_env.engine.world import RigidBodyState
+    body torque (the engine's ``controls`` kernel, the ``attitude`` action at hover thrust, read back
+    through the nominal mixer) must be J·(k_p·(-ω) + k_i·(-ω·dt)) + ω × Jω (one step of the rate
+    integrator); a loop without the gyroscopic term misses by |ω × Jω| ≈ 5e-4 N·m here, far above
+    the mixer's float rounding (~1e-12 N·m)."""
+    from quad_wrench_env.engine.kernels import STEP_FIELDS, step_views
     from quad_wrench_env.vehicle import Mixer
+    from tests.conftest import controls_on_a_copy
 
-    vehicle, dt = make_vehicle("ardrone2"), 1.0 / 200.0
-    autopilot = Autopilot(vehicle, dt, count=1)
-    autopilot.reset(0, 0.0)
+    env = make_env(action_type="attitude", estimator="oracle", fan={"enabled": False})
+    env.reset(seed=0)
+    fleet = env.unwrapped.fleet
+    vehicle, dt, autopilot = fleet.vehicle, fleet.dt, fleet.autopilot
     omega = np.array((0.6, -0.4, 0.3))
-    state = RigidBodyState.from_motion(
-        np.array(((0.0, 0.0, 1.0),)), np.array(((1.0, 0.0, 0.0, 0.0),)), np.zeros((1, 3)), omega[None]
-    )
-    thrust = vehicle.mass * GRAVITY
-    speeds = autopilot.attitude_command(state, np.zeros(1), np.zeros(1), np.zeros(1), np.array((thrust,)))
-    assert not autopilot.saturated.any()
-    torque = Mixer(vehicle).wrench(speeds[0])[1:]
+    buffer = fleet.buffer.copy()
+    level = {"rotation": np.eye(3), "quaternion": (1.0, 0.0, 0.0, 0.0), "angular_velocity": omega,
+             "body_rates": omega, "velocity": 0.0, "yaw_setpoint": 0.0, "velocity_integral": 0.0,
+             "rate_integral": 0.0}  # fmt: skip
+    views = dict(zip((name for name, _ in STEP_FIELDS), step_views(buffer, 1), strict=True))
+    for name, value in level.items():
+        views[name][...] = value
+    fields = controls_on_a_copy(fleet, np.zeros((1, 4)), True, buffer)  # roll, pitch, yaw rate 0; m g
+    assert not fields["saturated"].any()
+    torque = Mixer(vehicle).wrench(fields["speeds"][0])[1:]
     inertia = np.array(vehicle.inertia)
     gains = autopilot.gains
     loop = inertia * (gains.rate_p * -omega + gains.rate_i * (-omega * dt))
@@ -402,7 +407,7 @@ def test_a_spinning_body_in_still_air_feels_drag_against_its_rotation(make_env):
     in-plane airspeed is ω·|r_i|), computed here from the vehicle's numbers alone."""
     from quad_wrench_env.engine.world import RigidBodyState
 
-    env = make_env(backend="numpy", estimator="oracle", fan={"enabled": False})
+    env = make_env(estimator="oracle", fan={"enabled": False})
     env.reset(seed=0)
     fleet, vehicle = env.unwrapped.fleet, env.unwrapped.vehicle
     spin = 10.0

@@ -352,22 +352,29 @@ def test_observer_rises_as_exp_minus_c_t_over_m():
 
 
 # -- 3. what the env feeds the estimators ----------------------------------------------------------
+class _Spy:
+    """An estimator bank that records what the physics step hands its inner bank (assigned as the
+    fleet's estimator, the compiled step calls its ``step``), with the rotors' speeds and the truth."""
+
+    def __init__(self, inner, fleet) -> None:
+        self._inner, self._fleet, self.calls = inner, fleet, []
+
+    def __getattr__(self, name: str):
+        return getattr(self._inner, name)
+
+    def step(self, *args):
+        truth = copy.deepcopy(self._fleet.state)  # the fleet's state is updated in place
+        measured = [None if a is None else np.array(a, copy=True) for a in args]
+        self.calls.append((measured, self._fleet.rotors.speeds.copy(), truth))
+        return self._inner.step(*args)
+
+
 def _spied_env(estimator: str, **kwargs):
-    env = gym.make("QuadWrench/FanTracking-v1", backend="numpy", estimator=estimator, **kwargs)
+    env = gym.make("QuadWrench/FanTracking-v1", estimator=estimator, **kwargs)
     env.reset(seed=3, options={"offset_y": 0.4})
     fleet = env.unwrapped.fleet
-    calls = []
-    original = fleet.estimator.step
-
-    def spy(*args):
-        truth = copy.deepcopy(fleet.state)  # the fleet's state is updated in place
-        calls.append(
-            ([None if a is None else np.array(a, copy=True) for a in args], fleet.rotors.speeds.copy(), truth)
-        )
-        return original(*args)
-
-    fleet.estimator.step = spy
-    return env, fleet, calls
+    fleet.estimator = spy = _Spy(fleet.estimator, fleet)
+    return env, fleet, spy.calls
 
 
 def test_the_estimators_get_the_nominal_mixer_of_the_quantized_speeds():
@@ -403,6 +410,7 @@ def test_a_state_estimator_feeds_velocity_and_rates_near_the_truth(name):
             env.step(np.zeros(4, dtype=np.float32))
     finally:
         env.close()
+    assert len(calls) == 20  # four physics steps per control step
     for (_, _, _, _, velocities, rates), _, truth in calls:
         assert velocities is not None and rates is not None
         np.testing.assert_allclose(velocities, truth.velocity, atol=5 * MOTION_NOISE[0])
@@ -436,23 +444,24 @@ def test_the_motion_capture_noise_is_independent_of_the_fans_turbulence():
     sqrt(1 - a²) (a = exp(-dt·u_c/b) at the vehicle) are independent standard normals. Over 2000
     physics steps per axis the sample correlation of independent ones has sd 1/sqrt(2000) = 0.022:
     |r| < 0.11 (5 sd); sensors reading the fan's columns give r = 1."""
-    env = gym.make("QuadWrench/FanTracking-v1", backend="numpy", estimator="oracle")
+    env = gym.make("QuadWrench/FanTracking-v1", estimator="oracle")
     try:
         env.reset(seed=5, options={"fan_motion": "static", "offset_y": 0.3})
         base = env.unwrapped
         fleet, fan = base.fleet, base.task.fan
         errors, turbulence, positions = [], [fan.noise[0].copy()], []
-        original = fleet.estimator.step
 
-        def spy(thrusts, torques, position, quaternion, velocity=None, body_rates=None):
-            errors.append((position[0] - fleet.state.position[0]) / fleet.cfg.sensors.position_noise)
-            turbulence.append(fan.noise[0].copy())
-            positions.append(fleet.state.position[0].copy())
-            return original(thrusts, torques, position, quaternion, velocity, body_rates)
+        class Spy(_Spy):
+            def step(self, thrusts, torques, position, quaternion, velocity=None, body_rates=None):
+                errors.append((position[0] - fleet.state.position[0]) / fleet.cfg.sensors.position_noise)
+                turbulence.append(fan.noise[0].copy())
+                positions.append(fleet.state.position[0].copy())
+                return self._inner.step(thrusts, torques, position, quaternion, velocity, body_rates)
 
-        fleet.estimator.step = spy
+        fleet.estimator = Spy(fleet.estimator, fleet)
         for _ in range(500):
             env.step(np.zeros(4, dtype=np.float32))
+        assert len(errors) == 2000
     finally:
         env.close()
     noise, x = np.array(turbulence), np.maximum(np.array(positions)[:, 0], 1e-3)

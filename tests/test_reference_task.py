@@ -14,7 +14,7 @@ from tests.conftest import FAN_TRACKING
 STANDOFF = 2.3  # standoff_distance (m)
 FAN_HEIGHT = 1.0  # FanConfig.height (m)
 AXIS_SCALE, STANDOFF_WEIGHT, EFFORT_WEIGHT, CRASH_PENALTY = 0.5, 1.0, 0.01, 10.0  # FanTrackingReward
-QUIET = {"estimator": "oracle", "backend": "numpy", "kf_spread": 0.0}
+QUIET = {"estimator": "oracle", "kf_spread": 0.0}
 
 
 def _expected_terms(position: np.ndarray, fan_y: float, action: np.ndarray, ended: bool) -> dict[str, float]:
@@ -30,14 +30,13 @@ def _expected_terms(position: np.ndarray, fan_y: float, action: np.ndarray, ende
     }
 
 
-@pytest.mark.parametrize("backend", ["numpy", pytest.param("numba", marks=pytest.mark.slow)])
-def test_reward_terms_by_hand(make_env, backend):
+def test_reward_terms_by_hand(make_env):
     """Off the axis sideways and in height and off the stand-off (a climb and a drift along x first),
     the four terms and the reward equal the table's formulas. Catches a tracking term that ignores the
     height error or uses y alone, a wrong axis scale, a stand-off term with the wrong sign or
     reference, an effort on the unclipped action or summed instead of averaged, a crash penalty
     outside an early end."""
-    env = make_env(**{**QUIET, "backend": backend}, fan={"motion": "static"})
+    env = make_env(**QUIET, fan={"motion": "static"})
     fan_y = 0.3
     env.reset(seed=3, options={"fan_motion": {"name": "static", "y0": fan_y}, "offset_y": 0.5})
     climb = np.array((0.8, 0.3, 1.0, -0.2))

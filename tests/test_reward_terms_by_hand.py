@@ -1,8 +1,8 @@
 """ForceExertion's and DisturbanceRejection's reward terms against hand computations (issue 33), as
 ``tests/test_reference_task.py`` does for FanTracking: every expected number is written here from the
 reward tables of ``docs/tasks.md`` (the tasks' docstrings) and the physics, from the ``info`` of real
-env steps (and the vehicle's pose), never by calling the task's own reward code. Each flight runs on
-both backends, ForceExertion on both surfaces and DisturbanceRejection in every scenario, through an
+env steps (and the vehicle's pose), never by calling the task's own reward code. ForceExertion flies
+on both surfaces and DisturbanceRejection in every scenario, through an
 episode's early end (the crash term) and, for DisturbanceRejection, its truncation (no crash term)."""
 
 from __future__ import annotations
@@ -13,14 +13,9 @@ import numpy as np
 import pytest
 
 from quad_wrench_env.agents import make_agent
-from quad_wrench_env.kernels import NUMBA_AVAILABLE
 
 FORCE_EXERTION = "QuadWrench/ForceExertion-v0"
 DISTURBANCE_REJECTION = "QuadWrench/DisturbanceRejection-v0"
-BACKENDS = [
-    "numpy",
-    pytest.param("numba", marks=pytest.mark.skipif(not NUMBA_AVAILABLE, reason="numba is not installed")),
-]
 EFFORT_WEIGHT, CRASH_PENALTY = 0.01, 10.0  # both tasks' reward tables
 TRACKING_CAP, CONTACT_CAP = 5.0, 2.0  # the caps of the tracking and contact (N) terms, and the alive term
 TRACKING_SCALE = 0.5  # m: the length of the tracking kernel c·exp(-e/s) (docs/tasks.md)
@@ -74,9 +69,8 @@ def _force_exertion_terms(
     }
 
 
-@pytest.mark.parametrize("backend", BACKENDS)
 @pytest.mark.parametrize("surface", ["wall", "ceiling"])
-def test_force_exertion_reward_terms_by_hand(make_env, surface, backend):
+def test_force_exertion_reward_terms_by_hand(make_env, surface):
     """The tip flown into the surface by the autopilot's velocity cascade (0.5 m/s at the wall, 0.3
     m/s up at the ceiling) and pressing on it (at the ceiling until the pivoting hull touches it: a
     crash), then a descent at full speed (an action beyond [-1, 1], clipped) below a crash height set
@@ -89,7 +83,7 @@ def test_force_exertion_reward_terms_by_hand(make_env, surface, backend):
     unclipped action or summed, a crash penalty outside an early end."""
     crash_height = 1.0 if surface == "wall" else 1.7  # the wall's start is at 1.2 m, the ceiling's ~1.9 m
     env = make_env(
-        FORCE_EXERTION, backend=backend, estimator="oracle", kf_spread=0.0, action_type="velocity",
+        FORCE_EXERTION, estimator="oracle", kf_spread=0.0, action_type="velocity",
         crash_height=crash_height,
     )  # fmt: skip
     _, info = env.reset(seed=0, options={"surface": surface, "target_force": TARGET})
@@ -165,9 +159,8 @@ def _disturbance_rejection_terms(
     }
 
 
-@pytest.mark.parametrize("backend", BACKENDS)
 @pytest.mark.parametrize("scenario", list(OPTIONS))
-def test_disturbance_rejection_reward_terms_by_hand(make_env, scenario, backend):
+def test_disturbance_rejection_reward_terms_by_hand(make_env, scenario):
     """Two episodes of 1.5 s: the PID flying the path (every fourth step with its yaw rate beyond
     [-1, 1], clipped) to the truncation, then the thrust cut to a crash. At every step the path is the
     table's (worked out here from its numbers, time from ``info``), the three terms and the reward
@@ -175,9 +168,7 @@ def test_disturbance_rejection_reward_terms_by_hand(make_env, scenario, backend)
     truncation. Catches a tracking term on the horizontal error alone or against another reference, a
     linear kernel or another length, a sign error, an effort on the unclipped action or summed, a
     crash penalty on a truncation or missing on an early end."""
-    env = make_env(
-        DISTURBANCE_REJECTION, backend=backend, estimator="oracle", kf_spread=0.0, episode_seconds=1.5
-    )
+    env = make_env(DISTURBANCE_REJECTION, estimator="oracle", kf_spread=0.0, episode_seconds=1.5)
     hull = env.unwrapped.vehicle.hull_height
     policy = make_agent("pid")
     obs, info = env.reset(seed=4, options=OPTIONS[scenario])

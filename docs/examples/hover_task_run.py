@@ -7,7 +7,7 @@ from hover_task import HoldPoint  # registers its env id, entry points and metri
 from quad_wrench_env.agents import make_agent
 from quad_wrench_env.agents.evaluate import evaluate
 
-env = gym.make(HoldPoint.env_id, backend="numba", estimator="oracle")
+env = gym.make(HoldPoint.env_id, estimator="oracle")
 obs, info = env.reset(seed=0, options={"push": 0.4})
 assert env.observation_space.shape == (28,)
 assert env.unwrapped.obs_layout["reference_position"] == slice(25, 28)

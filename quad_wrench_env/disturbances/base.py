@@ -1,9 +1,11 @@
 """The seams of the engine: what a wind field, a point load and a rotor modifier are.
 
-Each kind of component is a small :class:`~typing.Protocol` with a numpy reference (the methods
-below, for N vehicles at once) and an optional compiled form (:class:`CompiledForm`: numba kernels
-beside the component, named by module and function), which the engine composes into its compiled
-physics step (:mod:`quad_wrench_env.engine.compose`) without listing any component itself.
+Each kind of component is a small :class:`~typing.Protocol` and a compiled form
+(:class:`CompiledForm`: numba kernels beside the component, named by module and function), which the
+engine composes into its physics step (:mod:`quad_wrench_env.engine.compose`) without listing any
+component itself. The protocols' methods (for N vehicles at once) give what the engine needs at an
+episode's start, where the vehicle is placed trimmed in the loads: the air velocity, the loads and
+the added thrust at a given state; every physics step runs on the kernels.
 
 A :class:`WindField` gives the air velocity at world points; the body's drag (:mod:`.drag`) turns it
 into forces at body points. A :class:`PointLoad` adds forces at body points (a payload, a scheduled
@@ -15,8 +17,7 @@ beyond the nominal rotors (``wrench_true``): torques are never written as formul
 Compiled kernels take the component's packed numbers first, always in this order: ``params`` (1-D,
 :meth:`kernel_parameters`), ``table`` ((N, W) per-vehicle numbers, :attr:`CompiledForm.table`, or an
 empty (1, 0) array) and ``state`` ((N, width) per-vehicle state named by :attr:`CompiledForm.state`, a
-view of the engine's step buffer that the component's numpy form reads and writes too; an empty (1, 0)
-array without state). Then, by role:
+view of the engine's step buffer; an empty (1, 0) array without state). Then, by role:
 
 =====================  ===========================================================================
 role                   kernel arguments after ``params, table, state``
@@ -69,8 +70,8 @@ class Component(Protocol):
     """What every component has: its name in errors, its compiled form and its packed numbers."""
 
     name: str
-    compiled: CompiledForm | None
-    """None: numpy only (``backend="numba"`` refuses it, ``"auto"`` warns and runs numpy)."""
+    compiled: CompiledForm
+    """Its kernels (the engine refuses a component whose ``compiled`` is None, by name)."""
 
     def kernel_parameters(self) -> np.ndarray:
         """The component's numbers as its kernels read them (1-D float array), read again at every
@@ -86,11 +87,8 @@ class WindField(Component, Protocol):
     """Standard normal draws the field takes per vehicle and physics step (its own columns)."""
 
     def reset(self, index: int, rng: np.random.Generator) -> None:
-        """Start a new episode of vehicle ``index``; its random draws at reset come from ``rng``."""
-
-    def advance(self, dt: float, position: np.ndarray, velocity: np.ndarray, normals: np.ndarray) -> None:
-        """Advance internal random processes by ``dt`` (s); ``position`` and ``velocity`` (N, 3) are
-        the vehicles' (world frame), ``normals`` (N, ``noise_width``) the field's own draws."""
+        """Start a new episode of vehicle ``index``; its random draws at reset come from ``rng`` (its
+        random processes then advance in the compiled ``advance`` kernel)."""
 
     def velocity_at(
         self, points: np.ndarray, t: np.ndarray, index: np.ndarray | slice, mean: bool = False
@@ -132,15 +130,12 @@ class RotorModifier(Component, Protocol):
 
 
 class Steady:
-    """What a wind field without random processes shares: no draws, nothing to reset or advance, and
-    the compiled ``advance`` that does nothing (:func:`still`)."""
+    """What a wind field without random processes shares: no draws, nothing to reset, and the
+    compiled ``advance`` that does nothing (:func:`still`)."""
 
     noise_width = 0
 
     def reset(self, index: int, rng: np.random.Generator) -> None:
-        """Nothing random."""
-
-    def advance(self, dt: float, position: np.ndarray, velocity: np.ndarray, normals: np.ndarray) -> None:
         """Nothing random."""
 
 

@@ -92,13 +92,6 @@ class DrydenGust:
     def reset(self, index: int, rng: np.random.Generator) -> None:
         self.gust[index] = self.sigma * rng.standard_normal(3)  # the stationary distribution
 
-    def advance(self, dt: float, position: np.ndarray, velocity: np.ndarray, normals: np.ndarray) -> None:
-        mean = self.weather[:, :3]
-        airspeed = np.linalg.norm(velocity - mean, axis=1)
-        speed = np.maximum(np.maximum(airspeed, np.linalg.norm(mean, axis=1)), 1.0)
-        decay = np.exp(-speed[:, None] * dt / self.length)
-        self.gust[:] = decay * self.gust + self.sigma * np.sqrt(1.0 - decay * decay) * normals
-
     def velocity_at(
         self, points: np.ndarray, t: np.ndarray, index: np.ndarray | slice, mean: bool = False
     ) -> np.ndarray:
@@ -119,7 +112,9 @@ def dryden_velocity(params, weather, gust, points, time, out):
 
 @njit
 def dryden_advance(params, weather, gust, position, velocity, dt, normals):
-    """``DrydenGust.advance``: the exact discrete first-order filter, one step."""
+    """The gusts one physics step on (the wind field's ``advance``): per vehicle and axis the exact
+    discrete first-order (Dryden) filter of time scale L/V, V the airspeed (at least the mean wind and
+    1 m/s): ``g' = a·g + σ·sqrt(1 - a²)·η``, ``a = exp(-V·dt/L)``."""
     for n in range(gust.shape[0]):
         m0, m1, m2 = weather[n, 0], weather[n, 1], weather[n, 2]
         mean_speed = math.sqrt(m0 * m0 + m1 * m1 + m2 * m2)

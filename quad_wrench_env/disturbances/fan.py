@@ -9,7 +9,8 @@ axis, and a centre-line speed that conserves the outlet's axial momentum flux: t
 ``t_transit(x) = ∫₀ˣ dξ/u_c(ξ)`` earlier (closed form in :meth:`FanJet.transit_time`), so the axis
 there sits at the fan's *retarded* position ``y_f(t - t_transit(x))``. Turbulence multiplies the
 local mean speed by ``I·n(t)`` in each component, ``n`` a unit-variance Ornstein-Uhlenbeck process
-with time scale ``b/u_c`` at the vehicle (:func:`advance_turbulence`; Hentzen et al.'s (2019) fixed jet,
+with time scale ``b/u_c`` at the vehicle
+(:func:`~quad_wrench_env.disturbances.jet_kernels.turbulence_step`; Hentzen et al.'s (2019) fixed jet,
 :mod:`.jet`, takes the same model with a length scale of its own).
 Before ``t = 0`` the fan rests where its motion starts.
 """
@@ -25,7 +26,6 @@ import numpy as np
 from quad_wrench_env.config import check_numbers
 from quad_wrench_env.disturbances.base import CompiledForm, Outlet
 from quad_wrench_env.disturbances.jet_kernels import jet_axis_y
-from quad_wrench_env.kernels import resolve_backend
 
 
 class FanMotion(Protocol):
@@ -125,18 +125,6 @@ def centreline_speed(x: np.ndarray, u0: float, radius2: float, spread: float) ->
     return u0 * np.minimum(1.0, np.sqrt(2.0 * radius2) / half_width(x, radius2, spread))
 
 
-def advance_turbulence(
-    noise: np.ndarray, dt: float, speed: np.ndarray, length: np.ndarray | float, normals: np.ndarray
-) -> None:
-    """A jet's turbulence (N, 3) one step ``dt`` on, in place: per vehicle a unit-variance
-    Ornstein-Uhlenbeck process of time scale ``length/speed`` (the eddies of size ``length`` carried
-    past at ``speed``), stepped exactly, ``n' = a·n + sqrt(1 - a²)·η`` with ``a = exp(-dt·speed/length)``
-    on the (N, 3) standard normal ``normals``: its variance stays 1 and its autocorrelation is
-    ``exp(-τ·speed/length)`` at lag τ, at any ``dt``."""
-    decay = np.exp(-dt * speed / length)
-    noise[:] = decay[:, None] * noise + np.sqrt(1.0 - decay * decay)[:, None] * normals
-
-
 RANDOM = "random"
 """The motion name that asks the task to draw each episode's motion (FanTracking's default)."""
 
@@ -226,10 +214,9 @@ class FanJet:
         table="motion_tables",
     )
 
-    def __init__(self, config: FanConfig, count: int = 1, backend: str = "numpy") -> None:
+    def __init__(self, config: FanConfig, count: int = 1) -> None:
         self.config = config
         self.count = count
-        self._compiled = resolve_backend(backend) == "numba"
         self._u0 = config.outlet_speed
         self._radius2 = (0.5 * config.outlet_diameter) ** 2
         self._core = 0.5 * config.outlet_diameter / config.spread
@@ -316,14 +303,14 @@ class FanJet:
         times ``t`` (broadcast against ``x``): each fan's retarded y."""
         x = np.asarray(x, dtype=float)
         t = np.asarray(t, dtype=float)
-        if self._compiled and x.shape == t.shape == (self.count,) and index == slice(None):
+        if x.shape == t.shape == (self.count,) and index == slice(None):
             return jet_axis_y(x, t, self.motion_tables, self._kernel)
         return self._y(np.broadcast_to(t, x.shape) - self.transit_time(x), index)
 
     def fan_y(self, t: np.ndarray, index: np.ndarray | slice = slice(None)) -> np.ndarray:
         """The fans' y (n,) now, at times ``t`` (n,)."""
         t = np.asarray(t, dtype=float)
-        if self._compiled and t.shape == (self.count,) and index == slice(None):
+        if t.shape == (self.count,) and index == slice(None):
             return jet_axis_y(np.zeros(self.count), t, self.motion_tables, self._kernel)
         return self._y(t, index)
 
@@ -341,12 +328,6 @@ class FanJet:
         return Outlet(
             origin, axis / np.linalg.norm(axis), facing, 0.5 * c.outlet_diameter, c.spread, moving=True
         )
-
-    def advance(self, dt: float, position: np.ndarray, velocity: np.ndarray, normals: np.ndarray) -> None:
-        if self.config.turbulence_intensity == 0.0 or not self.config.enabled:
-            return
-        x = np.maximum(position[:, 0], 1e-3)
-        advance_turbulence(self.noise, dt, self.centreline_speed(x), self.half_width(x), normals)
 
     def velocity_at(
         self, points: np.ndarray, t: np.ndarray, index: np.ndarray | slice, mean: bool = False

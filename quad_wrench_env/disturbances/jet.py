@@ -6,7 +6,7 @@ outlet at ``position`` blowing along ``direction``, without motion.
 Turbulence is off by default (Hentzen et al. 2019 give none). With ``turbulence_intensity`` I > 0 it is the
 fan's model (McKinnon & Schoellig 2016's fan, :mod:`.fan`): the local mean velocity ``u·d`` becomes
 ``u·(d + I·n(t))``, ``n`` a unit-variance Ornstein-Uhlenbeck process per vehicle and world axis
-(:func:`~quad_wrench_env.disturbances.fan.advance_turbulence`) of time scale ``L/u_c``, ``u_c`` the
+(:func:`~quad_wrench_env.disturbances.jet_kernels.turbulence_step`) of time scale ``L/u_c``, ``u_c`` the
 centre-line speed at the vehicle's distance along the jet and ``L`` the ``turbulence_length`` (by
 default the half-width ``b`` there, as the fan's). So each component's sd is ``I·u`` and its
 autocorrelation time ``L/u_c``. A turbulent jet draws three normals per vehicle and physics step (and
@@ -23,7 +23,7 @@ import numpy as np
 
 from quad_wrench_env.config import check_numbers
 from quad_wrench_env.disturbances.base import STILL, CompiledForm, Outlet
-from quad_wrench_env.disturbances.fan import advance_turbulence, centreline_speed, half_width
+from quad_wrench_env.disturbances.fan import centreline_speed, half_width
 from quad_wrench_env.registry import register
 
 _KERNELS = "quad_wrench_env.disturbances.jet_kernels"
@@ -118,17 +118,6 @@ class Jet:
     def reset(self, index: int, rng: np.random.Generator) -> None:
         if self.noise_width:  # the stationary distribution of the process
             self.turbulence[index] = rng.standard_normal(3)
-
-    def advance(self, dt: float, position: np.ndarray, velocity: np.ndarray, normals: np.ndarray) -> None:
-        if not self.noise_width:
-            return
-        c = self.config
-        x = np.maximum((position - self.origin) @ self.direction, 1e-3)
-        speed = self.speed_scale[:, 0] * centreline_speed(x, c.speed, self._radius2, c.spread)
-        length = c.turbulence_length
-        if length is None:
-            length = half_width(x, self._radius2, c.spread)
-        advance_turbulence(self.turbulence, dt, speed, length, normals)
 
     def velocity_at(
         self, points: np.ndarray, t: np.ndarray, index: np.ndarray | slice, mean: bool = False

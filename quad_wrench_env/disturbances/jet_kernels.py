@@ -1,7 +1,7 @@
 """Compiled forms of the round turbulent jet (:mod:`.fan`, :mod:`.jet`): the numpy reference's arithmetic,
 point by point. A jet's numbers start ``[on, U0, x_c, R, c]`` (on > 0, outlet speed, core length
 ``D/(2c)``, outlet radius ``D/2``, spread); :func:`jet_speed` and :func:`transit_time` read those. Both
-jets' turbulence steps with :func:`turbulence_step` (``fan.advance_turbulence``)."""
+jets' turbulence steps with :func:`turbulence_step`."""
 
 from __future__ import annotations
 
@@ -83,8 +83,11 @@ def fan_velocity(fan, motion_tables, noise, points, time, out):
 
 @njit
 def turbulence_step(noise, n, dt, speed, length, normals):
-    """``fan.advance_turbulence`` of vehicle ``n``: its unit-variance Ornstein-Uhlenbeck turbulence
-    ``noise[n]`` (3,) one exact step ``dt`` on, time scale ``length/speed``, on its draws ``normals[n]``."""
+    """A jet's turbulence of vehicle ``n`` one step ``dt`` on, in place: a unit-variance
+    Ornstein-Uhlenbeck process ``noise[n]`` (3,) of time scale ``length/speed`` (eddies of size
+    ``length`` carried past at ``speed``), stepped exactly, ``n' = a·n + sqrt(1 - a²)·η`` with
+    ``a = exp(-dt·speed/length)`` on its standard normal draws ``η = normals[n]``: its variance stays 1
+    and its autocorrelation is ``exp(-τ·speed/length)`` at lag τ, at any ``dt``."""
     decay = math.exp(-dt * speed / length)
     for i in range(3):
         noise[n, i] = decay * noise[n, i] + math.sqrt(1.0 - decay * decay) * normals[n, i]
@@ -92,7 +95,7 @@ def turbulence_step(noise, n, dt, speed, length, normals):
 
 @njit
 def fan_advance(fan, motion_tables, noise, position, velocity, dt, normals):
-    """``FanJet.advance``: each vehicle's turbulence one step on, an Ornstein-Uhlenbeck process of time
+    """The fan's ``advance``: each vehicle's turbulence one step on, an Ornstein-Uhlenbeck process of time
     scale ``b/u_c`` at its distance from the fan."""
     if fan[0] <= 0.0 or fan[6] == 0.0:
         return
@@ -131,7 +134,7 @@ def fixed_jet_velocity(jet, speed_scale, turbulence, points, time, out):
 
 @njit
 def fixed_jet_advance(jet, speed_scale, turbulence, position, velocity, dt, normals):
-    """``Jet.advance``: each vehicle's turbulence one step on, time scale ``L/u_c`` at its distance
+    """The jet's ``advance``: each vehicle's turbulence one step on, time scale ``L/u_c`` at its distance
     along the jet (``L`` the half-width ``b`` there when the config gives none), ``u_c`` times the
     vehicle's ``speed_scale`` (a jet switched off, scale 0, keeps its turbulence still)."""
     o0, o1, o2, d0, d1, d2 = jet[5], jet[6], jet[7], jet[8], jet[9], jet[10]

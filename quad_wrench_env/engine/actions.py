@@ -20,9 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from quad_wrench_env.autopilot import Autopilot
 from quad_wrench_env.config import check_numbers
-from quad_wrench_env.engine.world import RigidBodyState
 from quad_wrench_env.vehicle import GRAVITY, VehicleParams
 
 ACTION_TYPES = ("velocity", "attitude", "wrench", "motors")
@@ -49,8 +47,8 @@ class ActionScaling:
     table above), for agents that compute a command in SI units: ``env.unwrapped.action_scaling``.
 
     ``to_action`` gives the action the env takes, clipped to [-1, 1] and float32; ``to_command`` the
-    command an action stands for. The scales are those the engine flies (:class:`ActionMap` reads them
-    from here), so an agent never rebuilds them from the config.
+    command an action stands for. The scales are those the engine flies (its ``controls`` kernel reads
+    them from here, :meth:`kernel_parameters`), so an agent never rebuilds them from the config.
     """
 
     action_type: str
@@ -83,6 +81,13 @@ class ActionScaling:
             vehicle.max_rotor_speed,
         )
 
+    def kernel_parameters(self) -> tuple[int, np.ndarray]:
+        """The action type's index in :data:`ACTION_TYPES` and the scales as the ``controls`` kernel
+        reads them: velocity (3), yaw rate, tilt, hover thrust, torque (3), max rotor speed."""
+        scales = np.array((*self.velocity, self.yaw_rate, self.tilt, self.hover_thrust, *self.torque,
+                           self.max_rotor_speed))  # fmt: skip
+        return ACTION_TYPES.index(self.action_type), scales
+
     def to_action(self, command: np.ndarray | tuple[float, ...]) -> np.ndarray:
         """The (4,) float32 action in [-1, 1] for a command in SI units: ``(v_x, v_y, v_z, yaw rate)``
         (velocity), ``(roll, pitch, yaw rate, thrust)`` (attitude), ``(thrust, τ_x, τ_y, τ_z)`` body frame
@@ -113,49 +118,3 @@ class ActionScaling:
         if self.action_type == "wrench":
             return np.concatenate((((1.0 + a[0]) * self.hover_thrust,), a[1:] * np.array(self.torque)))
         return 0.5 * (a + 1.0) * self.max_rotor_speed
-
-
-class ActionMap:
-    """Turns clipped normalised actions of N vehicles into motor-speed commands through the autopilot."""
-
-    def __init__(self, scaling: ActionScaling, autopilot: Autopilot) -> None:
-        self.action_type = scaling.action_type
-        self.autopilot = autopilot
-        self._hover_thrust = scaling.hover_thrust
-        self._velocity_scale = np.array(scaling.velocity)
-        self._yaw_rate_scale = scaling.yaw_rate
-        self._tilt_scale = scaling.tilt
-        self._torque_scale = np.array(scaling.torque)
-        self._max_speed = scaling.max_rotor_speed
-
-    def kernel_parameters(self) -> tuple[int, np.ndarray]:
-        """The action type's index in :data:`ACTION_TYPES` and the scales as the compiled kernel
-        reads them: velocity (3), yaw rate, tilt, hover thrust, torque (3), max rotor speed."""
-        scales = np.concatenate(
-            (
-                self._velocity_scale, (self._yaw_rate_scale, self._tilt_scale, self._hover_thrust),
-                self._torque_scale, (self._max_speed,),
-            )
-        )  # fmt: skip
-        return ACTION_TYPES.index(self.action_type), scales
-
-    def motor_command(self, action: np.ndarray, state: RigidBodyState) -> np.ndarray:
-        """(N, 4) rotor speed commands (rad/s) for one physics step of N vehicles, actions (N, 4)."""
-        a = action
-        if self.action_type == "velocity":
-            return self.autopilot.velocity_command(
-                state, a[:, :3] * self._velocity_scale, a[:, 3] * self._yaw_rate_scale
-            )
-        if self.action_type == "attitude":
-            return self.autopilot.attitude_command(
-                state,
-                a[:, 0] * self._tilt_scale,
-                a[:, 1] * self._tilt_scale,
-                a[:, 2] * self._yaw_rate_scale,
-                (1.0 + a[:, 3]) * self._hover_thrust,
-            )
-        if self.action_type == "wrench":
-            return self.autopilot.wrench_command(
-                (1.0 + a[:, 0]) * self._hover_thrust, a[:, 1:] * self._torque_scale
-            )
-        return 0.5 * (a + 1.0) * self._max_speed

@@ -44,7 +44,7 @@ class CompiledStep:
     def __init__(self, fleet: Fleet) -> None:
         self.fleet = fleet
         ap, sensors, count = fleet.autopilot, fleet.cfg.sensors, fleet.count
-        action_type, scales = fleet.actions.kernel_parameters()
+        action_type, scales = fleet.action_scaling.kernel_parameters()
         sensing = (
             fleet.motor_sensor.levels, fleet.motor_sensor.step, sensors.position_noise,
             sensors.attitude_noise, sensors.velocity_noise, sensors.body_rate_noise,
@@ -57,6 +57,7 @@ class CompiledStep:
                 "motors": np.append(fleet.rotors.kernel_parameters(), fleet.drag.coefficient),
                 "sensing": np.array(sensing), "nominal_allocation": ap.mixer.allocation, "dt": fleet.dt,
                 "noise_column": fleet.sensor_noise_column,
+                "delay_line": (sensors.latency_steps, fleet.delay_line_start),
             },
             fleet.drag_points,
         )  # fmt: skip

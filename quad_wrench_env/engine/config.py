@@ -11,7 +11,6 @@ from quad_wrench_env.disturbances.base import load_config, wind_config
 from quad_wrench_env.disturbances.payload import PayloadConfig
 from quad_wrench_env.disturbances.wrench_profile import validate_segments
 from quad_wrench_env.engine.actions import ActionLimits
-from quad_wrench_env.kernels import resolve_backend
 from quad_wrench_env.scene import make_scene_part
 from quad_wrench_env.sensors import SensorConfig
 
@@ -106,9 +105,6 @@ class EnvConfig:
     blocks), ``history_1`` the last; zeros before the episode's first step. 0: none."""
     crash_height: float = 0.1
     flip_tilt_deg: float = 90.0
-    backend: str = "auto"
-    """Per-step arithmetic: ``"numpy"`` (the reference), ``"numba"`` (compiled kernels, the same
-    numbers to rounding) or ``"auto"`` (numba when installed)."""
 
     def __post_init__(self) -> None:
         for name in ("physics_hz", "policy_hz"):
@@ -128,7 +124,6 @@ class EnvConfig:
             load_config(spec, position)
         for position, spec in enumerate(self.scene):
             make_scene_part(spec, position)
-        resolve_backend(self.backend)
         if not isinstance(self.observe_wrench, bool):
             raise ValueError(f"observe_wrench={self.observe_wrench!r} must be true or false")
         if not (isinstance(self.history, int) and not isinstance(self.history, bool) and self.history >= 0):

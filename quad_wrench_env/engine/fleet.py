@@ -10,22 +10,23 @@ env's ``np_random``), time and episode.
 
 The fleet knows components only through their seams (:mod:`quad_wrench_env.disturbances.base`,
 :mod:`quad_wrench_env.scene`): the task's and the config's (``wind``, ``ground_effect``, ``scene``,
-``payload``, ``external_wrench``) alike. With ``backend="numba"`` the step runs on the components'
-compiled forms (:class:`~quad_wrench_env.engine.compiled.CompiledStep`); a component without one is
-refused by name, and ``backend="auto"`` then warns once and runs the numpy reference.
+``payload``, ``external_wrench``) alike. The step runs on the engine's and the components' compiled
+kernels (:class:`~quad_wrench_env.engine.compiled.CompiledStep`), the one implementation of the
+physics; a component without a compiled form is refused by name. Under numba's
+``NUMBA_DISABLE_JIT=1`` the same kernels run as plain Python (the debugging mode,
+:mod:`quad_wrench_env.kernels`).
 """
 
 from __future__ import annotations
 
 import math
-import warnings
 
 import numpy as np
 
 from quad_wrench_env.autopilot import Autopilot, attitude_from_thrust
 from quad_wrench_env.disturbances.base import resultant
 from quad_wrench_env.disturbances.drag import QuadraticDrag
-from quad_wrench_env.engine.actions import ActionMap, ActionScaling
+from quad_wrench_env.engine.actions import ActionScaling
 from quad_wrench_env.engine.compiled import CompiledStep
 from quad_wrench_env.engine.components import Components
 from quad_wrench_env.engine.compose import scratch_width
@@ -34,6 +35,7 @@ from quad_wrench_env.engine.kernels import (
     STEP_FIELDS,
     STEP_WIDTH,
     assemble_observations,
+    delay_line_width,
     step_views,
     termination_codes,
 )
@@ -41,8 +43,7 @@ from quad_wrench_env.engine.noise import NoiseBlocks
 from quad_wrench_env.engine.observation import ObservationLayout
 from quad_wrench_env.engine.world import RigidBodyState, Tool, World
 from quad_wrench_env.estimators import OracleBank, estimator_settings, make_estimator_bank
-from quad_wrench_env.kernels import resolve_backend
-from quad_wrench_env.rotations import cross, quat_from_matrix, rows_times
+from quad_wrench_env.rotations import cross, quat_from_matrix
 from quad_wrench_env.rotors import Rotors
 from quad_wrench_env.sensors import MotionCapture, MotorSpeedSensor
 from quad_wrench_env.vehicle import GRAVITY, VehicleParams
@@ -54,9 +55,6 @@ episode goes on); a task's own reasons follow."""
 SENSOR_NOISE_WIDTH, STATE_ESTIMATOR_NOISE_WIDTH = 6, 6
 """Standard normal draws per vehicle and physics step of the motion capture (position, attitude) and,
 with an onboard state estimator, of its velocity and body rates; they follow the wind fields' own."""
-
-_WARNED: set[str] = set()
-"""Numpy-only settings already warned about (``backend="auto"`` warns once per setting)."""
 
 
 def make_tool(cfg: EnvConfig, vehicle: VehicleParams) -> Tool | None:
@@ -71,12 +69,14 @@ def make_tool(cfg: EnvConfig, vehicle: VehicleParams) -> Tool | None:
     return Tool(np.array(offset, dtype=float), tool.tip_radius, tool.friction)
 
 
-def numpy_only(cfg: EnvConfig, components: Components) -> list[str]:
-    """What of a fleet has no compiled form: components by name, motion-capture latency."""
+def refuse_uncompiled(components: Components) -> None:
+    """Refuse, by name, components without a compiled form: the kernels are the only physics."""
     names = [c.name for _, c in components.ordered() if c.compiled is None]
-    if cfg.sensors.latency_steps:
-        names.append(f"sensors.latency_steps={cfg.sensors.latency_steps}")
-    return names
+    if names:
+        raise ValueError(
+            f"components {names} have no compiled form (compiled=None): give each its kernels "
+            "(docs/extending.md); NUMBA_DISABLE_JIT=1 runs them as plain Python to debug"
+        )
 
 
 class Fleet:
@@ -107,8 +107,7 @@ class Fleet:
         if sensors.state_estimator:
             measured += [("velocity", sensors.velocity_noise), ("body_rate", sensors.body_rate_noise)]
         measurement_noise = {key: value for key, value in measured if value > 0}
-        self.backend = self._backend(cfg, components)
-        self.compiled: CompiledStep | None = None
+        refuse_uncompiled(components)
         self._estimator = make_estimator_bank(
             cfg.estimator,
             vehicle,
@@ -120,10 +119,8 @@ class Fleet:
         self.mocap = MotionCapture(sensors, count)
         self.motor_sensor = MotorSpeedSensor(vehicle.max_rotor_speed, sensors.motor_speed_bits)
         self.autopilot = Autopilot(vehicle, dt, count=count)
-        self._nominal_allocation_t = self.autopilot.mixer.allocation.T.copy()
         self.action_scaling = ActionScaling.for_vehicle(cfg.action_type, vehicle, cfg.action_limits)
         """The map between normalised actions and physical commands (public: agents read it)."""
-        self.actions = ActionMap(self.action_scaling, self.autopilot)
         self.rotors = Rotors(vehicle, dt, count)
         self.drag_points = vehicle.drag_points()
         self.drag = QuadraticDrag(vehicle.drag_area, len(self.drag_points))
@@ -138,17 +135,16 @@ class Fleet:
         width = SENSOR_NOISE_WIDTH + (STATE_ESTIMATOR_NOISE_WIDTH if sensors.state_estimator else 0)
         self.noise = NoiseBlocks(count, column + width)
         self.world = World(vehicle, dt, count, gui=gui, scene=components.scene, tool=make_tool(cfg, vehicle))
-        self._flip_cos = math.cos(math.radians(cfg.flip_tilt_deg))
         self._own_buffer()
         self.contact_force = np.zeros((count, 3))
         """(N, 3) force of the scene on each tool's tip in the last physics step (world frame, N)."""
-        self.compiled = CompiledStep(self) if self.backend == "numba" else None
-        """The physics step on the compiled kernels, or None (the numpy reference)."""
+        self.compiled = CompiledStep(self)
+        """The physics step on the compiled kernels."""
         arena = cfg.arena
         self._limits = np.array(
             (
-                cfg.crash_height, self._flip_cos, arena.x_min, arena.x_max, arena.y_half_width, arena.z_max,
-                self.world.clear_height,
+                cfg.crash_height, math.cos(math.radians(cfg.flip_tilt_deg)), arena.x_min, arena.x_max,
+                arena.y_half_width, arena.z_max, self.world.clear_height,
             )
         )  # fmt: skip
         self._observe_wrench = float(cfg.observe_wrench)
@@ -158,15 +154,19 @@ class Fleet:
 
     def _own_buffer(self) -> None:
         """The fleet's step buffer, made once: every per-vehicle array of the step (:data:`STEP_FIELDS`,
-        then the components' declared states, then the compiled step's scratch space) is a view of it,
-        on both backends. The fleet's ``time``, ``state``, ``wrench_true`` and ``wind_velocity``, the
-        autopilot's and the rotors' state and each component's ``CompiledForm.state`` array become
-        those views here, their numbers copied in; from then on everything updates them in place."""
+        then the components' declared states, then the compiled step's scratch space, then the motion
+        capture's delay line) is a view of it. The fleet's ``time``, ``state``, ``wrench_true`` and
+        ``wind_velocity``, the autopilot's and the rotors' state, each component's
+        ``CompiledForm.state`` array and the motion capture's delay line become those views here, their
+        numbers copied in; from then on everything updates them in place."""
         count, components = self.count, self.components.ordered()
-        states = [(c, c.compiled.state) for _, c in components if c.compiled is not None and c.compiled.state]
+        states = [(c, c.compiled.state) for _, c in components if c.compiled.state]
         widths = [getattr(owner, name).shape[1] for owner, name in states]
         points, noise_width = len(self.drag_points), self.noise.buffer.shape[2]
-        self.buffer = np.zeros(count * (STEP_WIDTH + sum(widths) + scratch_width(points, noise_width)))
+        self.delay_line_start = STEP_WIDTH + sum(widths) + scratch_width(points, noise_width)
+        """Where the motion capture's delay line starts (floats per vehicle into the buffer)."""
+        delay_width = delay_line_width(self.cfg.sensors.latency_steps)
+        self.buffer = np.zeros(count * (self.delay_line_start + delay_width))
         """The flat step buffer (:func:`~quad_wrench_env.engine.kernels.step_views` cuts its fields)."""
         self.fields = dict(
             zip((name for name, _ in STEP_FIELDS), step_views(self.buffer, count), strict=True)
@@ -186,6 +186,8 @@ class Fleet:
         for (owner, name), view in zip(owners, views, strict=True):
             view[...] = getattr(owner, name)
             setattr(owner, name, view)
+        start = self.delay_line_start * count
+        self.mocap.delay_line = self.buffer[start : start + count * delay_width].reshape(count, delay_width)
         f = self.fields
         self.time = f["time"]
         self.state = RigidBodyState(
@@ -211,30 +213,7 @@ class Fleet:
     @estimator.setter
     def estimator(self, bank) -> None:
         self._estimator = bank
-        if self.compiled is not None:
-            self.compiled.bind_estimator()
-
-    @staticmethod
-    def _backend(cfg: EnvConfig, components: Components) -> str:
-        """The backend the fleet runs: ``backend="numba"`` refuses what has no compiled form, ``"auto"``
-        warns once per such setting and runs the numpy reference (never silently)."""
-        backend = resolve_backend(cfg.backend)
-        missing = numpy_only(cfg, components)
-        if backend != "numba" or not missing:
-            return backend
-        if cfg.backend == "numba":
-            raise ValueError(
-                f"backend='numba': {missing} have no compiled form; allowed: backend='numpy' or 'auto' "
-                "(which runs the numpy reference)"
-            )
-        new = sorted(set(missing) - _WARNED)
-        if new:
-            _WARNED.update(new)
-            warnings.warn(
-                f"backend='auto' runs the numpy reference (30-50x slower): {new} have no compiled form",
-                stacklevel=3,
-            )
-        return "numpy"
+        self.compiled.bind_estimator()
 
     # -- episodes ----------------------------------------------------------------------------------
     def reset_vehicle(self, index: int, rng: np.random.Generator, position: np.ndarray, yaw: float) -> None:
@@ -265,8 +244,7 @@ class Fleet:
         self.wrench_true[index] = self.external_loads(selected, index)
         self.wind_velocity[index] = self.air_at(selected.position[:, None, :], index)[:, 0]
         self._feed_truth()
-        if self.compiled is not None:
-            self.compiled.rebind()
+        self.compiled.rebind()
         self.revision += 1
 
     def equilibrium(self, index: int, position: np.ndarray, yaw: float) -> tuple[np.ndarray, np.ndarray]:
@@ -291,41 +269,8 @@ class Fleet:
     # -- one physics step --------------------------------------------------------------------------
     def step(self, actions: np.ndarray) -> None:
         """One policy step: ``substeps`` physics steps with (N, 4) clipped normalised actions."""
-        if self.compiled is not None:
-            self.compiled.physics_steps(actions, self.substeps)
-        else:
-            for _ in range(self.substeps):
-                self._physics_step(actions)
+        self.compiled.physics_steps(actions, self.substeps)
         self.revision += 1
-
-    def _physics_step(self, actions: np.ndarray) -> None:
-        state = self.state
-        command = self.actions.motor_command(actions, state)
-        self.rotors.step(command)
-        thrust_torque = self.rotors.thrust_and_torque()
-        rotation = state.rotation
-        loads = self.external_loads(state, slice(None))
-        force = rotation[:, :, 2] * thrust_torque[:, :1] + loads[:, :3]
-        torque = np.einsum("nij,nj->ni", rotation, thrust_torque[:, 1:]) + loads[:, 3:]
-        self.world.step(force, torque, state.position)
-        self.time += self.dt
-        after = self.world.state()
-        normals = self.noise.take()
-        for wind in self.components.winds:
-            start, stop = self.noise_columns[id(wind)]
-            wind.advance(self.dt, after.position, after.velocity, normals[:, start:stop])
-        self.state.assign(after)
-        self.wrench_true[...] = loads
-        if self.world.tool is not None:
-            self.world.add_contact_loads(self.wrench_true, self.contact_force, after.position, after.rotation)
-        self.wind_velocity[...] = self.air_at(after.position[:, None, :], slice(None))[:, 0]
-        self._feed_truth()
-        measured_speeds = self.motor_sensor.measure(self.rotors.speeds)
-        nominal = rows_times(measured_speeds * measured_speeds, self._nominal_allocation_t)
-        sensors = normals[:, self.sensor_noise_column :]
-        position, quaternion = self.mocap.measure(after.position, after.quaternion, sensors[:, :6])
-        velocity, body_rates = self.mocap.measure_motion(after.velocity, after.body_rates, sensors[:, 6:12])
-        self.estimator.step(nominal[:, 0], nominal[:, 1:], position, quaternion, velocity, body_rates)
 
     def air_at(self, points: np.ndarray, index: np.ndarray | slice, mean: bool = False) -> np.ndarray:
         """(n, P, 3) air velocity of all wind fields at (n, P, 3) world points of vehicles ``index``."""
@@ -386,12 +331,7 @@ class Fleet:
         layout = self.layout
         out = np.zeros((self.count, layout.size), dtype=np.float32)
         states, wrenches = self.estimates()
-        if self.compiled is not None:
-            assemble_observations(
-                states, wrenches, last_actions, self._observe_wrench, layout.kernel_starts, out
-            )
-        else:
-            layout.fill_engine_blocks(states, wrenches, last_actions, self._observe_wrench, out)
+        assemble_observations(states, wrenches, last_actions, self._observe_wrench, layout.kernel_starts, out)
         return out
 
     def terminations(self) -> np.ndarray:
@@ -399,19 +339,9 @@ class Fleet:
         touching the ground or a scene part that ends episodes), flip (tilt beyond ``flip_tilt_deg``),
         out_of_arena; 0 while the episode goes on."""
         s = self.state
-        if self.compiled is not None:
-            codes = np.empty(self.count, dtype=np.int64)
-            if termination_codes(s.position, s.rotation, self._limits, codes):
-                codes[self.world.crash_contacts()] = 1
-            return codes
-        cfg, arena = self.cfg, self.cfg.arena
-        x, y, z = s.position[:, 0], s.position[:, 1], s.position[:, 2]
-        codes = np.zeros(self.count, dtype=int)
-        codes[
-            (x < arena.x_min) | (x > arena.x_max) | (np.abs(y) > arena.y_half_width) | (z > arena.z_max)
-        ] = 3
-        codes[s.rotation[:, 2, 2] < self._flip_cos] = 2
-        codes[(z < cfg.crash_height) | self.world.crash_contacts()] = 1
+        codes = np.empty(self.count, dtype=np.int64)
+        if termination_codes(s.position, s.rotation, self._limits, codes):
+            codes[self.world.crash_contacts()] = 1
         return codes
 
     def close(self) -> None:

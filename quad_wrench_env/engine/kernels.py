@@ -55,21 +55,22 @@ _S = offsets(STEP_FIELDS)
 
 CONSTANT_FIELDS: tuple[tuple[str, int], ...] = (
     ("action_type", 1), ("scales", 10), ("autopilot", 23), ("inverse", 16), ("motors", 6), ("sensing", 7),
-    ("nominal_allocation", 16), ("dt", 1), ("noise_column", 1), ("drag_point_count", 1),
+    ("nominal_allocation", 16), ("dt", 1), ("noise_column", 1), ("delay_line", 2), ("drag_point_count", 1),
 )  # fmt: skip
 """The engine's parameters in the flat constants array, in order (widths): the action type (an index
 into the action types) and its scales, the autopilot's gains (``Autopilot.kernel_parameters``), its
 mixer's inverse, the motors (lag up and down, speed limits, rotor drag, body drag coefficient), the
 sensors (speed levels, speed step, position, attitude, velocity and body-rate noise, whether
 velocity and body rates are measured), the nominal allocation, the physics step, the first column of
-the sensors' normal draws and the number P of drag points; then the drag points (P, 3) and the
-components' numbers (:func:`component_parameters`)."""
+the sensors' normal draws, the motion capture's delay line (its latency L in physics steps and where
+its ``1 + 7 L`` floats per vehicle start in the step buffer, :func:`delay_line_rows`) and the number P of
+drag points; then the drag points (P, 3) and the components' numbers (:func:`component_parameters`)."""
 
 CONSTANT_WIDTH = sum(width for _, width in CONSTANT_FIELDS)
 _C = offsets(CONSTANT_FIELDS)
-_SCALES, _AUTOPILOT, _INVERSE, _MOTORS, _SENSING, _NOMINAL, _DT, _NOISE_COLUMN, _POINT_COUNT = (
+_SCALES, _AUTOPILOT, _INVERSE, _MOTORS, _SENSING, _NOMINAL, _DT, _NOISE_COLUMN, _DELAY, _POINT_COUNT = (
     _C["scales"], _C["autopilot"], _C["inverse"], _C["motors"], _C["sensing"], _C["nominal_allocation"],
-    _C["dt"], _C["noise_column"], _C["drag_point_count"],
+    _C["dt"], _C["noise_column"], _C["delay_line"], _C["drag_point_count"],
 )  # fmt: skip
 
 
@@ -463,13 +464,36 @@ def take_normals(noise_buffer, noise_cursor, out):
         noise_cursor[m] += 1
 
 
+@njit(inline=True)
+def quantized_speed(speed, levels, step):
+    """A motor speed as the vehicle reports it: the nearest of ``levels + 1`` steps of ``step`` from 0
+    (McKinnon & Schoellig 2016, Sec. II-A: 8 bits over the motor's range on the AR.Drone)."""
+    return min(max(np.rint(speed / step), 0.0), levels) * step
+
+
+def delay_line_width(latency: int) -> int:
+    """Floats per vehicle of the motion capture's delay line: the slot written next, then ``latency``
+    poses ``[position (3), quaternion (4)]`` (:func:`sense` reads and overwrites the oldest)."""
+    return 1 + 7 * latency if latency else 0
+
+
+@njit(inline=True)
+def delay_line_rows(buffer, constants, n):
+    """The (n, 1 + 7 L) delay lines (L = latency, at least one column wide where L = 0 and unused)."""
+    latency = int(constants[_DELAY])
+    return rows(buffer, int(constants[_DELAY + 1]), n, 1 + 7 * latency), latency
+
+
 @njit
 def sense(buffer, normals, constants):
-    """What the estimators see, into ``buffer``: the quantized motor speeds through the nominal mixer
-    (``MotorSpeedSensor``) into ``thrusts`` and ``body_torques``; the noisy pose (``MotionCapture``)
+    """What the estimators see, into ``buffer``: the quantized motor speeds (:func:`quantized_speed`)
+    through the nominal mixer into ``thrusts`` and ``body_torques``; the noisy pose (``MotionCapture``)
     into ``measured_position`` and ``measured_quaternion`` and, with an onboard state estimator, noisy
     velocity and body rates into ``motion``; the true position, velocity, quaternion and body rates
-    into ``truth``. The sensors' draws are the columns of ``normals`` from ``noise_column`` on."""
+    into ``truth``. The sensors' draws are the columns of ``normals`` from ``noise_column`` on. With a
+    latency of L physics steps the pose measured is the one L steps old: each vehicle's delay line
+    hands out its oldest pose and keeps the current one in its place (McKinnon & Schoellig 2016,
+    Sec. II-B, motion capture; ``docs/physics.md``, "Sensors")."""
     n = normals.shape[0]
     position, quaternion, velocity = (
         rows(buffer, _POSITION, n, 3),
@@ -490,20 +514,31 @@ def sense(buffer, normals, constants):
     sensing, nominal_allocation = constants[_SENSING : _SENSING + 7], rows_view(constants, _NOMINAL, 4, 4)
     levels, step, position_noise, attitude_noise = sensing[0], sensing[1], sensing[2], sensing[3]
     column = int(constants[_NOISE_COLUMN])
-    body = np.empty(4)
+    delay, latency = delay_line_rows(buffer, constants, n)
+    body, pose = np.empty(4), np.empty(7)
     for m in range(n):
         draws = normals[m, column:]
         body[:] = 0.0
         for i in range(4):
-            quantized = min(max(np.rint(speeds[m, i] / step), 0.0), levels) * step
+            quantized = quantized_speed(speeds[m, i], levels, step)
             for k in range(4):
                 body[k] += nominal_allocation[k, i] * (quantized * quantized)
         thrusts[m] = body[0]
         body_torques[m, 0], body_torques[m, 1], body_torques[m, 2] = body[1], body[2], body[3]
         for i in range(3):
-            measured_position[m, i] = position[m, i] + position_noise * draws[i]
+            pose[i] = position[m, i]
+        for i in range(4):
+            pose[3 + i] = quaternion[m, i]
+        if latency:
+            line = delay[m]
+            slot = 1 + 7 * int(line[0])
+            for i in range(7):
+                pose[i], line[slot + i] = line[slot + i], pose[i]
+            line[0] = (line[0] + 1.0) % latency
+        for i in range(3):
+            measured_position[m, i] = pose[i] + position_noise * draws[i]
         ew, ex, ey, ez = exp(attitude_noise * draws[3], attitude_noise * draws[4], attitude_noise * draws[5])
-        qw, qx, qy, qz = quaternion[m, 0], quaternion[m, 1], quaternion[m, 2], quaternion[m, 3]
+        qw, qx, qy, qz = pose[3], pose[4], pose[5], pose[6]
         mw, mx, my, mz = qmul(qw, qx, qy, qz, ew, ex, ey, ez)
         norm = math.sqrt(mw * mw + mx * mx + my * my + mz * mz)
         q = measured_quaternion[m]

@@ -4,8 +4,8 @@ An :class:`EstimatorBank` holds one estimator per vehicle and steps them all at 
 computation, arrays with a leading dimension N in and out: ``UnscentedFilterBank``,
 ``ExtendedFilterBank``, ``ObserverBank`` and :class:`OracleBank` (a copy of the truth). Each
 single-vehicle estimator (the :class:`~quad_wrench_env.estimators.base.Estimator` protocol) is a bank
-of one, and each filter bank steps by its kernel (:mod:`quad_wrench_env.kernels`) on every backend,
-so there is one implementation of each algorithm.
+of one, and each filter bank steps by its kernel (:mod:`quad_wrench_env.kernels`), so there is one
+implementation of each algorithm.
 """
 
 from __future__ import annotations

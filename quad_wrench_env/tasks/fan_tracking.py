@@ -76,7 +76,7 @@ from quad_wrench_env.disturbances.fan import MOTIONS, RANDOM, FanConfig, FanJet,
 from quad_wrench_env.disturbances.jet_kernels import jet_speed, motion_y, transit_time
 from quad_wrench_env.engine.components import Components
 from quad_wrench_env.engine.config import EnvConfig
-from quad_wrench_env.kernels import njit, resolve_backend
+from quad_wrench_env.kernels import njit
 from quad_wrench_env.registry import register
 from quad_wrench_env.tasks.base import TaskDefaults, TaskStep
 from quad_wrench_env.vehicle import VehicleParams
@@ -221,8 +221,7 @@ class FanTracking(TaskDefaults):
             )
         self.cfg = cfg
         self.vehicle = vehicle
-        self.fan = FanJet(cfg.fan, count, cfg.backend)
-        self._compiled = resolve_backend(cfg.backend) == "numba"
+        self.fan = FanJet(cfg.fan, count)
         r = cfg.reward
         self._jet = self.fan.kernel_parameters()
         self._weights = np.array(
@@ -285,25 +284,9 @@ class FanTracking(TaskDefaults):
         ended = np.zeros(count, dtype=bool) if ended is None else ended
         position, time = fleet.state.position, fleet.time
         numbers = np.empty((count, FAN_TRACKING_NUMBERS))
-        if self._compiled:
-            fan_tracking_terms(
-                position, time, actions, ended, self.fan.motion_tables, self._jet, self._weights, numbers
-            )
-        else:
-            x_ref, axis_scale, standoff_weight, effort_weight, crash_penalty = self._weights
-            dy = position[:, 1] - self.fan.axis_y(position[:, 0], time)
-            dz = position[:, 2] - self.cfg.fan.height
-            standoff = position[:, 0] - x_ref
-            numbers[:, 0] = np.exp(-np.sqrt(dy * dy + dz * dz) / axis_scale)
-            numbers[:, 1] = -standoff_weight * np.abs(standoff)
-            numbers[:, 2] = (-effort_weight / actions.shape[1]) * (actions * actions).sum(axis=1)
-            numbers[:, 3] = -crash_penalty * ended
-            numbers[:, 4] = dy
-            numbers[:, 5] = position[:, 1] - dy
-            numbers[:, 6] = 0.0
-            numbers[:, 7] = self.fan.fan_y(time)
-            numbers[:, 8] = self.cfg.fan.height
-            numbers[:, 9] = standoff
+        fan_tracking_terms(
+            position, time, actions, ended, self.fan.motion_tables, self._jet, self._weights, numbers
+        )
         self._cache = (fleet.revision, numbers)
         return numbers
 
