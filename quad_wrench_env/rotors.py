@@ -2,10 +2,12 @@
 
 This is the truth the physics uses, for N vehicles at once. Thrust ``c_i = k_i·Ω_i²`` and reaction
 torque ``p_i·Ω_i²`` follow McKinnon & Schoellig 2016 eqs. (1), (8)-(10) with per-rotor
-``k_i = k·(1 + ε_i)``, ``ε_i ~ N(0, spread²)`` drawn once per episode (``docs/physics.md``, "Rotors"), so
-the nominal mixer that estimators use is not the truth. Each motor follows a first-order lag towards its
-commanded speed, integrated exactly over a physics step, with separate time constants for spinning up and
-down, and its command is limited to the motor's speed range. Linear rotor drag ("H-force") acts at each hub
+``k_i = k·(1 + ε_i)``, ``ε_i ~ N(0, spread²)`` drawn once per episode (``docs/physics.md``, "Rotors"),
+so the nominal mixer that estimators use is not the truth (unless the vehicle is calibrated: then
+the estimators' mixer has the true coefficients to a residual ``δ_i``,
+:attr:`Rotors.sensed_allocations`). Each motor follows a first-order lag towards its commanded speed,
+integrated exactly over a physics step, with separate time constants for spinning up and down, and
+its command is limited to the motor's speed range. Linear rotor drag ("H-force") acts at each hub
 against the in-plane airspeed: ``F = -k_d·Ω_i·v_⊥``.
 """
 
@@ -30,14 +32,25 @@ class Rotors:
         self.speeds = np.full((count, 4), vehicle.hover_rotor_speed)
         self.allocations = np.tile(Mixer(vehicle).allocation, (count, 1, 1))
         self.inverses = np.tile(Mixer(vehicle).inverse, (count, 1, 1))
+        self.sensed_allocations = self.allocations.copy()
+        """(N, 4, 4) the allocation through which the estimators see the reported speeds: the nominal
+        mixer, or a calibrated vehicle's."""
 
-    def reset(self, index: int, rng: np.random.Generator, kf_spread: float) -> None:
-        """Draw the true thrust coefficients of vehicle ``index`` for a new episode; its motors start
-        at the nominal hover speed."""
+    def reset(
+        self, index: int, rng: np.random.Generator, kf_spread: float, calibration: float | None = None
+    ) -> None:
+        """Draw the true thrust coefficients of vehicle ``index`` for a new episode and, for a vehicle
+        calibrated to a relative residual of sd ``calibration``, the coefficients its estimators use
+        (drawn after the true ones); its motors start at the nominal hover speed."""
         epsilon = kf_spread * rng.standard_normal(4) if kf_spread > 0 else np.zeros(4)
         mixer = Mixer(self.vehicle, self.vehicle.kf * (1.0 + epsilon))
         self.allocations[index] = mixer.allocation
         self.inverses[index] = mixer.inverse
+        self.sensed_allocations[index] = Mixer(self.vehicle).allocation
+        if calibration is not None:
+            residual = calibration * rng.standard_normal(4) if calibration > 0 else np.zeros(4)
+            calibrated = Mixer(self.vehicle, self.vehicle.kf * (1.0 + epsilon + residual))
+            self.sensed_allocations[index] = calibrated.allocation
         self.speeds[index] = self.vehicle.hover_rotor_speed
 
     def kernel_parameters(self) -> np.ndarray:

@@ -399,6 +399,38 @@ def test_the_estimators_get_the_nominal_mixer_of_the_quantized_speeds():
         assert not np.allclose(true_allocation @ (speeds[0] * speeds[0]), expected, rtol=1e-6)
 
 
+@pytest.mark.parametrize("calibration", [0.0, 0.004])
+def test_a_calibrated_vehicles_estimators_get_its_rotors_to_the_residual(calibration):
+    """``rotor_calibration`` σ: the thrust and body torque handed to the estimators are the quantized
+    speeds through ``k·(1 + ε_i + δ_i)`` (δ_i ~ N(0, σ²), so the true coefficients at σ = 0), computed
+    here from the true allocation with the spread taken out and the residual put in by hand: with
+    σ = 0 exactly the true rotors' wrench; with σ > 0 per-rotor relative errors of about σ, far below
+    the 5 % spread. Catches the nominal mixer kept (errors of the spread's size) or the truth handed over
+    (no residual)."""
+    env, fleet, calls = _spied_env("ukf", kf_spread=0.05, rotor_calibration=calibration)
+    try:
+        for _ in range(5):
+            env.step(np.zeros(4, dtype=np.float32))
+    finally:
+        env.close()
+    step = VEHICLE.max_rotor_speed / 255.0
+    true_kf = fleet.rotors.allocations[0, 0] / VEHICLE.kf  # (1 + ε_i), the true rotors' row of thrusts
+    sensed_kf = fleet.rotors.sensed_allocations[0, 0] / VEHICLE.kf
+    residual = sensed_kf - true_kf  # δ_i
+    assert np.abs(true_kf - 1.0).max() > 0.01  # the 5 % spread shows
+    if calibration == 0.0:
+        np.testing.assert_array_equal(residual, 0.0)
+    else:
+        assert 1e-4 < np.abs(residual).max() < 5 * calibration
+    for (thrusts, torques, *_), speeds, _ in calls:
+        squared = (np.clip(np.round(speeds[0] / step), 0, 255) * step) ** 2
+        expected = Mixer(VEHICLE, VEHICLE.kf * sensed_kf).wrench(np.sqrt(squared))
+        np.testing.assert_allclose(thrusts[0], expected[0], rtol=1e-12)
+        np.testing.assert_allclose(torques[0], expected[1:], atol=1e-12)
+        nominal = Mixer(VEHICLE).wrench(np.sqrt(squared))
+        assert abs(thrusts[0] - nominal[0]) > 1e-4 * nominal[0]  # not the nominal mixer
+
+
 @pytest.mark.parametrize("name", ["ekf", "observer"])
 def test_a_state_estimator_feeds_velocity_and_rates_near_the_truth(name):
     """Catches the env dropping (None) or garbling the onboard state estimator's measurements: with

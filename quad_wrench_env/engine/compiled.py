@@ -55,7 +55,7 @@ class CompiledStep:
                 "action_type": action_type, "scales": scales, "autopilot": ap.kernel_parameters(),
                 "inverse": ap.mixer.inverse,
                 "motors": np.append(fleet.rotors.kernel_parameters(), fleet.drag.coefficient),
-                "sensing": np.array(sensing), "nominal_allocation": ap.mixer.allocation, "dt": fleet.dt,
+                "sensing": np.array(sensing), "dt": fleet.dt,
                 "noise_column": fleet.sensor_noise_column,
                 "delay_line": (sensors.latency_steps, fleet.delay_line_start),
             },

@@ -176,7 +176,7 @@ class Fleet:
         """``(component, attribute)`` of each component's state in the buffer, in step order."""
         ap, rotors, start = self.autopilot, self.rotors, STEP_WIDTH
         owners = [(ap, "yaw_setpoint"), (ap, "velocity_integral"), (ap, "rate_integral"), (rotors, "speeds"),
-                  (rotors, "allocations")]  # fmt: skip
+                  (rotors, "allocations"), (rotors, "sensed_allocations")]  # fmt: skip
         views = [self.fields[name] for _, name in owners]
         for (owner, name), width in zip(states, widths, strict=True):
             owners.append((owner, name))
@@ -220,7 +220,7 @@ class Fleet:
         """Start vehicle ``index``'s episode at ``position`` heading ``yaw``, trimmed (see
         :meth:`equilibrium`); its random draws come from ``rng`` from now on. Call :meth:`refresh`
         after the last vehicle is reset."""
-        self.rotors.reset(index, rng, self.cfg.kf_spread)
+        self.rotors.reset(index, rng, self.cfg.kf_spread, self.cfg.rotor_calibration)
         self.contact_force[index] = 0.0
         for wind in self.components.winds:
             wind.reset(index, rng)

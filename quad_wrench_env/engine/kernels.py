@@ -37,11 +37,11 @@ STEP_FIELDS: tuple[tuple[str, int], ...] = (
     ("rotation", 9), ("body_rates", 3), ("forces", 3), ("torques", 3), ("loads", 6), ("thrusts", 1),
     ("body_torques", 3), ("measured_position", 3), ("measured_quaternion", 4), ("motion", 6), ("truth", 13),
     ("yaw_setpoint", 1), ("velocity_integral", 3), ("rate_integral", 3), ("speeds", 4), ("allocations", 16),
-    ("rotor_wrench", 4), ("wind_velocity", 3),
+    ("sensed_allocations", 16), ("rotor_wrench", 4), ("wind_velocity", 3),
 )  # fmt: skip
 """The engine's per-vehicle arrays (widths per vehicle), in the order :func:`step_views` cuts them out
 of one flat buffer of ``n`` vehicles (field ``k`` from ``n·start_k``): one array argument instead of
-twenty-three, as numba's cost per call grows with the number of array arguments (about 35 ns each).
+twenty-four, as numba's cost per call grows with the number of array arguments (about 35 ns each).
 The autopilot's and the rotors' state (yaw set-point to allocations) are views the fleet gives them;
 the components' own states follow at :data:`STEP_WIDTH`."""
 
@@ -50,27 +50,28 @@ _S = offsets(STEP_FIELDS)
 (
     _TIME, _POSITION, _QUATERNION, _VELOCITY, _ANGULAR_VELOCITY, _ROTATION, _BODY_RATES, _FORCES, _TORQUES,
     _LOADS, _THRUSTS, _BODY_TORQUES, _MEASURED_POSITION, _MEASURED_QUATERNION, _MOTION, _TRUTH, _YAW_SETPOINT,
-    _VELOCITY_INTEGRAL, _RATE_INTEGRAL, _SPEEDS, _ALLOCATIONS, _ROTOR_WRENCH, _WIND_VELOCITY,
+    _VELOCITY_INTEGRAL, _RATE_INTEGRAL, _SPEEDS, _ALLOCATIONS, _SENSED_ALLOCATIONS, _ROTOR_WRENCH,
+    _WIND_VELOCITY,
 ) = (_S[name] for name, _ in STEP_FIELDS)  # fmt: skip
 
 CONSTANT_FIELDS: tuple[tuple[str, int], ...] = (
     ("action_type", 1), ("scales", 10), ("autopilot", 23), ("inverse", 16), ("motors", 6), ("sensing", 7),
-    ("nominal_allocation", 16), ("dt", 1), ("noise_column", 1), ("delay_line", 2), ("drag_point_count", 1),
+    ("dt", 1), ("noise_column", 1), ("delay_line", 2), ("drag_point_count", 1),
 )  # fmt: skip
 """The engine's parameters in the flat constants array, in order (widths): the action type (an index
 into the action types) and its scales, the autopilot's gains (``Autopilot.kernel_parameters``), its
 mixer's inverse, the motors (lag up and down, speed limits, rotor drag, body drag coefficient), the
 sensors (speed levels, speed step, position, attitude, velocity and body-rate noise, whether
-velocity and body rates are measured), the nominal allocation, the physics step, the first column of
+velocity and body rates are measured), the physics step, the first column of
 the sensors' normal draws, the motion capture's delay line (its latency L in physics steps and where
 its ``1 + 7 L`` floats per vehicle start in the step buffer, :func:`delay_line_rows`) and the number P of
 drag points; then the drag points (P, 3) and the components' numbers (:func:`component_parameters`)."""
 
 CONSTANT_WIDTH = sum(width for _, width in CONSTANT_FIELDS)
 _C = offsets(CONSTANT_FIELDS)
-_SCALES, _AUTOPILOT, _INVERSE, _MOTORS, _SENSING, _NOMINAL, _DT, _NOISE_COLUMN, _DELAY, _POINT_COUNT = (
-    _C["scales"], _C["autopilot"], _C["inverse"], _C["motors"], _C["sensing"], _C["nominal_allocation"],
-    _C["dt"], _C["noise_column"], _C["delay_line"], _C["drag_point_count"],
+_SCALES, _AUTOPILOT, _INVERSE, _MOTORS, _SENSING, _DT, _NOISE_COLUMN, _DELAY, _POINT_COUNT = (
+    _C["scales"], _C["autopilot"], _C["inverse"], _C["motors"], _C["sensing"], _C["dt"], _C["noise_column"],
+    _C["delay_line"], _C["drag_point_count"],
 )  # fmt: skip
 
 
@@ -98,7 +99,7 @@ def point_rows(buffer, start, n, count):
     )
 
 
-_MATRICES = {"rotation": (3, 3), "allocations": (4, 4)}
+_MATRICES = {"rotation": (3, 3), "allocations": (4, 4), "sensed_allocations": (4, 4)}
 """The fields that are square matrices per vehicle (the others are rows, or scalars when 1 wide)."""
 
 
@@ -109,9 +110,10 @@ def step_views(buffer: np.ndarray, n: int) -> tuple[np.ndarray, ...]:
     applies and the external loads (n, 6); the measured thrusts (n,) and body torques (n, 3), the
     motion-capture position (n, 3) and quaternion (n, 4), velocity and body rates (n, 6) and the truth
     (n, 13); the autopilot's yaw setpoints (n,) and velocity and rate integrals (n, 3), the true rotor
-    speeds (n, 4) and allocation matrices (n, 4, 4), the rotors' ``[c_t, τ]`` (n, 4) and the air
-    velocity at the centre of mass (n, 3). The kernels cut the fields they use with :func:`rows` and
-    :func:`matrices` at the same offsets."""
+    speeds (n, 4) and allocation matrices (n, 4, 4), the allocations the estimators' thrust and torque
+    come from (n, 4, 4: the nominal mixer, or a calibrated vehicle's), the rotors' ``[c_t, τ]`` (n, 4)
+    and the air velocity at the centre of mass (n, 3). The kernels cut the fields they use with
+    :func:`rows` and :func:`matrices` at the same offsets."""
     if buffer.shape[0] < n * STEP_WIDTH:
         raise ValueError("the step buffer must hold at least n * STEP_WIDTH floats")
     views = []
@@ -487,7 +489,8 @@ def delay_line_rows(buffer, constants, n):
 @njit
 def sense(buffer, normals, constants):
     """What the estimators see, into ``buffer``: the quantized motor speeds (:func:`quantized_speed`)
-    through the nominal mixer into ``thrusts`` and ``body_torques``; the noisy pose (``MotionCapture``)
+    through each vehicle's ``sensed_allocations`` (the nominal mixer, or a calibrated vehicle's) into
+    ``thrusts`` and ``body_torques``; the noisy pose (``MotionCapture``)
     into ``measured_position`` and ``measured_quaternion`` and, with an onboard state estimator, noisy
     velocity and body rates into ``motion``; the true position, velocity, quaternion and body rates
     into ``truth``. The sensors' draws are the columns of ``normals`` from ``noise_column`` on. With a
@@ -511,7 +514,8 @@ def sense(buffer, normals, constants):
         rows(buffer, _MEASURED_QUATERNION, n, 4),
     )
     motion = rows(buffer, _MOTION, n, 6)
-    sensing, nominal_allocation = constants[_SENSING : _SENSING + 7], rows_view(constants, _NOMINAL, 4, 4)
+    sensing = constants[_SENSING : _SENSING + 7]
+    sensed_allocations = matrices(buffer, _SENSED_ALLOCATIONS, n, 4)
     levels, step, position_noise, attitude_noise = sensing[0], sensing[1], sensing[2], sensing[3]
     column = int(constants[_NOISE_COLUMN])
     delay, latency = delay_line_rows(buffer, constants, n)
@@ -522,7 +526,7 @@ def sense(buffer, normals, constants):
         for i in range(4):
             quantized = quantized_speed(speeds[m, i], levels, step)
             for k in range(4):
-                body[k] += nominal_allocation[k, i] * (quantized * quantized)
+                body[k] += sensed_allocations[m, k, i] * (quantized * quantized)
         thrusts[m] = body[0]
         body_torques[m, 0], body_torques[m, 1], body_torques[m, 2] = body[1], body[2], body[3]
         for i in range(3):
