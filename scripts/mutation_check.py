@@ -425,6 +425,42 @@ MUTATIONS = (
         ("tests/test_disturbances.py",),
     ),
     Mutation(
+        "motion capture latency hands out the current pose",
+        "sensors",
+        (
+            (
+                ENGINE,
+                "                pose[i], line[slot + i] = line[slot + i], pose[i]",
+                "                line[slot + i] = pose[i]",
+            ),
+        ),
+        ("tests/test_compiled_step.py",),
+    ),
+    Mutation(
+        "a calibrated vehicle's estimators keep the nominal mixer",
+        "sensors",
+        (
+            (
+                "quad_wrench_env/rotors.py",
+                "            self.sensed_allocations[index] = calibrated.allocation",
+                "            self.sensed_allocations[index] = Mixer(self.vehicle).allocation",
+            ),
+        ),
+        ("tests/test_reference_estimators.py",),
+    ),
+    Mutation(
+        "a component's velocity kernel and its episode-start form disagree",
+        "dryden",
+        (
+            (
+                "quad_wrench_env/disturbances/dryden.py",
+                "                out[n, p, i] += weather[n, i] + weather[n, 3] * gust[n, i]",
+                "                out[n, p, i] += weather[n, i] + weather[n, 3] * gust[n, 2 - i]",
+            ),
+        ),
+        ("tests/test_component_conformance.py",),
+    ),
+    Mutation(
         "payload weight at the centre of mass",
         "point loads",
         (
