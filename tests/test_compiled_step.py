@@ -6,6 +6,11 @@ references written apart from them (``tests/test_reference_*.py``, ``tests/test_
 
 from __future__ import annotations
 
+import json
+import os
+import subprocess
+import sys
+
 import gymnasium as gym
 import numpy as np
 import pytest
@@ -248,3 +253,38 @@ def test_a_ukf_whose_state_overflows_restarts_from_the_measured_pose():
     assert bank.statuses() == ["ok", "reinitialised"]
     np.testing.assert_array_equal(bank.states()[1, :3], measured[1])
     assert np.isfinite(bank.covariances).all() and np.isfinite(bank.rests).all()
+
+
+def test_the_debugging_mode_runs_the_same_kernels_as_plain_python():
+    """Under numba's ``NUMBA_DISABLE_JIT=1`` (the documented debugging mode, where the removed
+    ``backend`` key points) each task's env, with motion-capture latency and a vector env of two,
+    flies on its kernels as plain Python and gives the compiled numbers to rounding (libm against
+    numba's math: 1e-9 relative on the wrench estimate and the observation, float32)."""
+    script = (
+        "import json, sys, numpy as np, gymnasium as gym, quad_wrench_env\n"
+        "from quad_wrench_env.kernels import COMPILED\n"
+        "out = {'compiled': COMPILED}\n"
+        "for env_id in quad_wrench_env.ENV_IDS:\n"
+        "    env = gym.make_vec(env_id, num_envs=2, vectorization_mode='vector_entry_point',\n"
+        "                       sensors={'latency_steps': 2})\n"
+        "    obs, info = env.reset(seed=3)\n"
+        "    for _ in range(10):\n"
+        "        obs, *_, info = env.step(np.full((2, 4), 0.2, dtype=np.float32))\n"
+        "    out[env_id] = [obs.tolist(), info['wrench_est'].tolist()]\n"
+        "    env.close()\n"
+        "print(json.dumps(out))\n"
+    )
+    runs = {}
+    for mode in ("0", "1"):
+        environment = {**os.environ, "NUMBA_DISABLE_JIT": mode}
+        done = subprocess.run(
+            [sys.executable, "-c", script], env=environment, capture_output=True, text=True, timeout=600
+        )
+        assert done.returncode == 0, done.stderr[-3000:]
+        runs[mode] = json.loads(done.stdout.strip().splitlines()[-1])
+    assert runs["0"].pop("compiled") and not runs["1"].pop("compiled")
+    assert runs["0"].keys() == runs["1"].keys() and len(runs["0"]) == 3
+    for env_id, (observation, estimate) in runs["0"].items():
+        plain_observation, plain_estimate = runs["1"][env_id]
+        np.testing.assert_allclose(plain_observation, observation, rtol=1e-6, atol=1e-6, err_msg=env_id)
+        np.testing.assert_allclose(plain_estimate, estimate, rtol=1e-9, atol=1e-12, err_msg=env_id)
