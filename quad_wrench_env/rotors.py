@@ -41,14 +41,16 @@ class Rotors:
     ) -> None:
         """Draw the true thrust coefficients of vehicle ``index`` for a new episode and, for a vehicle
         calibrated to a relative residual of sd ``calibration``, the coefficients its estimators use
-        (drawn after the true ones); its motors start at the nominal hover speed."""
+        (from a generator spawned off ``rng``'s seed sequence: the calibration moves none of the
+        episode's other random numbers); its motors start at the nominal hover speed."""
         epsilon = kf_spread * rng.standard_normal(4) if kf_spread > 0 else np.zeros(4)
         mixer = Mixer(self.vehicle, self.vehicle.kf * (1.0 + epsilon))
         self.allocations[index] = mixer.allocation
         self.inverses[index] = mixer.inverse
         self.sensed_allocations[index] = Mixer(self.vehicle).allocation
         if calibration is not None:
-            residual = calibration * rng.standard_normal(4) if calibration > 0 else np.zeros(4)
+            own = np.random.default_rng(rng.bit_generator.seed_seq.spawn(1)[0])
+            residual = calibration * own.standard_normal(4) if calibration > 0 else np.zeros(4)
             calibrated = Mixer(self.vehicle, self.vehicle.kf * (1.0 + epsilon + residual))
             self.sensed_allocations[index] = calibrated.allocation
         self.speeds[index] = self.vehicle.hover_rotor_speed

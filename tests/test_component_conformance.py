@@ -154,3 +154,30 @@ def test_a_rotor_modifiers_kernel_is_its_added_thrust():
     expected = effect.added_thrust(hubs, rotation, thrusts)
     assert np.abs(expected).max() > 0.05
     np.testing.assert_allclose(out - before, expected, atol=1e-9)
+
+
+def test_every_component_of_the_package_has_a_conformance_case():
+    """Every class under ``quad_wrench_env.disturbances`` and ``quad_wrench_env.tasks`` with a compiled
+    form is flown by a case above (registered wind models come in by themselves; a new point load or
+    rotor modifier fails here until it has one)."""
+    import inspect
+    import pkgutil
+
+    import quad_wrench_env.disturbances
+    import quad_wrench_env.tasks
+    from quad_wrench_env.disturbances.base import CompiledForm
+
+    found = set()
+    for package in (quad_wrench_env.disturbances, quad_wrench_env.tasks):
+        for info in pkgutil.iter_modules(package.__path__):
+            module = importlib.import_module(f"{package.__name__}.{info.name}")
+            for _, cls in inspect.getmembers(module, inspect.isclass):
+                if cls.__module__ == module.__name__ and isinstance(
+                    getattr(cls, "compiled", None), CompiledForm
+                ):
+                    found.add(cls)
+    covered = {type(c) for c in (*WINDS.values(), *LOADS.values())} | {GroundEffect}
+    assert found, "no compiled components found: the scan is broken"
+    assert not found - covered, (
+        f"components without a conformance case: {sorted(c.__name__ for c in found - covered)}"
+    )

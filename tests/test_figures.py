@@ -38,7 +38,9 @@ from quad_wrench_cli import (
     reproduce_yuksel,
 )
 from quad_wrench_env.agents.evaluate import Episode, Evaluation, table_columns
+from quad_wrench_env.agents.ida_pbc import IDAPBCPolicy
 from quad_wrench_env.config import config_path, load_yaml
+from quad_wrench_env.vehicle import make_vehicle
 
 UNIT = re.compile(r"[\[(][^\])]+[\])]|fraction|ratio")
 
@@ -280,3 +282,20 @@ def test_the_check_finds_what_is_missing(saved: dict, tmp_path: Path) -> None:
     assert any("without a unit" in f for f in found)
     assert any("without a label" in f for f in found)
     assert any("no legend" in f for f in found)
+
+
+def test_reproduce_yuksels_record_flies_a_short_episode() -> None:
+    """``record`` itself (the figures' tests above replace it): 0.5 s of IDA-PBC hovering in free air
+    under its own weight: the exerted force ``f_ne`` (the true rotors' thrust along body z minus the
+    weight) is near zero at hover, and every column has a row per control step."""
+    arena = {"x_min": -10.0, "x_max": 10.0, "y_half_width": 10.0, "z_max": 10.0}
+    config = {"estimator": "observer", "free_air_height": 1.0, "free_air_seconds": 0.5}
+    config["free_air_arena"] = arena
+    env = reproduce_yuksel.free_air(config, [], drag=False)
+    try:
+        rows = reproduce_yuksel.record(env, IDAPBCPolicy(), 0, {"fan_motion": "static", "offset_y": 0.0})
+    finally:
+        env.close()
+    assert {len(v) for v in rows.values()} == {25}
+    weight = make_vehicle("yuksel1kg").mass * 9.81
+    assert np.abs(rows["fne"]).max() < 0.05 * weight

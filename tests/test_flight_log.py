@@ -15,7 +15,7 @@ import pytest
 from quad_wrench_cli.main import main
 from quad_wrench_env.agents import make_agent
 from quad_wrench_env.agents.evaluate import run_episode
-from quad_wrench_env.flight_log import read_flight_log
+from quad_wrench_env.flight_log import FlightRecorder, read_flight_log
 from quad_wrench_env.rotations import quat_from_euler_zyx
 from quad_wrench_env.vehicle import make_vehicle
 from tests.conftest import FAN_TRACKING, assert_usage_error
@@ -214,3 +214,14 @@ def test_euler_angles_read_as_the_quaternions_they_are(tmp_path):
     flight = read_flight_log(_write(tmp_path / "euler.csv", columns), VEHICLE)
     np.testing.assert_allclose(flight.quaternion, np.tile(quat_from_euler_zyx(0.1, 0.0, 3.0), (20, 1)))
     assert flight.period == 0.005 and flight.velocity is None and flight.wrench is None
+
+
+def test_a_calibrated_vehicles_flight_is_not_recorded():
+    """A log holds the reported speeds and a replay uses the nominal mixer: a calibrated vehicle's
+    flight (``rotor_calibration``) would not replay as it flew, so recording it is refused by name."""
+    env = gym.make("QuadWrench/FanTracking-v1", rotor_calibration=0.002)
+    try:
+        with pytest.raises(ValueError, match="rotor_calibration=0.002"):
+            FlightRecorder(env)
+    finally:
+        env.close()

@@ -1,5 +1,5 @@
 """The fixed jet's turbulence (quad_wrench_env/disturbances/jet.py): the intensity and length scale asked
-for, on the numpy reference and the compiled kernels; off by default; DisturbanceRejection's keys.
+for, through its compiled kernels; off by default; DisturbanceRejection's keys.
 
 The expected numbers are written here from the jet's definition (``docs/physics.md``, "Fan": Gaussian profile,
 ``u_c = U0·min(1, D/(√2·b))``, ``b = sqrt((D/2)² + (c·x)²)``) and the statistics of a first-order

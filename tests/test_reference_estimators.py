@@ -405,8 +405,9 @@ def test_a_calibrated_vehicles_estimators_get_its_rotors_to_the_residual(calibra
     speeds through ``k·(1 + ε_i + δ_i)`` (δ_i ~ N(0, σ²), so the true coefficients at σ = 0), computed
     here from the true allocation with the spread taken out and the residual put in by hand: with
     σ = 0 exactly the true rotors' wrench; with σ > 0 per-rotor relative errors of about σ, far below
-    the 5 % spread. Catches the nominal mixer kept (errors of the spread's size) or the truth handed over
-    (no residual)."""
+    the 5 % spread; the motion capture's noise is the uncalibrated vehicle's, draw for draw (the
+    residual has a generator of its own). Catches the nominal mixer kept (errors of the spread's size),
+    the truth handed over (no residual) or a residual drawn from the episode's generator."""
     env, fleet, calls = _spied_env("ukf", kf_spread=0.05, rotor_calibration=calibration)
     try:
         for _ in range(5):
@@ -429,6 +430,17 @@ def test_a_calibrated_vehicles_estimators_get_its_rotors_to_the_residual(calibra
         np.testing.assert_allclose(torques[0], expected[1:], atol=1e-12)
         nominal = Mixer(VEHICLE).wrench(np.sqrt(squared))
         assert abs(thrusts[0] - nominal[0]) > 1e-4 * nominal[0]  # not the nominal mixer
+    env, _, uncalibrated = _spied_env("ukf", kf_spread=0.05)
+    try:
+        for _ in range(5):
+            env.step(np.zeros(4, dtype=np.float32))
+    finally:
+        env.close()
+    for ((_, _, position, quaternion, *_), *_), ((_, _, position_0, quaternion_0, *_), *_) in zip(
+        calls, uncalibrated, strict=True
+    ):
+        np.testing.assert_array_equal(position, position_0)
+        np.testing.assert_array_equal(quaternion, quaternion_0)
 
 
 @pytest.mark.parametrize("name", ["ekf", "observer"])

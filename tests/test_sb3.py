@@ -128,6 +128,11 @@ def test_learning_rate_end_lowers_the_optimisers_rate_linearly_over_the_run(tmp_
     assert constant.policy.optimizer.param_groups[0]["lr"] == start
     with pytest.raises(ValueError, match="learning_rate_end=-1"):
         build(TrainConfig, {"learning_rate_end": -1.0})
+    with pytest.raises(ValueError, match="learning_rate=True is not one"):
+        build(TrainConfig, {"learning_rate_end": 0.0, "hyperparameters": {"learning_rate": True}})
+    for change in ({"learning_rate_end": 1e-4}, {"total_steps": 2 * total}):  # the saved model keeps its line
+        with pytest.raises(TrainingConfigError, match="would change its learning-rate schedule"):
+            train(build(TrainConfig, {**values, **change}), tmp_path / "run", resume=True, progress=False)
 
 
 def test_bad_training_config_names_the_key():

@@ -179,7 +179,9 @@ class TrainConfig:
     learning_rate_end: float | None = None
     """None: ``learning_rate`` stays constant; a number: the learning rate falls linearly from
     ``hyperparameters.learning_rate`` (or the algorithm's default) to this over ``total_steps``
-    (SB3's ``LinearSchedule`` on its progress; a run stopped by ``max_minutes`` ends part way down)."""
+    (:class:`LinearRate` on SB3's progress; a run stopped by ``max_minutes`` ends part way down). The
+    schedule is the run's: resuming refuses another ``learning_rate``, ``learning_rate_end`` or
+    ``total_steps`` for it."""
     net_arch: list[int] = field(default_factory=lambda: [64, 64])
     activation: str = "tanh"
     log_std_init: float = 0.0
@@ -236,7 +238,8 @@ class TrainConfig:
         check_numbers("train", self, ("clip_observations",))
         if self.learning_rate_end is not None:
             check_numbers("train", self, ("learning_rate_end",), positive=False)
-            if not isinstance(self.hyperparameters.get("learning_rate", 0.0), (int, float)):
+            start = self.hyperparameters.get("learning_rate", 0.0)
+            if not isinstance(start, float | int) or isinstance(start, bool):
                 raise ValueError(
                     f"learning_rate_end={self.learning_rate_end!r} schedules a number; "
                     f"hyperparameters.learning_rate={self.hyperparameters['learning_rate']!r} is not one"
@@ -301,6 +304,7 @@ def check_training(config: TrainConfig, folder: str | Path, resume: bool = False
     try:
         if resume:
             latest_snapshot(folder)
+            _check_schedule_kept(config, folder)
         elif folder.exists() and any(folder.iterdir()):
             raise ValueError(f"run folder {str(folder)!r} is not empty; resume it or give a new folder")
         try:
@@ -341,6 +345,46 @@ def check_training(config: TrainConfig, folder: str | Path, resume: bool = False
                 )
     except (ValueError, FileNotFoundError) as error:
         raise TrainingConfigError(str(error)) from None
+
+
+@dataclass(frozen=True)
+class LinearRate:
+    """A learning-rate schedule for SB3 (a callable of its ``progress_remaining``, 1 at the start of
+    the run and 0 at ``total_steps``): ``start`` falling linearly to ``end``."""
+
+    start: float
+    end: float
+
+    def __call__(self, progress_remaining: float) -> float:
+        return self.end + (self.start - self.end) * progress_remaining
+
+
+SCHEDULE_KEYS = ("hyperparameters.learning_rate", "learning_rate_end", "total_steps")
+"""What fixes a run's learning-rate schedule when it has one (``learning_rate_end``)."""
+
+
+def _check_schedule_kept(config: TrainConfig, folder: Path) -> None:
+    """Refuse resuming a run whose schedule (:data:`SCHEDULE_KEYS`) the new config would change: the
+    saved model keeps the one it started with, and a longer run would move its line."""
+    saved = folder / "config.yaml"
+    if not saved.is_file():
+        return
+    before = load_yaml(saved)
+    now = dataclasses.asdict(config)
+    if before.get("learning_rate_end") is None and config.learning_rate_end is None:
+        return
+
+    def value(values: dict, key: str) -> Any:
+        section, _, name = key.rpartition(".")
+        return (values.get(section) or {}).get(name) if section else values.get(name)
+
+    changed = [f"{key}: {value(before, key)!r} -> {value(now, key)!r}" for key in SCHEDULE_KEYS
+               if value(before, key) != value(now, key)]  # fmt: skip
+    if changed:
+        raise ValueError(
+            f"resuming {str(folder)!r} would change its learning-rate schedule ({'; '.join(changed)}); "
+            "a run with learning_rate_end keeps the schedule it started with: train a new run instead"
+        )
 
 
 def _default(algorithm: type[BaseAlgorithm], name: str) -> Any:
@@ -434,10 +478,8 @@ def new_model(config: TrainConfig, env: Any, tensorboard_log: str | None = None)
     algorithm = _algorithm(config.algorithm)
     hyperparameters = dict(config.hyperparameters)
     if config.learning_rate_end is not None:
-        from stable_baselines3.common.utils import LinearSchedule
-
         start = hyperparameters.get("learning_rate", _default(algorithm, "learning_rate"))
-        hyperparameters["learning_rate"] = LinearSchedule(start, config.learning_rate_end, 1.0)
+        hyperparameters["learning_rate"] = LinearRate(float(start), float(config.learning_rate_end))
     return algorithm(
         POLICY_CLASSES[config.algorithm], env, seed=config.seed, device="cpu", verbose=0,
         policy_kwargs=policy_kwargs, tensorboard_log=tensorboard_log, **hyperparameters,

@@ -59,7 +59,7 @@ class CompiledForm:
     ``"module:function"`` takes the function from another module (e.g. :data:`STILL`)."""
     state: str | None = None
     """Name of the component's (N, width) state array, which the compiled step turns into a view of
-    its buffer (both paths then update the same numbers), or None without state."""
+    its buffer (the kernels update it in place), or None without state."""
     table: str | None = None
     """Name of the component's (N, W) per-vehicle table attribute (e.g. each vehicle's fan motion),
     read again at every episode start, or None."""

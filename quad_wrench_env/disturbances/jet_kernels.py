@@ -1,7 +1,8 @@
-"""Compiled forms of the round turbulent jet (:mod:`.fan`, :mod:`.jet`): the numpy reference's arithmetic,
-point by point. A jet's numbers start ``[on, U0, x_c, R, c]`` (on > 0, outlet speed, core length
-``D/(2c)``, outlet radius ``D/2``, spread); :func:`jet_speed` and :func:`transit_time` read those. Both
-jets' turbulence steps with :func:`turbulence_step`."""
+"""Compiled forms of the round turbulent jet (:mod:`.fan`, :mod:`.jet`), point by point: what every physics
+step runs (the fields' ``velocity_at`` gives the same air at an episode's start). A jet's numbers start
+``[on, U0, x_c, R, c]`` (on > 0, outlet speed, core length ``D/(2c)``, outlet radius ``D/2``, spread);
+:func:`jet_speed` and :func:`transit_time` read those. Both jets' turbulence steps with
+:func:`turbulence_step`."""
 
 from __future__ import annotations
 

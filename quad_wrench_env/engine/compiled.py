@@ -1,22 +1,20 @@
-"""A fleet's physics step on compiled kernels: the engine's (:mod:`.kernels`) and its components', in
-the step :mod:`.compose` writes for them.
+"""A fleet's physics step on compiled kernels: the engine's (:mod:`.kernels`) and its components', in the
+step :mod:`.compose` writes for them.
 
 The numbers the kernels need are packed here once from the fleet's own components
-(:func:`~quad_wrench_env.engine.kernels.physics_constants`, then each component's
-``kernel_parameters``), so the kernels read exactly the parameters the numpy reference uses. The
-kernels work on the fleet's own step buffer (:attr:`Fleet.buffer`, whose views are the fleet's
-``state``, ``time``, ``wrench_true`` and ``wind_velocity``, the autopilot's and the rotors' state and
-each component's declared state, e.g. the fan's turbulence), so both paths update the same numbers in
-place; the mixer's saturation flags, the components' per-vehicle tables and the noise blocks are arrays
-of their own. The fleet calls :meth:`CompiledStep.rebind` after every reset and
-:meth:`CompiledStep.bind_estimator` when its estimator bank is replaced.
+(:func:`~quad_wrench_env.engine.kernels.physics_constants`, then each component's ``kernel_parameters``),
+so the kernels read exactly the parameters the components hold. The kernels work on the fleet's own step
+buffer (:attr:`Fleet.buffer`, whose views are the fleet's ``state``, ``time``, ``wrench_true`` and
+``wind_velocity``, the autopilot's and the rotors' state and each component's declared state, e.g. the
+fan's turbulence), updated in place; the mixer's saturation flags, the components' per-vehicle tables and
+the noise blocks are arrays of their own. The fleet calls :meth:`CompiledStep.rebind` after every reset
+and :meth:`CompiledStep.bind_estimator` when its estimator bank is replaced.
 
 Every kernel is called in its compiled form on arguments bound once per episode
 (:func:`~quad_wrench_env.kernels.bind`). A fleet of one vehicle (the single env) meets PyBullet with
-tuples instead of arrays: the before-step kernel returns the loads as ``World.step_one`` takes them
-and the after-step kernel takes ``World.read_first``'s tuples, so Python builds no lists or arrays at
-the boundary (about 0.9 µs less per physics step).
-"""
+tuples instead of arrays: the before-step kernel returns the loads as ``World.step_one`` takes them and
+the after-step kernel takes ``World.read_first``'s tuples, so Python builds no lists or arrays at the
+boundary (about 0.9 µs less per physics step)."""
 
 from __future__ import annotations
 
@@ -44,6 +42,7 @@ class CompiledStep:
     def __init__(self, fleet: Fleet) -> None:
         self.fleet = fleet
         ap, sensors, count = fleet.autopilot, fleet.cfg.sensors, fleet.count
+        latency = sensors.latency_steps
         action_type, scales = fleet.action_scaling.kernel_parameters()
         sensing = (
             fleet.motor_sensor.levels, fleet.motor_sensor.step, sensors.position_noise,
@@ -57,7 +56,7 @@ class CompiledStep:
                 "motors": np.append(fleet.rotors.kernel_parameters(), fleet.drag.coefficient),
                 "sensing": np.array(sensing), "dt": fleet.dt,
                 "noise_column": fleet.sensor_noise_column,
-                "delay_line": (sensors.latency_steps, fleet.delay_line_start),
+                "delay_line": (latency, fleet.delay_line_start if latency else 0),  # unused without latency
             },
             fleet.drag_points,
         )  # fmt: skip

@@ -65,7 +65,7 @@ class Slot:
         if "__main__" in modules:
             raise ValueError(
                 "a compiled form's kernels must live in an importable module, not in __main__ (a script "
-                "or notebook): move them to a module file, or give the component compiled=None"
+                "or notebook): move them to a module file"
             )
         roles = dict(self.form.kernels)
         missing = [role for role in ROLES[self.kind] if role not in roles]

@@ -80,7 +80,8 @@ class EnvConfig:
     """None: the estimators turn the reported motor speeds into thrust and torque through the nominal
     mixer (the rotors' errors look like an external wrench). A number σ: the vehicle's rotors were
     calibrated (e.g. on a thrust stand) to a relative residual of sd σ: the estimators' mixer uses
-    ``k·(1 + ε_i + δ_i)``, ``δ_i ~ N(0, σ²)`` drawn per episode after ``ε_i`` (0: the true coefficients).
+    ``k·(1 + ε_i + δ_i)``, ``δ_i ~ N(0, σ²)`` drawn per episode from a generator of their own (0: the true
+    coefficients; no other random number of the episode moves).
     Give the filters the same residual as ``estimator_params.rotor_spread``."""
     sensors: SensorConfig = field(default_factory=SensorConfig)
     payload: PayloadConfig = field(default_factory=PayloadConfig)
@@ -124,7 +125,8 @@ class EnvConfig:
         if not (0.0 <= self.kf_spread < 0.5):
             raise ValueError(f"kf_spread={self.kf_spread!r} must be in [0, 0.5)")
         calibration = self.rotor_calibration
-        if calibration is not None and not (isinstance(calibration, float | int) and 0 <= calibration < 0.5):
+        number = isinstance(calibration, float | int) and not isinstance(calibration, bool)
+        if calibration is not None and not (number and 0 <= calibration < 0.5):
             raise ValueError(f"rotor_calibration={calibration!r} must be None or a number in [0, 0.5)")
         validate_segments(self.external_wrench)
         for position, spec in enumerate(self.wind):

@@ -1,6 +1,7 @@
-"""The engine's own arithmetic for N vehicles, compiled: the numpy reference of
-:mod:`quad_wrench_env.autopilot`, :mod:`quad_wrench_env.rotors`, :mod:`quad_wrench_env.disturbances.drag`
-and :mod:`quad_wrench_env.sensors`, vehicle by vehicle, with no component (wind field, point load,
+"""The engine's own arithmetic for N vehicles, compiled: the autopilot (gains and state in
+:mod:`quad_wrench_env.autopilot`), the motors (:mod:`quad_wrench_env.rotors`), the body's drag
+(:mod:`quad_wrench_env.disturbances.drag`) and the sensors (:mod:`quad_wrench_env.sensors`), vehicle by
+vehicle, with no component (wind field, point load,
 rotor modifier, task) in it: :mod:`.compose` writes the physics step that calls these kernels and the
 components' own between them.
 
@@ -234,7 +235,7 @@ def controls(actions, buffer, saturated, constants):
     for n in range(actions.shape[0]):
         r = rotation[n]
         a = actions[n]
-        # -- autopilot (Autopilot.velocity_command / attitude_command / wrench_command) --
+        # -- autopilot: the velocity, attitude, wrench or motors action through the cascade --
         if action_type == MOTORS:
             for i in range(4):
                 command[i] = 0.5 * (a[i] + 1.0) * scales[9]
@@ -316,7 +317,7 @@ def controls(actions, buffer, saturated, constants):
                 thrust, torque[0] + c0, torque[1] + c1, torque[2] + c2, inverse, w2_min, w2_max,
                 command, scratch,
             )  # fmt: skip
-        # -- motors (Rotors.step, thrust_and_torque) --
+        # -- motors: the lag towards the command, then the true rotors' [c_t, tau] --
         for i in range(4):
             target = min(max(command[i], min_speed), max_speed)
             error = target - speeds[n, i]

@@ -1,8 +1,8 @@
 """The observation's layout, declared once by name: the engine's blocks, then the task's.
 
-Both paths read this declaration: the numpy reference fills each block through its slice, the
-compiled kernel (:func:`~quad_wrench_env.engine.kernels.assemble_observations`) through
-:attr:`ObservationLayout.kernel_starts`; ``env.unwrapped.obs_layout`` is :attr:`ObservationLayout.slices`.
+The compiled kernel (:func:`~quad_wrench_env.engine.kernels.assemble_observations`) fills the engine's
+blocks through :attr:`ObservationLayout.kernel_starts`, the tasks theirs through the slices;
+``env.unwrapped.obs_layout`` is :attr:`ObservationLayout.slices`.
 """
 
 from __future__ import annotations
@@ -10,7 +10,6 @@ from __future__ import annotations
 import numpy as np
 from gymnasium import spaces
 
-from quad_wrench_env.rotations import rotation_matrices
 from quad_wrench_env.vehicle import GRAVITY, VehicleParams
 
 ENGINE_BLOCKS: tuple[tuple[str, int], ...] = (
@@ -67,20 +66,6 @@ class ObservationLayout:
         frame = np.concatenate([np.full(n, bound[name]) for name, n in self.fields])
         high = np.tile(frame, self.history + 1).astype(np.float32)
         return spaces.Box(-high, high, dtype=np.float32)
-
-    def fill_engine_blocks(
-        self, states: np.ndarray, wrenches: np.ndarray, last_actions: np.ndarray, observe_wrench: float,
-        out: np.ndarray,
-    ) -> None:  # fmt: skip
-        """The numpy form of ``assemble_observations``: the engine's blocks of ``out``."""
-        s = self.slices
-        rotation = rotation_matrices(states[:, 6:10] / np.linalg.norm(states[:, 6:10], axis=1, keepdims=True))
-        out[:, s["position"]] = states[:, :3]
-        out[:, s["velocity"]] = states[:, 3:6]
-        out[:, s["attitude"]] = rotation[:, :, :2].transpose(0, 2, 1).reshape(-1, 6)
-        out[:, s["body_rates"]] = states[:, 10:13]
-        out[:, s["wrench"]] = wrenches * observe_wrench
-        out[:, s["last_action"]] = last_actions
 
 
 class ObservationHistory:
