@@ -369,24 +369,25 @@ class _Spy:
         return self._inner.step(*args)
 
 
-def _spied_env(estimator: str, **kwargs):
+def _spied_flight(estimator: str, **kwargs):
+    """The fleet and the spy's calls of 5 control steps of zero actions (20 physics steps)."""
     env = gym.make("QuadWrench/FanTracking-v1", estimator=estimator, **kwargs)
-    env.reset(seed=3, options={"offset_y": 0.4})
-    fleet = env.unwrapped.fleet
-    fleet.estimator = spy = _Spy(fleet.estimator, fleet)
-    return env, fleet, spy.calls
+    try:
+        env.reset(seed=3, options={"offset_y": 0.4})
+        fleet = env.unwrapped.fleet
+        fleet.estimator = spy = _Spy(fleet.estimator, fleet)
+        for _ in range(5):
+            env.step(np.zeros(4, dtype=np.float32))
+    finally:
+        env.close()
+    return fleet, spy.calls
 
 
 def test_the_estimators_get_the_nominal_mixer_of_the_quantized_speeds():
     """Catches the env feeding the estimators the true rotor speeds or the true per-rotor kf: the
     thrust and body torque each step are the nominal Mixer applied to the speeds rounded to the
     nearest of 2^8 - 1 levels over [0, max_rotor_speed] (computed here), and differ from the truth."""
-    env, fleet, calls = _spied_env("ukf", kf_spread=0.05)
-    try:
-        for _ in range(5):
-            env.step(np.zeros(4, dtype=np.float32))
-    finally:
-        env.close()
+    fleet, calls = _spied_flight("ukf", kf_spread=0.05)
     mixer, step = Mixer(VEHICLE), VEHICLE.max_rotor_speed / 255.0
     true_allocation = fleet.rotors.allocations[0]
     assert len(calls) >= 5
@@ -408,12 +409,7 @@ def test_a_calibrated_vehicles_estimators_get_its_rotors_to_the_residual(calibra
     the 5 % spread; the motion capture's noise is the uncalibrated vehicle's, draw for draw (the
     residual has a generator of its own). Catches the nominal mixer kept (errors of the spread's size),
     the truth handed over (no residual) or a residual drawn from the episode's generator."""
-    env, fleet, calls = _spied_env("ukf", kf_spread=0.05, rotor_calibration=calibration)
-    try:
-        for _ in range(5):
-            env.step(np.zeros(4, dtype=np.float32))
-    finally:
-        env.close()
+    fleet, calls = _spied_flight("ukf", kf_spread=0.05, rotor_calibration=calibration)
     step = VEHICLE.max_rotor_speed / 255.0
     true_kf = fleet.rotors.allocations[0, 0] / VEHICLE.kf  # (1 + ε_i), the true rotors' row of thrusts
     sensed_kf = fleet.rotors.sensed_allocations[0, 0] / VEHICLE.kf
@@ -430,12 +426,7 @@ def test_a_calibrated_vehicles_estimators_get_its_rotors_to_the_residual(calibra
         np.testing.assert_allclose(torques[0], expected[1:], atol=1e-12)
         nominal = Mixer(VEHICLE).wrench(np.sqrt(squared))
         assert abs(thrusts[0] - nominal[0]) > 1e-4 * nominal[0]  # not the nominal mixer
-    env, _, uncalibrated = _spied_env("ukf", kf_spread=0.05)
-    try:
-        for _ in range(5):
-            env.step(np.zeros(4, dtype=np.float32))
-    finally:
-        env.close()
+    _, uncalibrated = _spied_flight("ukf", kf_spread=0.05)
     for ((_, _, position, quaternion, *_), *_), ((_, _, position_0, quaternion_0, *_), *_) in zip(
         calls, uncalibrated, strict=True
     ):
@@ -448,12 +439,7 @@ def test_a_state_estimator_feeds_velocity_and_rates_near_the_truth(name):
     """Catches the env dropping (None) or garbling the onboard state estimator's measurements: with
     sensors.state_estimator the EKF and the observer get velocity and body rates within 5 σ (0.05)
     of the true ones every step."""
-    env, _, calls = _spied_env(name, sensors={"state_estimator": True})
-    try:
-        for _ in range(5):
-            env.step(np.zeros(4, dtype=np.float32))
-    finally:
-        env.close()
+    _, calls = _spied_flight(name, sensors={"state_estimator": True})
     assert len(calls) == 20  # four physics steps per control step
     for (_, _, _, _, velocities, rates), _, truth in calls:
         assert velocities is not None and rates is not None
