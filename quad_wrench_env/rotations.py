@@ -30,7 +30,6 @@ __all__ = [
     "quat_from_matrix",
     "quat_from_mrp",
     "quat_multiply",
-    "quat_multiply_rows",
     "quat_normalize",
     "rotation_matrices",
     "rotation_matrix",
@@ -187,18 +186,6 @@ def rows_times(rows: np.ndarray, matrix: np.ndarray) -> np.ndarray:
     return out
 
 
-def quat_multiply_rows(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Hamilton products ``a ⊗ b`` row-wise for (..., 4) arrays (leading dimensions broadcast), as
-    one matrix product with the bilinear tensor of ``⊗``; a single quaternion on either side
-    multiplies every row."""
-    if a.ndim == 1:
-        return rows_times(b, a @ _PRODUCT_JIK)  # a ⊗ b = b @ M(a), M[j, k] = Σ_i a_i P[i, j, k]
-    if b.ndim == 1:
-        return rows_times(a, _PRODUCT_IKJ @ b)  # a ⊗ b = a @ N(b), N[i, k] = Σ_j P[i, j, k] b_j
-    outer = a[..., :, None] * b[..., None, :]  # leading dimensions broadcast
-    return rows_times(outer.reshape(*outer.shape[:-2], 16), _PRODUCT)
-
-
 def rotation_matrices(q: np.ndarray) -> np.ndarray:
     """(..., 3, 3) body -> world matrices of (..., 4) unit quaternions (one product with the bilinear
     tensor, :func:`rows_times`)."""
@@ -246,8 +233,5 @@ def skew(v: np.ndarray) -> np.ndarray:
     return np.array(((0.0, -v[2], v[1]), (v[2], 0.0, -v[0]), (-v[1], v[0], 0.0)))
 
 
-# Bilinear tensors of the row-wise helpers, read off the single-quaternion functions above.
-_PRODUCT = _bilinear_tensor(quat_multiply, 4, 4)
-_PRODUCT_JIK = _PRODUCT.reshape(4, 4, 4).transpose(1, 0, 2).copy()
-_PRODUCT_IKJ = _PRODUCT.reshape(4, 4, 4).transpose(0, 2, 1).copy()
+# The bilinear tensor of the row-wise rotation matrices, read off the single-quaternion form above.
 _ROTATION = _bilinear_tensor(_homogeneous_rotation, 4, 4)

@@ -22,7 +22,7 @@ from quad_wrench_env.estimators import EKFNoise, FilterNoise, make_estimator, ma
 from quad_wrench_env.kernels.ekf import ekf_bank_step, ekf_transition
 from quad_wrench_env.kernels.observer import observer_bank_step
 from quad_wrench_env.kernels.ukf import ukf_bank_step
-from quad_wrench_env.rotations import cross, quat_exp, quat_multiply, quat_multiply_rows, rotation_matrix
+from quad_wrench_env.rotations import cross, quat_exp, quat_multiply, rotation_matrix
 from quad_wrench_env.vehicle import GRAVITY, Mixer, make_vehicle
 
 DT = 0.005
@@ -295,9 +295,8 @@ def measured_rise_time(name: str, seconds: float, motion: bool = False, **settin
         position = start + np.array((0.5 * STEP_FORCE / MASS * after**2, 0.0, 0.0))
         velocity = np.array((STEP_FORCE / MASS * after, 0.0, 0.0))
         noisy = position + POSITION_NOISE * rng.standard_normal((count, 3))
-        attitude = quat_multiply_rows(
-            np.tile(level, (count, 1)), quat_exp(ATTITUDE_NOISE * rng.standard_normal((count, 3)))
-        )
+        errors = quat_exp(ATTITUDE_NOISE * rng.standard_normal((count, 3)))
+        attitude = np.array([quat_multiply(level, error) for error in errors])
         moving = rates = None
         if motion:
             moving = velocity + MOTION_NOISE[0] * rng.standard_normal((count, 3))

@@ -111,13 +111,6 @@ def test_row_wise_helpers_match_single_ones():
     rng = np.random.default_rng(0)
     qs = np.array([r.quat_normalize(x) for x in rng.normal(size=(6, 4))])
     np.testing.assert_allclose(r.rotation_matrices(qs), [r.rotation_matrix(q) for q in qs], atol=1e-14)
-    np.testing.assert_allclose(
-        r.quat_multiply_rows(qs, qs[::-1]), [r.quat_multiply(a, b) for a, b in zip(qs, qs[::-1], strict=True)]
-    )
-    single = qs[0]
-    np.testing.assert_allclose(r.quat_multiply_rows(single, qs), [r.quat_multiply(single, b) for b in qs])
-    np.testing.assert_allclose(r.quat_multiply_rows(qs, single), [r.quat_multiply(a, single) for a in qs])
-    np.testing.assert_allclose(r.quat_multiply_rows(single, qs[1]), r.quat_multiply(single, qs[1]))
     np.testing.assert_allclose(r.mrp_from_quat(qs), [r.mrp_from_quat(q) for q in qs])
 
 
