@@ -8,9 +8,11 @@ import math
 import numpy as np
 import pytest
 
-from quad_wrench_env.disturbances.fan import ConstantSpeed, PiecewiseVelocity, Sine, Static
+from quad_wrench_env.config import build
+from quad_wrench_env.disturbances.fan import ConstantSpeed, FanConfig, PiecewiseVelocity, Sine, Static
 from quad_wrench_env.rotations import rotation_matrix
-from quad_wrench_env.tasks.fan_tracking import FanEpisodes
+from quad_wrench_env.tasks.fan_tracking import FanEpisodes, FanTrackingConfig
+from quad_wrench_env.vehicle import make_vehicle
 
 
 def test_attitude_block_is_the_rotation_matrix_and_moves_no_faster_than_the_body_rates(make_env):
@@ -138,3 +140,31 @@ def test_observe_wrench_false_zeroes_the_wrench_blocks_only(make_env):
     keep[layout["wrench"]] = False
     np.testing.assert_array_equal(a[keep], b[keep])
     np.testing.assert_array_equal(info_a["wrench_est"], info_b["wrench_est"])
+
+
+def test_fan_force_walk_is_the_turbulent_drags_change_per_step_added_to_the_default():
+    """``fan_force_walk``: the force walk written into ``estimator_params`` is the vehicle's default
+    (``ardrone2``: 4e-3 N) and, in quadrature, the per-step change of the turbulence's drag, worked here
+    from the jet's definition (``docs/physics.md``, "Fan"): at x = 2.3 m, b = sqrt((D/2)² + (c x)²),
+    u_c = U0·D/(√2·b) (beyond the core), a = exp(-dt·u_c/b); body drag ½ρ·C_dA·u_c² (ρ = 1.2) changes by
+    2I of itself along the jet and I across, rotor drag d·m·u_c by I along x and y. A given force_walk is
+    kept; the observer and the named settings are refused."""
+    fan = FanConfig()
+    vehicle = make_vehicle("ardrone2")
+    b = math.hypot(fan.outlet_diameter / 2, fan.spread * 2.3)
+    u_c = fan.outlet_speed * fan.outlet_diameter / (math.sqrt(2.0) * b)
+    assert fan.outlet_diameter / (math.sqrt(2.0) * b) < 1.0  # beyond the core
+    step = math.sqrt(1.0 - math.exp(-2.0 * (1.0 / 200.0) * u_c / b))
+    body, rotor = 0.5 * 1.2 * vehicle.drag_area * u_c**2, vehicle.rotor_drag_decel * vehicle.mass * u_c
+    axes = (2 * body + rotor, body + rotor, body)
+    turbulent = fan.turbulence_intensity * step * math.sqrt(sum(f * f for f in axes) / 3)
+    cfg = build(FanTrackingConfig, {"fan_force_walk": True})
+    assert cfg.estimator_params["force_walk"] == pytest.approx(math.hypot(4e-3, turbulent), rel=1e-12)
+    assert 0.03 < turbulent < 0.05  # 10x the default: the fan's turbulence outruns the hover walk
+    assert build(FanTrackingConfig, {}).estimator_params == {}
+    kept = build(FanTrackingConfig, {"fan_force_walk": True, "estimator_params": {"force_walk": 0.01}})
+    assert kept.estimator_params == {"force_walk": 0.01}
+    with pytest.raises(ValueError, match="estimator='observer' has none"):
+        build(FanTrackingConfig, {"fan_force_walk": True, "estimator": "observer"})
+    with pytest.raises(ValueError, match="estimator_params='paper'"):
+        build(FanTrackingConfig, {"fan_force_walk": True, "estimator_params": "paper"})

@@ -25,7 +25,9 @@ import numpy as np
 
 from quad_wrench_env.config import check_numbers
 from quad_wrench_env.disturbances.base import CompiledForm, Outlet
+from quad_wrench_env.disturbances.drag import AIR_DENSITY
 from quad_wrench_env.disturbances.jet_kernels import jet_axis_y
+from quad_wrench_env.vehicle import VehicleParams
 
 
 class FanMotion(Protocol):
@@ -123,6 +125,28 @@ def half_width(x: np.ndarray, radius2: float, spread: float) -> np.ndarray:
 def centreline_speed(x: np.ndarray, u0: float, radius2: float, spread: float) -> np.ndarray:
     """``u_c = U0·min(1, D/(√2·b))``: the outlet's momentum flux, spread over the profile."""
     return u0 * np.minimum(1.0, np.sqrt(2.0 * radius2) / half_width(x, radius2, spread))
+
+
+def turbulence_force_walk(config: FanConfig, vehicle: VehicleParams, distance: float, dt: float) -> float:
+    """N: the RMS over the three axes of the change in one step ``dt`` of the drag the fan's turbulence
+    puts on ``vehicle`` level and at rest on the jet's axis ``distance`` from the fan: what a random
+    walk of the external force must take per filter step to follow it. The air is ``u_c·(e_x + I·n)``,
+    ``n`` the unit-variance Ornstein-Uhlenbeck turbulence of time scale ``b/u_c`` (``n`` changes by
+    ``sqrt(1 - a²)`` sd per step, ``a = exp(-dt·u_c/b)``); linearised about the mean, the quadratic body
+    drag ``F_q = ½ρ·C_dA·u_c²`` changes by ``2·I·F_q`` along the jet and ``I·F_q`` across it, the rotor
+    drag ``F_r = d·m·u_c`` (``rotor_drag_decel`` d, in the rotor plane) by ``I·F_r`` along x and y.
+    The jet model: ``docs/physics.md``, "Fan" (McKinnon & Schoellig 2016's fan)."""
+    if not config.enabled or config.turbulence_intensity == 0.0:
+        return 0.0
+    x = np.asarray(max(distance, 1e-3))
+    radius2 = (0.5 * config.outlet_diameter) ** 2
+    speed = float(centreline_speed(x, config.outlet_speed, radius2, config.spread))
+    width = float(half_width(x, radius2, config.spread))
+    decay = math.exp(-dt * speed / width)
+    quadratic = 0.5 * AIR_DENSITY * vehicle.drag_area * speed * speed
+    rotor = vehicle.rotor_drag_decel * vehicle.mass * speed
+    per_axis = np.array((2.0 * quadratic + rotor, quadratic + rotor, quadratic))
+    return float(config.turbulence_intensity * math.sqrt(1.0 - decay * decay) * np.sqrt(np.mean(per_axis**2)))
 
 
 RANDOM = "random"

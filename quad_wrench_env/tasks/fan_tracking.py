@@ -72,14 +72,23 @@ from typing import TYPE_CHECKING, Any, ClassVar
 import numpy as np
 
 from quad_wrench_env.config import check_numbers
-from quad_wrench_env.disturbances.fan import MOTIONS, RANDOM, FanConfig, FanJet, FanMotion, make_motion
+from quad_wrench_env.disturbances.fan import (
+    MOTIONS,
+    RANDOM,
+    FanConfig,
+    FanJet,
+    FanMotion,
+    make_motion,
+    turbulence_force_walk,
+)
 from quad_wrench_env.disturbances.jet_kernels import jet_speed, motion_y, transit_time
 from quad_wrench_env.engine.components import Components
 from quad_wrench_env.engine.config import EnvConfig
+from quad_wrench_env.estimators.noise import FilterNoise
 from quad_wrench_env.kernels import njit
 from quad_wrench_env.registry import register
 from quad_wrench_env.tasks.base import TaskDefaults, TaskStep
-from quad_wrench_env.vehicle import VehicleParams
+from quad_wrench_env.vehicle import VehicleParams, make_vehicle
 
 if TYPE_CHECKING:
     from quad_wrench_env.engine.fleet import Fleet
@@ -183,11 +192,39 @@ class FanTrackingConfig(EnvConfig):
     """x (m) in front of the fan where the vehicle starts and must stay (McKinnon & Schoellig 2016 Fig. 7)."""
     max_initial_offset: float = 0.8
     reward: FanTrackingReward = field(default_factory=FanTrackingReward)
+    fan_force_walk: bool = False
+    """True: the UKF's and the EKF's force random walk is the vehicle's default and the fan turbulence's
+    drag change per physics step at the stand-off (:func:`~quad_wrench_env.disturbances.fan.
+    turbulence_force_walk`) added in quadrature, written into ``estimator_params`` (unless it gives
+    ``force_walk``): a force covariance that follows the fan's turbulence (``docs/estimators.md``, "The
+    fan's turbulence as process noise"). False (default): the vehicle's default walk."""
 
     def __post_init__(self) -> None:
         super().__post_init__()
         check_numbers("env", self, ("standoff_distance",))
         check_numbers("env", self, ("max_initial_offset",), positive=False)
+        if not isinstance(self.fan_force_walk, bool):
+            raise ValueError(f"fan_force_walk={self.fan_force_walk!r} must be true or false")
+        if self.fan_force_walk:
+            self._size_the_force_walk()
+
+    def _size_the_force_walk(self) -> None:
+        if self.estimator not in ("ukf", "ekf"):
+            raise ValueError(
+                f"fan_force_walk=True sizes the UKF's and the EKF's force random walk; "
+                f"estimator={self.estimator!r} has none (allowed: 'ukf', 'ekf')"
+            )
+        if isinstance(self.estimator_params, str):
+            raise ValueError(
+                f"fan_force_walk=True with estimator_params={self.estimator_params!r}: the named settings "
+                "fix their own walks; give a mapping (with force_walk to set it yourself)"
+            )
+        if "force_walk" in self.estimator_params:
+            return
+        vehicle = make_vehicle(self.vehicle, **self.vehicle_params)
+        base = FilterNoise().for_vehicle(vehicle).force_walk
+        fan = turbulence_force_walk(self.fan, vehicle, self.standoff_distance, 1.0 / self.physics_hz)
+        self.estimator_params = {**self.estimator_params, "force_walk": math.hypot(base, fan)}
 
 
 @register("task")
