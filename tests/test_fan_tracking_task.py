@@ -9,6 +9,8 @@ import numpy as np
 import pytest
 
 from quad_wrench_env.config import build
+from quad_wrench_env.engine.world import RigidBodyState
+from quad_wrench_env.estimators.noise import FilterNoise
 from quad_wrench_env.disturbances.fan import ConstantSpeed, FanConfig, PiecewiseVelocity, Sine, Static
 from quad_wrench_env.rotations import rotation_matrix
 from quad_wrench_env.tasks.fan_tracking import FanEpisodes, FanTrackingConfig
@@ -142,29 +144,48 @@ def test_observe_wrench_false_zeroes_the_wrench_blocks_only(make_env):
     np.testing.assert_array_equal(info_a["wrench_est"], info_b["wrench_est"])
 
 
-def test_fan_force_walk_is_the_turbulent_drags_change_per_step_added_to_the_default():
-    """``fan_force_walk``: the force walk written into ``estimator_params`` is the vehicle's default
-    (``ardrone2``: 4e-3 N) and, in quadrature, the per-step change of the turbulence's drag, worked here
-    from the jet's definition (``docs/physics.md``, "Fan"): at x = 2.3 m, b = sqrt((D/2)² + (c x)²),
-    u_c = U0·D/(√2·b) (beyond the core), a = exp(-dt·u_c/b); body drag ½ρ·C_dA·u_c² (ρ = 1.2) changes by
-    2I of itself along the jet and I across, rotor drag d·m·u_c by I along x and y. A given force_walk is
-    kept; the observer and the named settings are refused."""
+@pytest.mark.parametrize("vehicle", ["ardrone2", "yuksel1kg"])
+def test_fan_walks_are_the_turbulences_largest_change_per_step_added_to_the_defaults(make_env, vehicle):
+    """``fan_walks`` (default): the force and torque walks in ``estimator_params`` are the vehicle's
+    defaults and, in quadrature, the largest over lateral offsets of the per-step change of the wrench the
+    turbulence puts on the vehicle, measured here on the env's own loads: the fan's turbulence state
+    ``n`` nudged along each axis, ``Fleet.external_loads`` differenced (every drag point, the rotors' drag
+    at their trimmed speeds), times the OU step ``sqrt(1 - a²)``, ``a = exp(-dt·u_c/b)`` worked from the
+    jet's definition (``docs/physics.md``, "Fan": x = 2.3 m, b = sqrt((D/2)² + (c x)²), u_c = U0·D/(√2·b)
+    beyond the core, dt = 1/200 s). A given walk is kept; the observer, the truth and named settings get
+    none; false leaves the defaults."""
     fan = FanConfig()
-    vehicle = make_vehicle("ardrone2")
     b = math.hypot(fan.outlet_diameter / 2, fan.spread * 2.3)
     u_c = fan.outlet_speed * fan.outlet_diameter / (math.sqrt(2.0) * b)
     assert fan.outlet_diameter / (math.sqrt(2.0) * b) < 1.0  # beyond the core
     step = math.sqrt(1.0 - math.exp(-2.0 * (1.0 / 200.0) * u_c / b))
-    body, rotor = 0.5 * 1.2 * vehicle.drag_area * u_c**2, vehicle.rotor_drag_decel * vehicle.mass * u_c
-    axes = (2 * body + rotor, body + rotor, body)
-    turbulent = fan.turbulence_intensity * step * math.sqrt(sum(f * f for f in axes) / 3)
-    cfg = build(FanTrackingConfig, {"fan_force_walk": True})
-    assert cfg.estimator_params["force_walk"] == pytest.approx(math.hypot(4e-3, turbulent), rel=1e-12)
-    assert 0.03 < turbulent < 0.05  # 10x the default: the fan's turbulence outruns the hover walk
-    assert build(FanTrackingConfig, {}).estimator_params == {}
-    kept = build(FanTrackingConfig, {"fan_force_walk": True, "estimator_params": {"force_walk": 0.01}})
-    assert kept.estimator_params == {"force_walk": 0.01}
-    with pytest.raises(ValueError, match="estimator='observer' has none"):
-        build(FanTrackingConfig, {"fan_force_walk": True, "estimator": "observer"})
-    with pytest.raises(ValueError, match="estimator_params='paper'"):
-        build(FanTrackingConfig, {"fan_force_walk": True, "estimator_params": "paper"})
+    env = make_env(vehicle=vehicle, fan={"motion": "static"}).unwrapped
+    env.reset(seed=0, options={"offset_y": 0.0})
+    jet = next(field for field in env.fleet.components.winds if field.name == "fan")
+    level = np.array(((1.0, 0.0, 0.0, 0.0),))
+    largest = np.zeros(2)
+    for offset in np.linspace(0.0, b, 41):
+        rest = RigidBodyState.at_rest(np.array(((2.3, offset, fan.height),)), level)
+        columns = []
+        for axis in range(3):
+            jet.noise[0] = 0.0
+            jet.noise[0, axis] = 1e-4
+            nudged = env.fleet.external_loads(rest, np.array((0,)))[0]
+            jet.noise[0, axis] = -1e-4
+            columns.append((nudged - env.fleet.external_loads(rest, np.array((0,)))[0]) / 2e-4)
+        jacobian = np.array(columns).T  # (6, 3): d wrench / d n
+        per_axis = np.sqrt(np.sum(jacobian**2, axis=1)) * step  # sd of each component's change per step
+        largest = np.maximum(largest, np.sqrt(np.mean(per_axis.reshape(2, 3) ** 2, axis=1)))
+    defaults = FilterNoise().for_vehicle(make_vehicle(vehicle))
+    params = build(FanTrackingConfig, {"vehicle": vehicle}).estimator_params
+    assert params["force_walk"] == pytest.approx(math.hypot(defaults.force_walk, largest[0]), rel=0.03)
+    assert params["torque_walk"] == pytest.approx(math.hypot(defaults.torque_walk, largest[1]), rel=0.03)
+    assert params["force_walk"] > 5 * defaults.force_walk  # the turbulence outruns the hover walk
+    kept = build(FanTrackingConfig, {"vehicle": vehicle, "estimator_params": {"force_walk": 0.01}})
+    kept = kept.estimator_params
+    assert kept == {"force_walk": 0.01, "torque_walk": params["torque_walk"]}
+    for untouched in ({"fan_walks": False}, {"estimator": "observer"}, {"estimator": "oracle"},
+                      {"estimator_params": "paper"}):  # fmt: skip
+        assert build(FanTrackingConfig, untouched).estimator_params in ({}, "paper")
+    with pytest.raises(ValueError, match="fan_walks=1 must be true or false"):
+        build(FanTrackingConfig, {"fan_walks": 1})

@@ -25,7 +25,7 @@ import numpy as np
 
 from quad_wrench_env.config import check_numbers
 from quad_wrench_env.disturbances.base import CompiledForm, Outlet
-from quad_wrench_env.disturbances.drag import AIR_DENSITY
+from quad_wrench_env.disturbances.drag import QuadraticDrag
 from quad_wrench_env.disturbances.jet_kernels import jet_axis_y
 from quad_wrench_env.vehicle import VehicleParams
 
@@ -127,26 +127,44 @@ def centreline_speed(x: np.ndarray, u0: float, radius2: float, spread: float) ->
     return u0 * np.minimum(1.0, np.sqrt(2.0 * radius2) / half_width(x, radius2, spread))
 
 
-def turbulence_force_walk(config: FanConfig, vehicle: VehicleParams, distance: float, dt: float) -> float:
-    """N: the RMS over the three axes of the change in one step ``dt`` of the drag the fan's turbulence
-    puts on ``vehicle`` level and at rest on the jet's axis ``distance`` from the fan: what a random
-    walk of the external force must take per filter step to follow it. The air is ``u_c·(e_x + I·n)``,
-    ``n`` the unit-variance Ornstein-Uhlenbeck turbulence of time scale ``b/u_c`` (``n`` changes by
-    ``sqrt(1 - a²)`` sd per step, ``a = exp(-dt·u_c/b)``); linearised about the mean, the quadratic body
-    drag ``F_q = ½ρ·C_dA·u_c²`` changes by ``2·I·F_q`` along the jet and ``I·F_q`` across it, the rotor
-    drag ``F_r = d·m·u_c`` (``rotor_drag_decel`` d, in the rotor plane) by ``I·F_r`` along x and y.
-    The jet model: ``docs/physics.md``, "Fan" (McKinnon & Schoellig 2016's fan)."""
+def turbulence_walks(config: FanConfig, vehicle: VehicleParams, distance: float, dt: float) -> tuple[float, float]:
+    """``(N, N·m)``: the largest, over the vehicle's lateral offsets from the jet's axis ``distance`` from
+    the fan, of the RMS over the three axes of the change in one step ``dt`` of the force and of the
+    torque that the fan's turbulence puts on ``vehicle`` level and at rest: what a random walk of the
+    external force and torque must take per filter step to follow it anywhere across the jet.
+
+    The air at each drag point ``j`` (:meth:`VehicleParams.drag_points`, body offset ``r_j``) is
+    ``s_j·(e_x + I·n)``, ``s_j`` the jet's mean speed there and ``n`` the unit-variance
+    Ornstein-Uhlenbeck turbulence of time scale ``b/u_c`` (it changes by ``sqrt(1 - a²)`` sd per step,
+    ``a = exp(-dt·u_c/b)``). Linearised about the mean, the point's quadratic drag ``c·|w|·w``
+    (:class:`~quad_wrench_env.disturbances.drag.QuadraticDrag`) changes by ``c·s_j²·I·diag(2, 1, 1)·dn``
+    and a hub's rotor drag ``k_d·Ω·w`` in the rotor plane (:meth:`~quad_wrench_env.rotors.Rotors.
+    drag_forces`, hover speed Ω) by ``k_d·Ω·s_j·I·diag(1, 1, 0)·dn``; the force sums these Jacobians,
+    the torque sums ``[r_j]×`` times them. The force's largest change is on the axis, the torque's about
+    ``b/2`` off it, where the jet's profile is steepest. The jet model: ``docs/physics.md``, "Fan"
+    (McKinnon & Schoellig 2016's fan)."""
     if not config.enabled or config.turbulence_intensity == 0.0:
-        return 0.0
-    x = np.asarray(max(distance, 1e-3))
+        return 0.0, 0.0
+    points = vehicle.drag_points()
     radius2 = (0.5 * config.outlet_diameter) ** 2
-    speed = float(centreline_speed(x, config.outlet_speed, radius2, config.spread))
-    width = float(half_width(x, radius2, config.spread))
-    decay = math.exp(-dt * speed / width)
-    quadratic = 0.5 * AIR_DENSITY * vehicle.drag_area * speed * speed
-    rotor = vehicle.rotor_drag_decel * vehicle.mass * speed
-    per_axis = np.array((2.0 * quadratic + rotor, quadratic + rotor, quadratic))
-    return float(config.turbulence_intensity * math.sqrt(1.0 - decay * decay) * np.sqrt(np.mean(per_axis**2)))
+    centre = np.asarray(max(distance, 1e-3))
+    width = float(half_width(centre, radius2, config.spread))
+    decay = math.exp(-dt * float(centreline_speed(centre, config.outlet_speed, radius2, config.spread)) / width)
+    x = np.maximum(distance + points[:, 0], 1e-3)
+    speed_on_axis = centreline_speed(x, config.outlet_speed, radius2, config.spread)
+    widths = half_width(x, radius2, config.spread)
+    quadratic = QuadraticDrag(vehicle.drag_area, len(points)).coefficient * np.diag((2.0, 1.0, 1.0))
+    rotor = vehicle.rotor_drag_coefficient * vehicle.hover_rotor_speed * np.diag((1.0, 1.0, 0.0))
+    hub = np.arange(len(points)) < 4
+    levers = np.cross(points[:, None, :], np.eye(3)).transpose(0, 2, 1)  # levers[j] @ f = r_j × f
+    force = torque = 0.0
+    for offset in np.linspace(0.0, width, 201):
+        s = speed_on_axis * np.exp(-((offset + points[:, 1]) ** 2 + points[:, 2] ** 2) / widths**2)
+        jacobians = (s * s)[:, None, None] * quadratic + (hub * s)[:, None, None] * rotor  # (P, 3, 3)
+        force = max(force, float(np.sqrt(np.mean(np.sum(jacobians, axis=0) ** 2 * 3.0))))
+        torque = max(torque, float(np.sqrt(np.mean(np.einsum("pij,pjk->ik", levers, jacobians) ** 2 * 3.0))))
+    per_step = config.turbulence_intensity * math.sqrt(1.0 - decay * decay)
+    return per_step * force, per_step * torque
 
 
 RANDOM = "random"

@@ -79,7 +79,7 @@ from quad_wrench_env.disturbances.fan import (
     FanJet,
     FanMotion,
     make_motion,
-    turbulence_force_walk,
+    turbulence_walks,
 )
 from quad_wrench_env.disturbances.jet_kernels import jet_speed, motion_y, transit_time
 from quad_wrench_env.engine.components import Components
@@ -192,39 +192,33 @@ class FanTrackingConfig(EnvConfig):
     """x (m) in front of the fan where the vehicle starts and must stay (McKinnon & Schoellig 2016 Fig. 7)."""
     max_initial_offset: float = 0.8
     reward: FanTrackingReward = field(default_factory=FanTrackingReward)
-    fan_force_walk: bool = False
-    """True: the UKF's and the EKF's force random walk is the vehicle's default and the fan turbulence's
-    drag change per physics step at the stand-off (:func:`~quad_wrench_env.disturbances.fan.
-    turbulence_force_walk`) added in quadrature, written into ``estimator_params`` (unless it gives
-    ``force_walk``): a force covariance that follows the fan's turbulence (``docs/estimators.md``, "The
-    fan's turbulence as process noise"). False (default): the vehicle's default walk."""
+    fan_walks: bool = True
+    """True (default): the UKF's and the EKF's force and torque random walks are the vehicle's defaults
+    and, added in quadrature, the largest change per physics step of the drag the fan's turbulence puts
+    on the vehicle anywhere across the jet at the stand-off (:func:`~quad_wrench_env.disturbances.fan.
+    turbulence_walks`), written into ``estimator_params`` (a walk it gives is kept): covariances that
+    follow the fan's turbulence (``docs/estimators.md``, "The fan's turbulence as process noise").
+    Estimators without walks (the observer, the truth) and named settings (``"paper"``) are left as they
+    are. False: the vehicle's default walks."""
 
     def __post_init__(self) -> None:
         super().__post_init__()
         check_numbers("env", self, ("standoff_distance",))
         check_numbers("env", self, ("max_initial_offset",), positive=False)
-        if not isinstance(self.fan_force_walk, bool):
-            raise ValueError(f"fan_force_walk={self.fan_force_walk!r} must be true or false")
-        if self.fan_force_walk:
-            self._size_the_force_walk()
+        if not isinstance(self.fan_walks, bool):
+            raise ValueError(f"fan_walks={self.fan_walks!r} must be true or false")
+        if self.fan_walks and self.estimator in ("ukf", "ekf") and not isinstance(self.estimator_params, str):
+            self._size_the_walks()
 
-    def _size_the_force_walk(self) -> None:
-        if self.estimator not in ("ukf", "ekf"):
-            raise ValueError(
-                f"fan_force_walk=True sizes the UKF's and the EKF's force random walk; "
-                f"estimator={self.estimator!r} has none (allowed: 'ukf', 'ekf')"
-            )
-        if isinstance(self.estimator_params, str):
-            raise ValueError(
-                f"fan_force_walk=True with estimator_params={self.estimator_params!r}: the named settings "
-                "fix their own walks; give a mapping (with force_walk to set it yourself)"
-            )
-        if "force_walk" in self.estimator_params:
-            return
+    def _size_the_walks(self) -> None:
         vehicle = make_vehicle(self.vehicle, **self.vehicle_params)
-        base = FilterNoise().for_vehicle(vehicle).force_walk
-        fan = turbulence_force_walk(self.fan, vehicle, self.standoff_distance, 1.0 / self.physics_hz)
-        self.estimator_params = {**self.estimator_params, "force_walk": math.hypot(base, fan)}
+        defaults = FilterNoise().for_vehicle(vehicle)
+        fan = turbulence_walks(self.fan, vehicle, self.standoff_distance, 1.0 / self.physics_hz)
+        walks = {
+            "force_walk": math.hypot(defaults.force_walk, fan[0]),
+            "torque_walk": math.hypot(defaults.torque_walk, fan[1]),
+        }
+        self.estimator_params = {**walks, **self.estimator_params}
 
 
 @register("task")
