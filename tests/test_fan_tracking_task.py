@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 from quad_wrench_env.config import build
+from quad_wrench_env.disturbances.fan import ConstantSpeed, FanConfig, PiecewiseVelocity, Sine, Static
 from quad_wrench_env.engine.world import RigidBodyState
 from quad_wrench_env.estimators.noise import FilterNoise
-from quad_wrench_env.disturbances.fan import ConstantSpeed, FanConfig, PiecewiseVelocity, Sine, Static
 from quad_wrench_env.rotations import rotation_matrix
 from quad_wrench_env.tasks.fan_tracking import FanEpisodes, FanTrackingConfig
 from quad_wrench_env.vehicle import make_vehicle
@@ -146,20 +146,20 @@ def test_observe_wrench_false_zeroes_the_wrench_blocks_only(make_env):
 
 @pytest.mark.parametrize("vehicle", ["ardrone2", "yuksel1kg"])
 def test_fan_walks_are_the_turbulences_largest_change_per_step_added_to_the_defaults(make_env, vehicle):
-    """``fan_walks`` (default): the force and torque walks in ``estimator_params`` are the vehicle's
+    """``fan_walks``: the force and torque walks in ``estimator_params`` are the vehicle's
     defaults and, in quadrature, the largest over lateral offsets of the per-step change of the wrench the
     turbulence puts on the vehicle, measured here on the env's own loads: the fan's turbulence state
     ``n`` nudged along each axis, ``Fleet.external_loads`` differenced (every drag point, the rotors' drag
     at their trimmed speeds), times the OU step ``sqrt(1 - a²)``, ``a = exp(-dt·u_c/b)`` worked from the
     jet's definition (``docs/physics.md``, "Fan": x = 2.3 m, b = sqrt((D/2)² + (c x)²), u_c = U0·D/(√2·b)
     beyond the core, dt = 1/200 s). A given walk is kept; the observer, the truth and named settings get
-    none; false leaves the defaults."""
+    none; the default (false) leaves the defaults."""
     fan = FanConfig()
     b = math.hypot(fan.outlet_diameter / 2, fan.spread * 2.3)
     u_c = fan.outlet_speed * fan.outlet_diameter / (math.sqrt(2.0) * b)
     assert fan.outlet_diameter / (math.sqrt(2.0) * b) < 1.0  # beyond the core
     step = math.sqrt(1.0 - math.exp(-2.0 * (1.0 / 200.0) * u_c / b))
-    env = make_env(vehicle=vehicle, fan={"motion": "static"}).unwrapped
+    env = make_env(vehicle=vehicle, fan={"motion": "static"}, fan_walks=True).unwrapped
     env.reset(seed=0, options={"offset_y": 0.0})
     jet = next(field for field in env.fleet.components.winds if field.name == "fan")
     level = np.array(((1.0, 0.0, 0.0, 0.0),))
@@ -177,15 +177,15 @@ def test_fan_walks_are_the_turbulences_largest_change_per_step_added_to_the_defa
         per_axis = np.sqrt(np.sum(jacobian**2, axis=1)) * step  # sd of each component's change per step
         largest = np.maximum(largest, np.sqrt(np.mean(per_axis.reshape(2, 3) ** 2, axis=1)))
     defaults = FilterNoise().for_vehicle(make_vehicle(vehicle))
-    params = build(FanTrackingConfig, {"vehicle": vehicle}).estimator_params
+    params = build(FanTrackingConfig, {"vehicle": vehicle, "fan_walks": True}).estimator_params
     assert params["force_walk"] == pytest.approx(math.hypot(defaults.force_walk, largest[0]), rel=0.03)
     assert params["torque_walk"] == pytest.approx(math.hypot(defaults.torque_walk, largest[1]), rel=0.03)
     assert params["force_walk"] > 5 * defaults.force_walk  # the turbulence outruns the hover walk
-    kept = build(FanTrackingConfig, {"vehicle": vehicle, "estimator_params": {"force_walk": 0.01}})
-    kept = kept.estimator_params
+    given = {"vehicle": vehicle, "fan_walks": True, "estimator_params": {"force_walk": 0.01}}
+    kept = build(FanTrackingConfig, given).estimator_params
     assert kept == {"force_walk": 0.01, "torque_walk": params["torque_walk"]}
-    for untouched in ({"fan_walks": False}, {"estimator": "observer"}, {"estimator": "oracle"},
-                      {"estimator_params": "paper"}):  # fmt: skip
-        assert build(FanTrackingConfig, untouched).estimator_params in ({}, "paper")
+    assert build(FanTrackingConfig, {"vehicle": vehicle}).estimator_params == {}  # the default: off
+    for untouched in ({"estimator": "observer"}, {"estimator": "oracle"}, {"estimator_params": "paper"}):
+        assert build(FanTrackingConfig, {**untouched, "fan_walks": True}).estimator_params in ({}, "paper")
     with pytest.raises(ValueError, match="fan_walks=1 must be true or false"):
         build(FanTrackingConfig, {"fan_walks": 1})

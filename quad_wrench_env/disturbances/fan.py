@@ -127,7 +127,9 @@ def centreline_speed(x: np.ndarray, u0: float, radius2: float, spread: float) ->
     return u0 * np.minimum(1.0, np.sqrt(2.0 * radius2) / half_width(x, radius2, spread))
 
 
-def turbulence_walks(config: FanConfig, vehicle: VehicleParams, distance: float, dt: float) -> tuple[float, float]:
+def turbulence_walks(
+    config: FanConfig, vehicle: VehicleParams, distance: float, dt: float
+) -> tuple[float, float]:
     """``(N, N·m)``: the largest, over the vehicle's lateral offsets from the jet's axis ``distance`` from
     the fan, of the RMS over the three axes of the change in one step ``dt`` of the force and of the
     torque that the fan's turbulence puts on ``vehicle`` level and at rest: what a random walk of the
@@ -149,7 +151,9 @@ def turbulence_walks(config: FanConfig, vehicle: VehicleParams, distance: float,
     radius2 = (0.5 * config.outlet_diameter) ** 2
     centre = np.asarray(max(distance, 1e-3))
     width = float(half_width(centre, radius2, config.spread))
-    decay = math.exp(-dt * float(centreline_speed(centre, config.outlet_speed, radius2, config.spread)) / width)
+    decay = math.exp(
+        -dt * float(centreline_speed(centre, config.outlet_speed, radius2, config.spread)) / width
+    )
     x = np.maximum(distance + points[:, 0], 1e-3)
     speed_on_axis = centreline_speed(x, config.outlet_speed, radius2, config.spread)
     widths = half_width(x, radius2, config.spread)

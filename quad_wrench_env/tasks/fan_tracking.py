@@ -192,14 +192,15 @@ class FanTrackingConfig(EnvConfig):
     """x (m) in front of the fan where the vehicle starts and must stay (McKinnon & Schoellig 2016 Fig. 7)."""
     max_initial_offset: float = 0.8
     reward: FanTrackingReward = field(default_factory=FanTrackingReward)
-    fan_walks: bool = True
-    """True (default): the UKF's and the EKF's force and torque random walks are the vehicle's defaults
-    and, added in quadrature, the largest change per physics step of the drag the fan's turbulence puts
-    on the vehicle anywhere across the jet at the stand-off (:func:`~quad_wrench_env.disturbances.fan.
+    fan_walks: bool = False
+    """True: the UKF's and the EKF's force and torque random walks are the vehicle's defaults and, added
+    in quadrature, the largest change per physics step of the drag the fan's turbulence puts on the
+    vehicle anywhere across the jet at the stand-off (:func:`~quad_wrench_env.disturbances.fan.
     turbulence_walks`), written into ``estimator_params`` (a walk it gives is kept): covariances that
-    follow the fan's turbulence (``docs/estimators.md``, "The fan's turbulence as process noise").
-    Estimators without walks (the observer, the truth) and named settings (``"paper"``) are left as they
-    are. False: the vehicle's default walks."""
+    follow the fan's turbulence (``docs/estimators.md``, "The fan's turbulence as process noise"; the
+    estimates get noisier, and a policy trained on them tracks worse). Estimators without walks (the
+    observer, the truth) and named settings (``"paper"``) are left as they are. False (default): the
+    vehicle's default walks."""
 
     def __post_init__(self) -> None:
         super().__post_init__()
