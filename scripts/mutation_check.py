@@ -210,6 +210,18 @@ MUTATIONS = (
         ("tests/test_fan.py",),
     ),
     Mutation(
+        "fan walks: quadratic drag's change along the jet not doubled",
+        "estimator noise",
+        (
+            (
+                "quad_wrench_env/disturbances/fan.py",
+                "QuadraticDrag(vehicle.drag_area, len(points)).coefficient * np.diag((2.0, 1.0, 1.0))",
+                "QuadraticDrag(vehicle.drag_area, len(points)).coefficient * np.diag((1.0, 1.0, 1.0))",
+            ),
+        ),
+        ("tests/test_fan_tracking_task.py",),
+    ),
+    Mutation(
         "body drag linear in airspeed",
         "drag",
         (
