@@ -211,10 +211,10 @@ MUTATIONS = (
     ),
     Mutation(
         "fan walks: quadratic drag's change along the jet not doubled",
-        "estimator noise",
+        "fan",
         (
             (
-                "quad_wrench_env/disturbances/fan.py",
+                FAN,
                 "QuadraticDrag(vehicle.drag_area, len(points)).coefficient * np.diag((2.0, 1.0, 1.0))",
                 "QuadraticDrag(vehicle.drag_area, len(points)).coefficient * np.diag((1.0, 1.0, 1.0))",
             ),

@@ -144,28 +144,41 @@ def test_observe_wrench_false_zeroes_the_wrench_blocks_only(make_env):
     np.testing.assert_array_equal(info_a["wrench_est"], info_b["wrench_est"])
 
 
-@pytest.mark.parametrize("vehicle", ["ardrone2", "yuksel1kg"])
-def test_fan_walks_are_the_turbulences_largest_change_per_step_added_to_the_defaults(make_env, vehicle):
-    """``fan_walks``: the force and torque walks in ``estimator_params`` are the vehicle's
-    defaults and, in quadrature, the largest over lateral offsets of the per-step change of the wrench the
-    turbulence puts on the vehicle, measured here on the env's own loads: the fan's turbulence state
-    ``n`` nudged along each axis, ``Fleet.external_loads`` differenced (every drag point, the rotors' drag
-    at their trimmed speeds), times the OU step ``sqrt(1 - a²)``, ``a = exp(-dt·u_c/b)`` worked from the
-    jet's definition (``docs/physics.md``, "Fan": x = 2.3 m, b = sqrt((D/2)² + (c x)²), u_c = U0·D/(√2·b)
-    beyond the core, dt = 1/200 s). A given walk is kept; the observer, the truth and named settings get
-    none; the default (false) leaves the defaults."""
-    fan = FanConfig()
-    b = math.hypot(fan.outlet_diameter / 2, fan.spread * 2.3)
+@pytest.mark.parametrize(
+    "settings",
+    [
+        {"vehicle": "ardrone2"},
+        {"vehicle": "yuksel1kg", "estimator": "ekf"},
+        {
+            "vehicle": "hummingbird",
+            "physics_hz": 400,
+            "standoff_distance": 1.5,
+            "fan": {"turbulence_intensity": 0.3},
+        },
+    ],
+)
+def test_fan_walks_are_the_turbulences_largest_change_per_step_added_to_the_defaults(make_env, settings):
+    """``fan_walks``: the filter's force and torque walks are the vehicle's defaults and, in quadrature,
+    the largest over lateral offsets of the per-step change of the wrench the turbulence puts on the
+    vehicle, measured here on the env's own loads: the fan's turbulence state ``n`` nudged along each
+    axis, ``Fleet.external_loads`` differenced (every drag point, the rotors' drag at their trimmed
+    speeds), times the OU step ``sqrt(1 - a²)``, ``a = exp(-dt·u_c/b)`` worked from the jet's definition
+    (``docs/physics.md``, "Fan": at the stand-off x, b = sqrt((D/2)² + (c x)²), u_c = U0·D/(√2·b) beyond
+    the core, dt the physics step); the intensity is in the loads. A given walk is kept; the default
+    (false) leaves the vehicle's defaults; other estimators and named settings are refused."""
+    standoff, physics_hz = settings.get("standoff_distance", 2.3), settings.get("physics_hz", 200)
+    fan = FanConfig(**settings.get("fan", {}))
+    b = math.hypot(fan.outlet_diameter / 2, fan.spread * standoff)
     u_c = fan.outlet_speed * fan.outlet_diameter / (math.sqrt(2.0) * b)
     assert fan.outlet_diameter / (math.sqrt(2.0) * b) < 1.0  # beyond the core
-    step = math.sqrt(1.0 - math.exp(-2.0 * (1.0 / 200.0) * u_c / b))
-    env = make_env(vehicle=vehicle, fan={"motion": "static"}, fan_walks=True).unwrapped
+    step = math.sqrt(1.0 - math.exp(-2.0 * u_c / (b * physics_hz)))
+    env = make_env(**{**settings, "fan": {**settings.get("fan", {}), "motion": "static"}}).unwrapped
     env.reset(seed=0, options={"offset_y": 0.0})
     jet = next(field for field in env.fleet.components.winds if field.name == "fan")
     level = np.array(((1.0, 0.0, 0.0, 0.0),))
     largest = np.zeros(2)
     for offset in np.linspace(0.0, b, 41):
-        rest = RigidBodyState.at_rest(np.array(((2.3, offset, fan.height),)), level)
+        rest = RigidBodyState.at_rest(np.array(((standoff, offset, fan.height),)), level)
         columns = []
         for axis in range(3):
             jet.noise[0] = 0.0
@@ -176,16 +189,29 @@ def test_fan_walks_are_the_turbulences_largest_change_per_step_added_to_the_defa
         jacobian = np.array(columns).T  # (6, 3): d wrench / d n
         per_axis = np.sqrt(np.sum(jacobian**2, axis=1)) * step  # sd of each component's change per step
         largest = np.maximum(largest, np.sqrt(np.mean(per_axis.reshape(2, 3) ** 2, axis=1)))
-    defaults = FilterNoise().for_vehicle(make_vehicle(vehicle))
-    params = build(FanTrackingConfig, {"vehicle": vehicle, "fan_walks": True}).estimator_params
-    assert params["force_walk"] == pytest.approx(math.hypot(defaults.force_walk, largest[0]), rel=0.03)
-    assert params["torque_walk"] == pytest.approx(math.hypot(defaults.torque_walk, largest[1]), rel=0.03)
-    assert params["force_walk"] > 5 * defaults.force_walk  # the turbulence outruns the hover walk
-    given = {"vehicle": vehicle, "fan_walks": True, "estimator_params": {"force_walk": 0.01}}
-    kept = build(FanTrackingConfig, given).estimator_params
-    assert kept == {"force_walk": 0.01, "torque_walk": params["torque_walk"]}
-    assert build(FanTrackingConfig, {"vehicle": vehicle}).estimator_params == {}  # the default: off
-    for untouched in ({"estimator": "observer"}, {"estimator": "oracle"}, {"estimator_params": "paper"}):
-        assert build(FanTrackingConfig, {**untouched, "fan_walks": True}).estimator_params in ({}, "paper")
+    defaults = FilterNoise().for_vehicle(make_vehicle(settings["vehicle"]))
+    walks = build(FanTrackingConfig, {**settings, "fan_walks": True}).estimator_settings()
+    assert walks["force_walk"] == pytest.approx(math.hypot(defaults.force_walk, largest[0]), rel=0.015)
+    assert walks["torque_walk"] == pytest.approx(math.hypot(defaults.torque_walk, largest[1]), rel=0.015)
+    assert walks["force_walk"] > 3 * defaults.force_walk  # the turbulence outruns the still-air walk
+    flown = make_env(**settings, fan_walks=True).unwrapped.fleet.estimator.noise
+    assert (flown.force_walk, flown.torque_walk) == (walks["force_walk"], walks["torque_walk"])
+    given = build(
+        FanTrackingConfig, {**settings, "fan_walks": True, "estimator_params": {"force_walk": 0.01}}
+    )
+    assert given.estimator_settings() == {"force_walk": 0.01, "torque_walk": walks["torque_walk"]}
+    assert given.estimator_params == {"force_walk": 0.01}  # the config keeps what it was given
+    assert build(FanTrackingConfig, settings).estimator_settings() == {}  # the default: off
+
+
+def test_fan_walks_refuses_what_it_cannot_size():
+    """``fan_walks`` sizes the UKF's and the EKF's walks: other estimators and named settings are refused
+    by name, and it must be a bool."""
+    with pytest.raises(ValueError, match="estimator='observer' has none"):
+        build(FanTrackingConfig, {"fan_walks": True, "estimator": "observer"})
+    with pytest.raises(ValueError, match="estimator='oracle' has none"):
+        build(FanTrackingConfig, {"fan_walks": True, "estimator": "oracle"})
+    with pytest.raises(ValueError, match="estimator_params='paper'"):
+        build(FanTrackingConfig, {"fan_walks": True, "estimator_params": "paper"})
     with pytest.raises(ValueError, match="fan_walks=1 must be true or false"):
         build(FanTrackingConfig, {"fan_walks": 1})

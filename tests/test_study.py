@@ -117,6 +117,8 @@ def test_a_run_meets_the_comparisons_world_with_its_estimator_and_its_arms_own_s
         "estimator_params": "paper",
         "history": 3,
     }
+    sized = _config(base={**BASE, "env": {"fan_walks": True}}, arms={"ukf": {}})
+    assert sized.flying_env("ukf", 0) == {"fan_walks": True}  # FanTracking's walks sized as trained
 
 
 def test_an_arm_whose_env_the_task_refuses_stops_the_study_before_any_run(tmp_path):

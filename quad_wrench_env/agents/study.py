@@ -126,9 +126,10 @@ class StudyConfig:
         return max(self.run_config(label, self.seeds[0]).num_envs for label in self.arms)
 
 
-ESTIMATOR_KEYS = ("estimator", "estimator_params")
+ESTIMATOR_KEYS = ("estimator", "estimator_params", "fan_walks")
 """The training env's settings a study's run brings to the comparison whatever its arm: the estimator
-it was trained to read. A base that leaves the estimator to the task's default flies the comparison's."""
+it was trained to read and its settings (FanTracking's ``fan_walks`` sizes its walks). A base that leaves
+one to the task's default flies the comparison's."""
 
 
 def _is_seed(value: Any) -> bool:

@@ -137,14 +137,15 @@ def turbulence_walks(
 
     The air at each drag point ``j`` (:meth:`VehicleParams.drag_points`, body offset ``r_j``) is
     ``s_j·(e_x + I·n)``, ``s_j`` the jet's mean speed there and ``n`` the unit-variance
-    Ornstein-Uhlenbeck turbulence of time scale ``b/u_c`` (it changes by ``sqrt(1 - a²)`` sd per step,
-    ``a = exp(-dt·u_c/b)``). Linearised about the mean, the point's quadratic drag ``c·|w|·w``
+    Ornstein-Uhlenbeck turbulence of time scale ``b/u_c``, whose new random part per step has sd
+    ``sqrt(1 - a²)``, ``a = exp(-dt·u_c/b)`` (its whole change, ``sqrt(2(1 - a))``, is 0.6 % more at the
+    stand-off). Linearised about the mean, the point's quadratic drag ``c·|w|·w``
     (:class:`~quad_wrench_env.disturbances.drag.QuadraticDrag`) changes by ``c·s_j²·I·diag(2, 1, 1)·dn``
     and a hub's rotor drag ``k_d·Ω·w`` in the rotor plane (:meth:`~quad_wrench_env.rotors.Rotors.
     drag_forces`, hover speed Ω) by ``k_d·Ω·s_j·I·diag(1, 1, 0)·dn``; the force sums these Jacobians,
     the torque sums ``[r_j]×`` times them. The force's largest change is on the axis, the torque's about
-    ``b/2`` off it, where the jet's profile is steepest. The jet model: ``docs/physics.md``, "Fan"
-    (McKinnon & Schoellig 2016's fan)."""
+    ``b/2`` off it, where the square of the jet's profile (the quadratic drag) is steepest. The jet
+    model: ``docs/physics.md``, "Fan" (McKinnon & Schoellig 2016's fan)."""
     if not config.enabled or config.turbulence_intensity == 0.0:
         return 0.0, 0.0
     points = vehicle.drag_points()

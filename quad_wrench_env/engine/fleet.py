@@ -113,7 +113,7 @@ class Fleet:
             vehicle,
             dt,
             count,
-            **{**measurement_noise, **estimator_settings(cfg.estimator, cfg.estimator_params)},
+            **{**measurement_noise, **estimator_settings(cfg.estimator, cfg.estimator_settings())},
         )
         self.truth_fed = isinstance(self._estimator, OracleBank)
         self.mocap = MotionCapture(sensors, count)

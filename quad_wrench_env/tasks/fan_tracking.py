@@ -196,11 +196,10 @@ class FanTrackingConfig(EnvConfig):
     """True: the UKF's and the EKF's force and torque random walks are the vehicle's defaults and, added
     in quadrature, the largest change per physics step of the drag the fan's turbulence puts on the
     vehicle anywhere across the jet at the stand-off (:func:`~quad_wrench_env.disturbances.fan.
-    turbulence_walks`), written into ``estimator_params`` (a walk it gives is kept): covariances that
-    follow the fan's turbulence (``docs/estimators.md``, "The fan's turbulence as process noise"; the
-    estimates get noisier, and a policy trained on them tracks worse). Estimators without walks (the
-    observer, the truth) and named settings (``"paper"``) are left as they are. False (default): the
-    vehicle's default walks."""
+    turbulence_walks`; :meth:`estimator_settings`; a walk given in ``estimator_params`` is kept):
+    covariances that follow the fan's turbulence (``docs/estimators.md``, "The fan's turbulence as
+    process noise"; the estimates get noisier, and a policy trained on them tracks worse). Only for the
+    UKF and the EKF with settings by key. False (default): the vehicle's default walks."""
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -208,10 +207,21 @@ class FanTrackingConfig(EnvConfig):
         check_numbers("env", self, ("max_initial_offset",), positive=False)
         if not isinstance(self.fan_walks, bool):
             raise ValueError(f"fan_walks={self.fan_walks!r} must be true or false")
-        if self.fan_walks and self.estimator in ("ukf", "ekf") and not isinstance(self.estimator_params, str):
-            self._size_the_walks()
+        if self.fan_walks and self.estimator not in ("ukf", "ekf"):
+            raise ValueError(
+                f"fan_walks=True sizes the UKF's and the EKF's random walks; estimator={self.estimator!r} "
+                "has none (allowed: 'ukf', 'ekf')"
+            )
+        if self.fan_walks and isinstance(self.estimator_params, str):
+            raise ValueError(
+                f"fan_walks=True with estimator_params={self.estimator_params!r}: the named settings fix "
+                "their own walks; give the settings by key (force_walk, torque_walk to set them yourself)"
+            )
 
-    def _size_the_walks(self) -> None:
+    def estimator_settings(self) -> dict[str, Any] | str:
+        """``estimator_params``, with ``fan_walks`` the walks it does not give sized from the jet."""
+        if not self.fan_walks:
+            return self.estimator_params
         vehicle = make_vehicle(self.vehicle, **self.vehicle_params)
         defaults = FilterNoise().for_vehicle(vehicle)
         fan = turbulence_walks(self.fan, vehicle, self.standoff_distance, 1.0 / self.physics_hz)
@@ -219,7 +229,7 @@ class FanTrackingConfig(EnvConfig):
             "force_walk": math.hypot(defaults.force_walk, fan[0]),
             "torque_walk": math.hypot(defaults.torque_walk, fan[1]),
         }
-        self.estimator_params = {**walks, **self.estimator_params}
+        return {**walks, **self.estimator_params}
 
 
 @register("task")
