@@ -190,7 +190,7 @@ def test_fan_walks_are_the_turbulences_largest_change_per_step_added_to_the_defa
         per_axis = np.sqrt(np.sum(jacobian**2, axis=1)) * step  # sd of each component's change per step
         largest = np.maximum(largest, np.sqrt(np.mean(per_axis.reshape(2, 3) ** 2, axis=1)))
     defaults = FilterNoise().for_vehicle(make_vehicle(settings["vehicle"]))
-    walks = build(FanTrackingConfig, {**settings, "fan_walks": True}).estimator_settings()
+    walks = build(FanTrackingConfig, {**settings, "fan_walks": True}).resolved_estimator_params()
     assert walks["force_walk"] == pytest.approx(math.hypot(defaults.force_walk, largest[0]), rel=0.015)
     assert walks["torque_walk"] == pytest.approx(math.hypot(defaults.torque_walk, largest[1]), rel=0.015)
     assert walks["force_walk"] > 3 * defaults.force_walk  # the turbulence outruns the still-air walk
@@ -199,9 +199,9 @@ def test_fan_walks_are_the_turbulences_largest_change_per_step_added_to_the_defa
     given = build(
         FanTrackingConfig, {**settings, "fan_walks": True, "estimator_params": {"force_walk": 0.01}}
     )
-    assert given.estimator_settings() == {"force_walk": 0.01, "torque_walk": walks["torque_walk"]}
+    assert given.resolved_estimator_params() == {"force_walk": 0.01, "torque_walk": walks["torque_walk"]}
     assert given.estimator_params == {"force_walk": 0.01}  # the config keeps what it was given
-    assert build(FanTrackingConfig, settings).estimator_settings() == {}  # the default: off
+    assert build(FanTrackingConfig, settings).resolved_estimator_params() == {}  # the default: off
 
 
 def test_fan_walks_refuses_what_it_cannot_size():

@@ -146,17 +146,20 @@ def turbulence_walks(
     the torque sums ``[r_j]×`` times them. The force's largest change is on the axis, the torque's about
     ``b/2`` off it, where the square of the jet's profile (the quadratic drag) is steepest. The jet
     model: ``docs/physics.md``, "Fan" (McKinnon & Schoellig 2016's fan)."""
+    if not distance > 0.0:
+        raise ValueError(f"distance={distance!r} must be > 0 (m in front of the fan)")
     if not config.enabled or config.turbulence_intensity == 0.0:
         return 0.0, 0.0
     points = vehicle.drag_points()
     radius2 = (0.5 * config.outlet_diameter) ** 2
-    centre = np.asarray(max(distance, 1e-3))
-    width = float(half_width(centre, radius2, config.spread))
+    width = float(half_width(np.asarray(distance), radius2, config.spread))
     decay = math.exp(
-        -dt * float(centreline_speed(centre, config.outlet_speed, radius2, config.spread)) / width
+        -dt
+        * float(centreline_speed(np.asarray(distance), config.outlet_speed, radius2, config.spread))
+        / width
     )
-    x = np.maximum(distance + points[:, 0], 1e-3)
-    speed_on_axis = centreline_speed(x, config.outlet_speed, radius2, config.spread)
+    x = distance + points[:, 0]
+    speed_on_axis = np.where(x > 0.0, centreline_speed(x, config.outlet_speed, radius2, config.spread), 0.0)
     widths = half_width(x, radius2, config.spread)
     quadratic = QuadraticDrag(vehicle.drag_area, len(points)).coefficient * np.diag((2.0, 1.0, 1.0))
     rotor = vehicle.rotor_drag_coefficient * vehicle.hover_rotor_speed * np.diag((1.0, 1.0, 0.0))
@@ -166,8 +169,11 @@ def turbulence_walks(
     for offset in np.linspace(0.0, width, 201):
         s = speed_on_axis * np.exp(-((offset + points[:, 1]) ** 2 + points[:, 2] ** 2) / widths**2)
         jacobians = (s * s)[:, None, None] * quadratic + (hub * s)[:, None, None] * rotor  # (P, 3, 3)
-        force = max(force, float(np.sqrt(np.mean(np.sum(jacobians, axis=0) ** 2 * 3.0))))
-        torque = max(torque, float(np.sqrt(np.mean(np.einsum("pij,pjk->ik", levers, jacobians) ** 2 * 3.0))))
+        # the RMS over the axes of each axis's sd, sqrt(Σ_k J_ik²): the Frobenius norm over √3
+        force = max(force, float(np.linalg.norm(np.sum(jacobians, axis=0))) / math.sqrt(3.0))
+        torque = max(
+            torque, float(np.linalg.norm(np.einsum("pij,pjk->ik", levers, jacobians))) / math.sqrt(3.0)
+        )
     per_step = config.turbulence_intensity * math.sqrt(1.0 - decay * decay)
     return per_step * force, per_step * torque
 

@@ -142,7 +142,7 @@ class EnvConfig:
         if not (0.0 < self.flip_tilt_deg <= 180.0):
             raise ValueError(f"flip_tilt_deg={self.flip_tilt_deg!r} must be in (0, 180]")
 
-    def estimator_settings(self) -> dict[str, Any] | str:
+    def resolved_estimator_params(self) -> dict[str, Any] | str:
         """The settings the env's estimator is built with: ``estimator_params`` as given (a task may
         add settings it derives from its own physics, e.g. FanTracking's ``fan_walks``)."""
         return self.estimator_params

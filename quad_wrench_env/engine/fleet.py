@@ -113,7 +113,7 @@ class Fleet:
             vehicle,
             dt,
             count,
-            **{**measurement_noise, **estimator_settings(cfg.estimator, cfg.estimator_settings())},
+            **{**measurement_noise, **estimator_settings(cfg.estimator, cfg.resolved_estimator_params())},
         )
         self.truth_fed = isinstance(self._estimator, OracleBank)
         self.mocap = MotionCapture(sensors, count)

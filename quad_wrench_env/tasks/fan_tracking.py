@@ -196,7 +196,7 @@ class FanTrackingConfig(EnvConfig):
     """True: the UKF's and the EKF's force and torque random walks are the vehicle's defaults and, added
     in quadrature, the largest change per physics step of the drag the fan's turbulence puts on the
     vehicle anywhere across the jet at the stand-off (:func:`~quad_wrench_env.disturbances.fan.
-    turbulence_walks`; :meth:`estimator_settings`; a walk given in ``estimator_params`` is kept):
+    turbulence_walks`; :meth:`resolved_estimator_params`; a walk given in ``estimator_params`` is kept):
     covariances that follow the fan's turbulence (``docs/estimators.md``, "The fan's turbulence as
     process noise"; the estimates get noisier, and a policy trained on them tracks worse). Only for the
     UKF and the EKF with settings by key. False (default): the vehicle's default walks."""
@@ -218,7 +218,7 @@ class FanTrackingConfig(EnvConfig):
                 "their own walks; give the settings by key (force_walk, torque_walk to set them yourself)"
             )
 
-    def estimator_settings(self) -> dict[str, Any] | str:
+    def resolved_estimator_params(self) -> dict[str, Any] | str:
         """``estimator_params``, with ``fan_walks`` the walks it does not give sized from the jet."""
         if not self.fan_walks:
             return self.estimator_params
