@@ -47,6 +47,7 @@ def catalogue() -> dict[str, Any]:
         "surfaces": list(SURFACES),
         "ida_pbc_sets": sorted(ida_pbc["sets"]),
         "ida_pbc_default": ida_pbc.get("default"),
+        "ida_pbc_task_defaults": dict(ida_pbc.get("task_defaults", {})),
     }
 
 
@@ -61,6 +62,12 @@ def _policy(name: str) -> str:
     return f"{config.get('algorithm', 'ppo').upper()} on {config['env_id']}, env {config.get('env', {})}"
 
 
+def _ida_pbc_defaults(data: dict[str, Any]) -> str:
+    """The set flown when none is named: the config's default, and a task's own where it names one."""
+    own = "; ".join(f"{set_name} on {env_id}" for env_id, set_name in data["ida_pbc_task_defaults"].items())
+    return f"{data['ida_pbc_default']}" + (f"; {own}" if own else "")
+
+
 def run(args: argparse.Namespace) -> int:
     data = catalogue()
     if args.json:
@@ -73,7 +80,7 @@ def run(args: argparse.Namespace) -> int:
         ["FanTracking fan motions", ", ".join(data["fan_motions"])],
         ["DisturbanceRejection scenarios", ", ".join(data["scenarios"])],
         ["ForceExertion surfaces", ", ".join(data["surfaces"])],
-        ["IDA-PBC parameter sets", f"{', '.join(data['ida_pbc_sets'])} (default: {data['ida_pbc_default']})"],
+        ["IDA-PBC parameter sets", f"{', '.join(data['ida_pbc_sets'])} (default: {_ida_pbc_defaults(data)})"],
     ]
     vehicles = [[name, f"{v['mass_kg']:g}", f"{v['arm_m']:g}"] for name, v in data["vehicles"].items()]
     agents = [[name, text] for name, text in (data["agents"] | data["policies"]).items()]

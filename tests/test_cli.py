@@ -101,6 +101,9 @@ def test_list_json_holds_the_vehicle_presets_and_the_env_ids(capsys):
     assert {"hold", "admittance", "pid", "mpc", "ida_pbc"} <= set(data["agents"])
     assert "ppo_fan_tracking" in data["policies"] and "QC1" in data["ida_pbc_sets"]
     assert "jet_crossing" in data["scenarios"] and "wall" in data["surfaces"]
+    assert data["ida_pbc_task_defaults"] == {"QuadWrench/ForceExertion-v0": "QC4"}  # what ida_pbc flies there
+    assert main(["list"]) == 0
+    assert "default; QC4 on QuadWrench/ForceExertion-v0" in capsys.readouterr().out
 
 
 def test_evaluate_writes_each_seeds_metrics_as_json_and_csv(tmp_path, capsys):

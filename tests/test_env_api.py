@@ -159,6 +159,19 @@ def test_leaving_the_arena_ends_the_episode_with_a_reason(make_env):
     assert info["reward_terms"]["crash"] < 0
 
 
+def test_the_observation_space_holds_every_position_the_arena_allows(make_env):
+    """A vehicle flown high in a tall arena (Yüksel et al.'s (2014) free-air reproduction hovers at 150 m)
+    is inside the observation space: its position bound follows the arena (twice its farthest wall,
+    at least 100 m)."""
+    env = make_env(arena={"z_max": 400.0}, fan={"enabled": False})
+    obs, _ = env.reset(seed=0, options={"offset_y": 0.0})
+    layout = env.unwrapped.obs_layout
+    np.testing.assert_array_equal(env.observation_space.high[layout["position"]], 800.0)
+    obs[layout["position"]] = (2.3, 0.0, 150.0)
+    assert env.observation_space.contains(obs)
+    np.testing.assert_array_equal(make_env().observation_space.high[layout["position"]], 100.0)
+
+
 def test_motor_action_can_flip_the_vehicle(make_env):
     env = make_env(action_type="motors")
     env.reset(seed=0, options={"offset_y": 0.0})

@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 from gymnasium import spaces
 
+from quad_wrench_env.engine.config import ArenaConfig
 from quad_wrench_env.vehicle import GRAVITY, VehicleParams
 
 ENGINE_BLOCKS: tuple[tuple[str, int], ...] = (
@@ -55,11 +56,14 @@ class ObservationLayout:
         self.kernel_starts = np.array([self.slices[name].start for name in names], dtype=np.int64)
         self.task_columns = slice(self.slices[ENGINE_BLOCKS[-1][0]].stop, self.frame)
 
-    def space(self, vehicle: VehicleParams) -> spaces.Box:
-        """Finite bounds far outside anything a flight that has not ended can reach (SI units)."""
+    def space(self, vehicle: VehicleParams, arena: ArenaConfig) -> spaces.Box:
+        """Finite bounds far outside anything a flight that has not ended can reach (SI units): the
+        position's 100 m, or twice the arena's farthest wall where that is farther (leaving the arena
+        ends the episode)."""
         weight = vehicle.mass * GRAVITY
+        reach = max(abs(arena.x_min), abs(arena.x_max), arena.y_half_width, arena.z_max)
         bound = {
-            "position": 100.0, "velocity": 100.0, "attitude": 1.0, "body_rates": 100.0,
+            "position": max(100.0, 2.0 * reach), "velocity": 100.0, "attitude": 1.0, "body_rates": 100.0,
             "force": 100.0 * weight, "torque": 100.0 * weight * vehicle.hull_radius, "last_action": 1.0,
             **self.task_bounds,
         }  # fmt: skip

@@ -129,7 +129,7 @@ class QuadWrenchEnv(gym.Env, EzPickle):
         self.max_steps = self.simulation.max_steps
         self.metadata = {**self.metadata, "render_fps": cfg.policy_hz}
         self.obs_layout = self.fleet.layout.slices
-        self.observation_space = self.fleet.layout.space(self.vehicle)
+        self.observation_space = self.fleet.layout.space(self.vehicle, self.cfg.arena)
         self.action_space = spaces.Box(-1.0, 1.0, shape=(4,), dtype=np.float32)
         self.action_scaling = self.fleet.action_scaling
         """Normalised actions to physical commands and back (``engine.actions.ActionScaling``)."""

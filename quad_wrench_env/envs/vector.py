@@ -94,7 +94,7 @@ class QuadWrenchVectorEnv(VectorEnv):
         self.action_scaling = self.fleet.action_scaling
         self.dt = 1.0 / cfg.policy_hz
         self.physics_dt = self.fleet.dt
-        self.single_observation_space = self.fleet.layout.space(self.vehicle)
+        self.single_observation_space = self.fleet.layout.space(self.vehicle, self.cfg.arena)
         self.single_action_space = spaces.Box(-1.0, 1.0, shape=(4,), dtype=np.float32)
         self.observation_space = batch_space(self.single_observation_space, num_envs)
         self.action_space = batch_space(self.single_action_space, num_envs)
