@@ -7,11 +7,15 @@ blocks through :attr:`ObservationLayout.kernel_starts`, the tasks theirs through
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 from gymnasium import spaces
 
-from quad_wrench_env.engine.config import ArenaConfig
 from quad_wrench_env.vehicle import GRAVITY, VehicleParams
+
+if TYPE_CHECKING:
+    from quad_wrench_env.engine.config import ArenaConfig
 
 ENGINE_BLOCKS: tuple[tuple[str, int], ...] = (
     ("position", 3),
