@@ -164,38 +164,38 @@ def test_shipped_agents_load_and_act_on_their_env(name):
         make_agent(name, k_p=1.0)
 
 
-def test_a_policy_refuses_an_env_whose_actions_or_observations_mean_otherwise():
+def test_a_policy_refuses_an_env_whose_actions_or_observations_mean_otherwise(make_env):
     """Same shapes, other meanings: a policy trained without the wrench (or on the velocity action)
     is refused on an env with the wrench (or the attitude action), naming the setting to use."""
     policy = make_agent("ppo_fan_tracking_no_wrench")
-    policy.reset(gym.make(FAN_TRACKING, observe_wrench=False))
+    policy.reset(make_env(observe_wrench=False))
     with pytest.raises(ValueError, match="observe_wrench=False, the env has observe_wrench=True"):
-        policy.reset(gym.make(FAN_TRACKING))
+        policy.reset(make_env())
     with pytest.raises(ValueError, match="trained with action_type='velocity'"):
-        policy.reset(gym.make(FAN_TRACKING, observe_wrench=False, action_type="attitude"))
+        policy.reset(make_env(observe_wrench=False, action_type="attitude"))
 
 
-def test_a_policy_trained_on_the_tracking_error_refuses_the_reference():
+def test_a_policy_trained_on_the_tracking_error_refuses_the_reference(make_env):
     """DisturbanceRejection's ``observe_tracking_error`` changes what its last six columns mean, and
     ``action_limits`` what an action commands: a policy trained with either is refused on an env
     without it (same shapes), and a key that another task's config lacks is not asked of it."""
     rejection = "QuadWrench/DisturbanceRejection-v0"
     trained = {"action_type": "velocity", "observe_tracking_error": True}
-    env = gym.make(rejection, **trained)
+    env = make_env(rejection, **trained)
     policy = SB3Policy(PPO("MlpPolicy", env, n_steps=64, device="cpu"), trained_on=trained)
     policy.reset(env)
     assert policy.env_settings() == trained
     with pytest.raises(
         ValueError, match="observe_tracking_error=True, the env has observe_tracking_error=False"
     ):
-        policy.reset(gym.make(rejection, action_type="velocity"))
+        policy.reset(make_env(rejection, action_type="velocity"))
     limits = {"max_speed_xy": 2.0, "max_speed_z": 2.0}  # what an action in [-1, 1] commands, m/s
     faster = SB3Policy(policy.model, trained_on={**trained, "action_limits": limits})
-    faster.reset(gym.make(rejection, **trained, action_limits=limits))
+    faster.reset(make_env(rejection, **trained, action_limits=limits))
     assert faster.env_settings() == {**trained, "action_limits": limits}
     with pytest.raises(ValueError, match="the env has action_limits=.*make the env with action_limits="):
         faster.reset(env)
-    fan = gym.make(FAN_TRACKING, observe_wrench=False)
+    fan = make_env(observe_wrench=False)
     SB3Policy(PPO("MlpPolicy", fan, n_steps=64, device="cpu"), trained_on={"observe_wrench": False}).reset(
         fan
     )
