@@ -17,6 +17,7 @@ Before ``t = 0`` the fan rests where its motion starts.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 from typing import Protocol
@@ -136,8 +137,8 @@ def turbulence_walks(
     external force and torque must take per filter step to follow it anywhere across the jet.
 
     The air at each drag point ``j`` (:meth:`VehicleParams.drag_points`, body offset ``r_j``) is
-    ``s_j·(e_x + I·n)``, ``s_j`` the jet's mean speed there and ``n`` the unit-variance
-    Ornstein-Uhlenbeck turbulence of time scale ``b/u_c``, whose new random part per step has sd
+    ``s_j·(e_x + I·n)``, ``s_j`` the jet's mean speed there (:meth:`FanJet.velocity_at`) and ``n`` the
+    unit-variance Ornstein-Uhlenbeck turbulence of time scale ``b/u_c``, whose new random part per step has sd
     ``sqrt(1 - a²)``, ``a = exp(-dt·u_c/b)`` (its whole change, ``sqrt(2(1 - a))``, is 0.6 % more at the
     stand-off). Linearised about the mean, the point's quadratic drag ``c·|w|·w``
     (:class:`~quad_wrench_env.disturbances.drag.QuadraticDrag`) changes by ``c·s_j²·I·diag(2, 1, 1)·dn``
@@ -151,29 +152,27 @@ def turbulence_walks(
     if not config.enabled or config.turbulence_intensity == 0.0:
         return 0.0, 0.0
     points = vehicle.drag_points()
-    radius2 = (0.5 * config.outlet_diameter) ** 2
-    width = float(half_width(np.asarray(distance), radius2, config.spread))
-    decay = math.exp(
-        -dt
-        * float(centreline_speed(np.asarray(distance), config.outlet_speed, radius2, config.spread))
-        / width
-    )
-    x = distance + points[:, 0]
-    speed_on_axis = np.where(x > 0.0, centreline_speed(x, config.outlet_speed, radius2, config.spread), 0.0)
-    widths = half_width(x, radius2, config.spread)
+    jet = FanJet(dataclasses.replace(config, motion=RANDOM))  # still, its axis at y = 0 (the first motion)
+    centre = np.asarray(distance)
+    width = float(jet.half_width(centre))
+    decay = math.exp(-dt * float(jet.centreline_speed(centre)) / width)
+    offsets = np.linspace(0.0, width, 201)
+    centres = np.zeros((len(offsets), 1, 3))
+    centres[:, 0, 0], centres[:, 0, 1], centres[:, 0, 2] = distance, offsets, config.height
+    where = centres + points[None, :, :]  # (O, P, 3): the drag points with the vehicle at each offset
+    speeds = jet.velocity_at(where.reshape(1, -1, 3), np.zeros(1), slice(0, 1), mean=True)[0, :, 0]
+    speeds = speeds.reshape(len(offsets), len(points))  # the jet's mean speed at each point, each offset
     quadratic = QuadraticDrag(vehicle.drag_area, len(points)).coefficient * np.diag((2.0, 1.0, 1.0))
     rotor = vehicle.rotor_drag_coefficient * vehicle.hover_rotor_speed * np.diag((1.0, 1.0, 0.0))
     hub = np.arange(len(points)) < 4
+    jacobians = (speeds**2)[..., None, None] * quadratic + (hub * speeds)[
+        ..., None, None
+    ] * rotor  # (O, P, 3, 3)
     levers = np.cross(points[:, None, :], np.eye(3)).transpose(0, 2, 1)  # levers[j] @ f = r_j × f
-    force = torque = 0.0
-    for offset in np.linspace(0.0, width, 201):
-        s = speed_on_axis * np.exp(-((offset + points[:, 1]) ** 2 + points[:, 2] ** 2) / widths**2)
-        jacobians = (s * s)[:, None, None] * quadratic + (hub * s)[:, None, None] * rotor  # (P, 3, 3)
-        # the RMS over the axes of each axis's sd, sqrt(Σ_k J_ik²): the Frobenius norm over √3
-        force = max(force, float(np.linalg.norm(np.sum(jacobians, axis=0))) / math.sqrt(3.0))
-        torque = max(
-            torque, float(np.linalg.norm(np.einsum("pij,pjk->ik", levers, jacobians))) / math.sqrt(3.0)
-        )
+    # the RMS over the axes of each axis's sd, sqrt(Σ_k J_ik²): the Frobenius norm over √3, largest offset
+    force = float(np.max(np.linalg.norm(jacobians.sum(axis=1), axis=(1, 2)))) / math.sqrt(3.0)
+    torque = float(np.max(np.linalg.norm(np.einsum("pij,opjk->oik", levers, jacobians), axis=(1, 2))))
+    torque /= math.sqrt(3.0)
     per_step = config.turbulence_intensity * math.sqrt(1.0 - decay * decay)
     return per_step * force, per_step * torque
 
