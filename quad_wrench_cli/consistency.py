@@ -134,14 +134,41 @@ def flown(
     )
 
 
+def with_settings(flight: Mapping[str, Any], settings: Mapping[str, Any]) -> dict[str, Any]:
+    """``flight`` with the filter ``settings`` (``estimator_params`` keys) over those its env gives."""
+    env = dict(flight.get("env", {}))
+    env["estimator_params"] = {**env.get("estimator_params", {}), **settings}
+    return {**flight, "env": env}
+
+
+def filter_settings(c: Mapping[str, Any]) -> dict[str, dict[str, Any]]:
+    """A part's ``settings`` (label: the filters' ``estimator_params``, each flight flown with each),
+    ``{"default": {}}`` where it gives none."""
+    settings = c.get("settings", {"default": {}})
+    if not (
+        isinstance(settings, Mapping) and settings and all(isinstance(v, Mapping) for v in settings.values())
+    ):
+        raise ValueError(
+            f"settings={settings!r} must map a label to the filters' estimator_params, e.g. "
+            "{adaptive: {}, fixed: {adaptive_walks: false}}"
+        )
+    return dict(settings)
+
+
 def fly(
-    config: Mapping[str, Any], vehicle: str, estimator: str, name: str
+    config: Mapping[str, Any],
+    vehicle: str,
+    estimator: str,
+    name: str,
+    settings: Mapping[str, Any] | None = None,
 ) -> tuple[np.ndarray, np.ndarray, int]:
-    """The (steps, M) NEES of the force and of the torque of flight ``name`` after the settling time,
-    one column per run that went to the end, and the number of runs that ended early."""
+    """The (steps, M) NEES of the force and of the torque of flight ``name`` (the filter with ``settings``)
+    after the settling time, one column per run that went to the end, and the number of runs that ended
+    early."""
     c = config["nees"]
     seeds = list(range(c["first_seed"], c["first_seed"] + c["runs"]))
-    f = flown(config["env_id"], c["flights"][name], name, vehicle, estimator, seeds, c["settle"])
+    flight = with_settings(c["flights"][name], settings or {})
+    f = flown(config["env_id"], flight, name, vehicle, estimator, seeds, c["settle"])
     error = f.estimate - f.truth
     force = nees(error[..., :3], f.covariance[..., :3, :3])
     torque = nees(error[..., 3:], f.covariance[..., 3:, 3:])
@@ -170,16 +197,19 @@ def nees_table(config: Mapping[str, Any], out: Path) -> list[str]:
         f"## Consistency: NEES of the force and of the torque (d = 3 each), averaged over the runs "
         f"(seeds {first}-{last}) at every policy step after {c['settle']:g} s",
         "",
-        "| vehicle | flight | filter | runs (ended early) | 95 % band of the average | force NEES "
-        "(RMS error) | force in band | force above | torque NEES (RMS error) | torque in band | "
+        "| vehicle | flight | filter | settings | runs (ended early) | 95 % band of the average | force "
+        "NEES (RMS error) | force in band | force above | torque NEES (RMS error) | torque in band | "
         "torque above |",
-        "|---|---|---|---|---|---|---|---|---|---|---|",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
-    jobs = [(v, f, e) for v in c["vehicles"] for f in c["flights"] for e in c["estimators"]]
-    for vehicle, name, estimator in tqdm(jobs, desc="NEES", unit="flight", leave=False):
-        force, torque, ended = fly(config, vehicle, estimator, name)
+    settings = filter_settings(c)
+    jobs = [
+        (v, f, e, s) for v in c["vehicles"] for f in c["flights"] for e in c["estimators"] for s in settings
+    ]
+    for vehicle, name, estimator, label in tqdm(jobs, desc="NEES", unit="flight", leave=False):
+        force, torque, ended = fly(config, vehicle, estimator, name, settings[label])
         runs = force.shape[1]
-        row = f"| {vehicle} | {name} | {estimator} | {runs} ({ended}) |"
+        row = f"| {vehicle} | {name} | {estimator} | {label} | {runs} ({ended}) |"
         if runs == 0:
             lines.append(row + " - |" * 7)
             continue

@@ -29,7 +29,7 @@ from typing import Any
 import numpy as np
 from tqdm import tqdm
 
-from quad_wrench_cli.consistency import Flown, flown
+from quad_wrench_cli.consistency import FILTERS, Flown, filter_settings, flown, with_settings
 from quad_wrench_env.bench import estimator_step_seconds
 from quad_wrench_env.estimators.consistency import average_nees_band, nees
 from quad_wrench_env.vehicle import GRAVITY, make_vehicle
@@ -89,9 +89,17 @@ def benchmark_table(config: Mapping[str, Any], out: Path) -> list[str]:
     seeds = list(range(c["first_seed"], c["first_seed"] + c["runs"]))
     step = c["step"]
     rows, responses = [], []
-    jobs = [(e, v) for e in c["estimators"] for v in c["vehicles"]]
-    for estimator, vehicle in tqdm(jobs, desc="benchmark", unit="estimator", leave=False):
+    settings = filter_settings(c)
+    jobs = [
+        (e, v, label)
+        for e in c["estimators"]
+        for v in c["vehicles"]
+        for label in (settings if e in FILTERS else "-")
+    ]
+    for estimator, vehicle, label in tqdm(jobs, desc="benchmark", unit="estimator", leave=False):
         for name, flight in c["flights"].items():
+            if estimator in FILTERS:
+                flight = with_settings(flight, settings[label])
             if name == STEP_FLIGHT:
                 seconds = flight.get("env", {}).get("episode_seconds", 30.0)
                 env = {**flight.get("env", {}), "external_wrench": step_wrench(vehicle, step, seconds)}
@@ -99,7 +107,7 @@ def benchmark_table(config: Mapping[str, Any], out: Path) -> list[str]:
             f = flown(config["env_id"], flight, name, vehicle, estimator, seeds, c["settle"])
             metrics = _metrics(f)
             rows.append(
-                f"| {estimator} | {vehicle} | {name} | {metrics['runs']} ({metrics['ended']}) | "
+                f"| {estimator} | {label} | {vehicle} | {name} | {metrics['runs']} ({metrics['ended']}) | "
                 f"{metrics['rmse_force']:.3g} | {metrics['rmse_torque']:.3g} | {metrics['bias_force']:.3g} | "
                 f"{metrics['bias_torque']:.3g} | {_nees_cell(metrics, 'force')} | "
                 f"{_nees_cell(metrics, 'torque')} |"
@@ -110,21 +118,23 @@ def benchmark_table(config: Mapping[str, Any], out: Path) -> list[str]:
                 force = response(f.time, mean[:, 0], step["at"], size[2])
                 torque = response(f.time, mean[:, 5], step["at"], size[7])
                 cost = min(
-                    estimator_step_seconds(estimator, config["cost"]["steps"], vehicle=vehicle)
+                    estimator_step_seconds(
+                        estimator, config["cost"]["steps"], vehicle=vehicle, **settings.get(label, {})
+                    )
                     for _ in range(config["cost"]["repeats"])
                 )
                 responses.append(
-                    f"| {estimator} | {vehicle} | {force[0]:.2f} | {force[1]:.2f} | {torque[0]:.2f} | "
-                    f"{torque[1]:.2f} | {cost * 1e6:.1f} |"
+                    f"| {estimator} | {label} | {vehicle} | {force[0]:.2f} | {force[1]:.2f} | "
+                    f"{torque[0]:.2f} | {torque[1]:.2f} | {cost * 1e6:.1f} |"
                 )
     first, last = seeds[0], seeds[-1]
     return [
         f"## Estimator benchmark: every estimator and vehicle over the same flights (seeds {first}-{last}, "
         f"after {c['settle']:g} s)",
         "",
-        "| estimator | vehicle | flight | runs (ended early) | RMSE force [N] | RMSE torque [N·m] "
+        "| estimator | settings | vehicle | flight | runs (ended early) | RMSE force [N] | RMSE torque [N·m] "
         "| bias force [N] | bias torque [N·m] | NEES force (in band) | NEES torque (in band) |",
-        "|---|---|---|---|---|---|---|---|---|---|",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
         *rows,
         "",
         f"NEES: the mean over the runs and steps (d = 3 per block; a consistent filter's is 3) and the share "
@@ -133,8 +143,8 @@ def benchmark_table(config: Mapping[str, Any], out: Path) -> list[str]:
         f"the policy steps (0.02 s apart). Step flight: a step of {step['force']:g} x the weight along x and "
         f"{step['torque']:g} x weight x arm about z at {step['at']:g} s.",
         "",
-        "| estimator | vehicle | latency f_x [s] | rise f_x [s] | latency tau_z [s] | rise tau_z [s] "
-        "| µs per step |",
-        "|---|---|---|---|---|---|---|",
+        "| estimator | settings | vehicle | latency f_x [s] | rise f_x [s] | latency tau_z [s] "
+        "| rise tau_z [s] | µs per step |",
+        "|---|---|---|---|---|---|---|---|",
         *responses,
     ]

@@ -61,6 +61,9 @@ def fly(
     config: dict, label: str, estimator: str, seed: int, options: dict, **env: Any
 ) -> tuple[Episode, list]:
     policy = controller(config, label)
+    settings = config.get("estimator_params", {}).get(estimator)  # the papers' fixed walks
+    if settings is not None:
+        env = {"estimator_params": settings, **env}
     environment = gym.make(config["env_id"], estimator=estimator, **env)
     try:
         return run_episode(policy, environment, seed, options), policy.seconds

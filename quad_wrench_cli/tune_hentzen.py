@@ -82,7 +82,8 @@ def step_response(
     offset[axis] = config["step"]
     env = ReferenceStep(
         gym.make(
-            ENV_ID, estimator=config["estimator"], episode_seconds=config["seconds"],
+            ENV_ID, estimator=config["estimator"], estimator_params=config.get("estimator_params", {}),
+            episode_seconds=config["seconds"],
             gusts={"w20": 0.0, "peak": [0.0, 0.0]},
         ),
         offset,

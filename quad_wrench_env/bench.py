@@ -244,11 +244,12 @@ def filter_bank_step_seconds(
 
 
 def estimator_step_seconds(
-    name: str, steps: int, seed: int = 0, dt: float = 0.005, vehicle: str = "ardrone2"
+    name: str, steps: int, seed: int = 0, dt: float = 0.005, vehicle: str = "ardrone2", **settings: Any
 ) -> float:
-    """Seconds per ``step`` of estimator ``name`` fed a hovering ``vehicle``'s noisy pose (0.5 mm, 2 mrad)."""
+    """Seconds per ``step`` of estimator ``name`` (with its ``settings``) fed a hovering ``vehicle``'s noisy
+    pose (0.5 mm, 2 mrad)."""
     vehicle = make_vehicle(vehicle)
-    est = make_estimator(name, vehicle, dt)
+    est = make_estimator(name, vehicle, dt, **settings)
     rng = np.random.default_rng(seed)
     position, q = np.array((0.0, 0.0, 1.0)), np.array((1.0, 0.0, 0.0, 0.0))
     positions = position + 5e-4 * rng.standard_normal((steps, 3))

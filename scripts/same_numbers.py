@@ -14,6 +14,11 @@ vehicle preset x estimator, a single env and a 3-vehicle vector env (seeded rand
 60 control steps each); every action type on each task; each task with every configurable
 disturbance at once, and with motion-capture latency; the classical agents and the shipped learned
 policies through the harness (one held-out seed). Not part of CI: it takes minutes.
+
+The UKF and the EKF fly with fixed walks (``estimator_params: {adaptive_walks: false}``) where the
+checkout has the setting, so that a revision with covariance-matched walks on by default is held to
+the numbers of one without; the shipped policies fly with the estimator they were trained with and
+carry its settings.
 """
 
 from __future__ import annotations
@@ -70,11 +75,32 @@ def _digest(*parts: object) -> str:
     return h.hexdigest()[:16]
 
 
+def _fixed_walks(env_id: str, kwargs: dict) -> dict:
+    """``kwargs`` with the UKF's or the EKF's walks fixed where the checkout has the setting (module
+    docstring)."""
+    import dataclasses
+
+    import gymnasium as gym
+
+    from quad_wrench_env.estimators import FilterNoise
+
+    if "adaptive_walks" not in {f.name for f in dataclasses.fields(FilterNoise)}:
+        return kwargs
+    estimator = kwargs.get("estimator")
+    if estimator is None:
+        env = gym.make(env_id, disable_env_checker=True)
+        estimator = env.unwrapped.cfg.estimator
+        env.close()
+    return (
+        {**kwargs, "estimator_params": {"adaptive_walks": False}} if estimator in ("ukf", "ekf") else kwargs
+    )
+
+
 def _fly_single(env_id: str, **kwargs: object) -> str:
     import gymnasium as gym
     import numpy as np
 
-    env = gym.make(env_id, disable_env_checker=True, **kwargs)
+    env = gym.make(env_id, disable_env_checker=True, **_fixed_walks(env_id, kwargs))
     rng = np.random.default_rng(SEED)
     seed = SEED
     obs, info = env.reset(seed=seed)
@@ -95,7 +121,9 @@ def _fly_vector(env_id: str, **kwargs: object) -> str:
     import gymnasium as gym
     import numpy as np
 
-    env = gym.make_vec(env_id, num_envs=3, vectorization_mode="vector_entry_point", **kwargs)
+    env = gym.make_vec(
+        env_id, num_envs=3, vectorization_mode="vector_entry_point", **_fixed_walks(env_id, kwargs)
+    )
     rng = np.random.default_rng(SEED)
     obs, info = env.reset(seed=SEED)
     parts = [obs, info["wrench_true"]]
@@ -133,12 +161,14 @@ def dump(path: Path) -> None:
         hashes[f"vector {env_id} every disturbance"] = _fly_vector(env_id, **EVERYTHING)
         hashes[f"single {env_id} latency 2"] = _fly_single(env_id, sensors={"latency_steps": 2})
         for name, params, action_type in agents:
-            result = evaluate(make_agent(name, **params), env_id, [2000], action_type=action_type)
+            fixed = _fixed_walks(env_id, {})
+            result = evaluate(make_agent(name, **params), env_id, [2000], action_type=action_type, **fixed)
             hashes[f"agent {env_id} {name}"] = scored(result)
         print(env_id, "done", flush=True)
     for name in shipped_agents():
         env_id = yaml.safe_load((SHIPPED / name / "config.yaml").read_text())["env_id"]
-        hashes[f"policy {name}"] = scored(evaluate(make_agent(name), env_id, [2000]))
+        estimator = yaml.safe_load((SHIPPED / name / "config.yaml").read_text())["env"]["estimator"]
+        hashes[f"policy {name}"] = scored(evaluate(make_agent(name), env_id, [2000], estimator=estimator))
     path.write_text(json.dumps(hashes, indent=1))
 
 

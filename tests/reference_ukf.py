@@ -99,12 +99,29 @@ class ReferenceUKF:
         self.P = np.diag(np.repeat(initial, 3) ** 2)
         self.q = np.array((1.0, 0.0, 0.0, 0.0))
         self.rest = np.zeros(15)
+        self.Q0 = self.Q.copy()
+        self.adaptive, self.forgetting, self.floor = n.adaptive_walks, n.walk_forgetting, n.walk_floor
+        self.M: dict[int, np.ndarray] = {}
+        self.reset_walks()
+
+    def reset_walks(self) -> None:
+        """The walks where a filter starts: ``Q``'s own, the floor added where they are matched."""
+        self.Q = self.Q0.copy()
+        self.M = {first: self.Q0[first : first + 3, first : first + 3].copy() for first in (3, 9)}
+        if self.adaptive:
+            for first in self.M:
+                self._walk_into_q(first)
+
+    def _walk_into_q(self, first: int) -> None:
+        block = np.s_[first : first + 3]
+        self.Q[block, block] = self.M[first] + self.floor**2 * self.Q0[block, block]
 
     def reset(self, position: np.ndarray, quaternion: np.ndarray) -> None:
-        """At the pose, at rest, no external wrench."""
+        """At the pose, at rest, no external wrench, the walks where they start."""
         self.q = np.array(quaternion, dtype=float)
         self.rest = np.zeros(15)
         self.rest[3:6] = position
+        self.reset_walks()
 
     def model(self, q: np.ndarray, rest: np.ndarray, noise: np.ndarray, thrust: float, torque: np.ndarray):
         """One step of the motion model (eqs. 2-5, 11-14) of the state ``(q, rest)`` with the process
@@ -162,5 +179,16 @@ class ReferenceUKF:
         self.rest = self.rest + delta[3:]
 
     def step(self, thrust: float, torque: np.ndarray, position: np.ndarray, quaternion: np.ndarray) -> None:
+        """Predict, correct, then (``adaptive_walks``) each walk block ``M`` of ``Q`` (torque: entries
+        3-5, force: 9-11) moves towards the outer product of the change the step made to its wrench
+        estimate, by exponential forgetting (Akhlaghi, Zhou & Huang 2017), ``M <- α M + (1 - α) d dᵀ``;
+        ``Q`` holds ``M`` plus the floor, ``floor²`` times the walk's variance at the start, on its
+        diagonal."""
+        before = self.rest[9:15].copy()  # τ_e, f_e
         self.predict(thrust, torque)
         self.correct(position, quaternion)
+        if self.adaptive:
+            change = self.rest[9:15] - before
+            for first, d in ((3, change[:3]), (9, change[3:])):
+                self.M[first] = self.forgetting * self.M[first] + (1.0 - self.forgetting) * np.outer(d, d)
+                self._walk_into_q(first)

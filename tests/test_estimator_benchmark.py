@@ -57,8 +57,9 @@ def test_a_users_estimator_enters_the_benchmark_with_one_line(tmp_path, monkeypa
         "  flights:\n    step: {agent: hold, env: {episode_seconds: 3.0, fan: {enabled: false}}}\n"
     )
     assert main(["compare", "estimators", "--config", str(config), "--only", "benchmark"]) == 0
-    rows = [line.split("|")[1:4] for line in capsys.readouterr().out.splitlines() if line.startswith("| ")]
+    rows = [line.split("|")[1:5] for line in capsys.readouterr().out.splitlines() if line.startswith("| ")]
     names = {cells[0].strip() for cells in rows}
     assert {"ukf", "quasi_static:quasi_static"} <= names
-    ukf = next(cells for cells in rows if cells[0].strip() == "ukf" and cells[2].strip() == "step")
-    assert ukf[1].strip() == "ardrone2"
+    ukf = next(cells for cells in rows if cells[0].strip() == "ukf" and cells[3].strip() == "step")
+    assert ukf[1].strip() == "default" and ukf[2].strip() == "ardrone2"  # a filter's settings: the default
+    assert next(cells for cells in rows if cells[0].strip() == "quasi_static:quasi_static")[1].strip() == "-"

@@ -124,7 +124,7 @@ def _fly_banks(count: int, steps: int = 300):
         if k == 250:
             thrusts[1] = 1e308
         for kernel, bank in zip((ukf_bank_step, ukf_lanes_step), banks, strict=True):
-            state = (bank.quaternions, bank.rests, bank.covariances, bank.reinitialisations)
+            state = (bank.quaternions, bank.rests, bank.covariances, bank.walks, bank.reinitialisations)
             assert kernel(*state, thrusts, torques, measured_p, measured_q, bank.kernel_constants)
     return banks
 

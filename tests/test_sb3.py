@@ -279,15 +279,21 @@ def test_the_train_command_refuses_an_unknown_key_with_exit_code_2():
 
 
 def test_a_shipped_policy_flies_with_its_training_envs_meaning_unless_told_otherwise():
-    """ppo_fan_tracking_no_wrench was trained with observe_wrench=false and the velocity action: by
-    name it flies so with no settings given; a contradicting setting is refused by name."""
+    """ppo_fan_tracking_no_wrench was trained with observe_wrench=false, the velocity action and the UKF
+    with fixed walks: by name it flies so with no settings given (its estimator's settings too, where it
+    flies with that estimator; another estimator flies with its own defaults, and settings given win);
+    a contradicting meaning is refused by name."""
     from quad_wrench_env.agents import make_agent
     from quad_wrench_env.agents.evaluate import evaluate, flying_settings
 
     policy = make_agent("ppo_fan_tracking_no_wrench")
-    assert flying_settings(policy, {"vehicle": "ardrone2"}) == {
-        "observe_wrench": False, "action_type": "velocity", "vehicle": "ardrone2",
-    }  # fmt: skip
+    meaning = {"observe_wrench": False, "action_type": "velocity"}
+    fixed = {"estimator": "ukf", "estimator_params": {"adaptive_walks": False}}
+    assert flying_settings(policy, {"vehicle": "ardrone2"}) == {**meaning, **fixed, "vehicle": "ardrone2"}
+    assert flying_settings(policy, {"estimator": "ukf"}) == {**meaning, **fixed}
+    assert flying_settings(policy, {"estimator": "oracle"}) == {**meaning, "estimator": "oracle"}
+    given = {"estimator_params": {"force_walk": 0.01}}
+    assert flying_settings(policy, given) == {**meaning, **fixed, **given}
     result = evaluate(policy, "QuadWrench/FanTracking-v1", [3], episode_seconds=0.2)
     assert result.per_seed[0]["episode_seconds"] == pytest.approx(0.2)
     refused = "trained with observe_wrench=False, the env has observe_wrench=True"

@@ -240,7 +240,15 @@ def test_the_wrench_nees_in_hover_is_within_the_band_the_filters_linearisation_p
     from quad_wrench_cli.consistency import flown
     from quad_wrench_env.estimators.consistency import nees
 
-    flight = {"agent": "hold", "env": {"episode_seconds": 10.0, "fan": {"enabled": False}}}
+    # the fixed walks, whose linearisation this is (the matched ones: tests/test_adaptive_walks.py)
+    flight = {
+        "agent": "hold",
+        "env": {
+            "episode_seconds": 10.0,
+            "fan": {"enabled": False},
+            "estimator_params": {"adaptive_walks": False},
+        },
+    }
     for vehicle in PRESETS:
         least, most = _hover_nees_weights(vehicle, 0.0), _hover_nees_weights(vehicle, 1.0)
         f = flown(FAN_TRACKING, flight, "hover", vehicle, estimator, list(range(20)), 2.0)
@@ -258,9 +266,10 @@ def test_with_fan_walks_the_filters_are_not_overconfident_in_the_fan():
     under the upper edge of a consistent filter's band for that average, ``χ²_{60}(0.9985) / 20`` (99.7 %
     coverage: eight checks sharing their seeds), on every preset with ``fan_walks`` (walks sized from
     the jet's turbulence), while with the still-air walks the force's is above it (the turbulence
-    outruns them; 17-74 measured). Under the band is the walk's caution where the air is calmer than at
-    the worst place across the jet, which sizes it; walks far too large would pass too. Checked on ten
-    sets of 20 seeds (0-199)."""
+    outruns them; 17-74 measured). Both with fixed walks (``adaptive_walks: false``; the matched walks of
+    the default: tests/test_adaptive_walks.py). Under the band is the walk's caution where the air is
+    calmer than at the worst place across the jet, which sizes it; walks far too large would pass too.
+    Checked on ten sets of 20 seeds (0-199)."""
     from scipy.stats import chi2
 
     from quad_wrench_cli.consistency import flown
@@ -269,7 +278,10 @@ def test_with_fan_walks_the_filters_are_not_overconfident_in_the_fan():
     high = chi2.ppf(0.9985, 60) / 20
     for vehicle in PRESETS:
         for fan_walks in (True, False):
-            flight = {"agent": "hold", "env": {"fan_walks": fan_walks}}
+            flight = {
+                "agent": "hold",
+                "env": {"fan_walks": fan_walks, "estimator_params": {"adaptive_walks": False}},
+            }
             f = flown(FAN_TRACKING, flight, "fan, position hold", vehicle, "ukf", list(range(20)), 2.0)
             error = f.estimate - f.truth
             force, torque = (

@@ -106,11 +106,12 @@ def run_episode(
 def flying_settings(policy: Policy, env_kwargs: Mapping[str, Any]) -> dict[str, Any]:
     """``env_kwargs`` with, for a learned policy, the settings that give its actions and
     observations their meaning (:data:`~quad_wrench_env.agents.sb3.MEANING_KEYS`: action type and
-    limits, observed wrench, history, DisturbanceRejection's tracking error) as its training env had
-    them, where ``env_kwargs`` does not set them (a setting given that differs is refused by the policy's
-    ``reset``, naming it)."""
+    limits, observed wrench, history, DisturbanceRejection's tracking error) and, with the estimator it
+    was trained with, that estimator's settings (e.g. the filters' fixed walks) as its training env had
+    them, where ``env_kwargs`` does not set them (a meaning setting given that differs is refused by the
+    policy's ``reset``, naming it)."""
     settings = getattr(policy, "env_settings", None)
-    return {**(settings() if callable(settings) else {}), **env_kwargs}
+    return {**(settings(env_kwargs) if callable(settings) else {}), **env_kwargs}
 
 
 def evaluate(

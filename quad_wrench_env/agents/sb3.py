@@ -88,11 +88,19 @@ class SB3Policy:
         """A recurrent model's hidden state (None: a new episode; always None for the others)."""
         self._start = np.ones(1, dtype=bool)
 
-    def env_settings(self) -> dict[str, Any]:
-        """The :data:`MEANING_KEYS` its training env set (the others had the task's defaults): what
-        the harness flies it with unless told otherwise."""
-        trained = self.trained_on or {}
-        return {key: trained[key] for key in MEANING_KEYS if key in trained}
+    def env_settings(self, given: Mapping[str, Any] | None = None) -> dict[str, Any]:
+        """What the harness flies it with where ``given`` (the env settings asked for) leaves them: the
+        :data:`MEANING_KEYS` its training env set (the others had the task's defaults), and its training
+        env's estimator with that estimator's settings (``estimator_params``, e.g. the filters' fixed
+        walks): it reads estimates made as in training. With another estimator ``given``, that
+        estimator's defaults."""
+        trained, given = self.trained_on or {}, given or {}
+        settings = {key: trained[key] for key in MEANING_KEYS if key in trained}
+        if given.get("estimator", trained.get("estimator")) == trained.get("estimator"):
+            settings.update(
+                {key: trained[key] for key in ("estimator", "estimator_params") if key in trained}
+            )
+        return settings
 
     def reset(self, env: gym.Env) -> None:
         self._memory, self._start = None, np.ones(1, dtype=bool)

@@ -74,13 +74,13 @@ ESTIMATORS = registered("estimator")
 :func:`make_estimator` and :func:`make_estimator_bank` accept. Adding one is one ``register`` call."""
 
 NAMED_SETTINGS: dict[str, dict[str, dict[str, Any]]] = {
-    "ukf": {"paper": {"force_walk": 5e-4, "torque_walk": 4e-5}},
+    "ukf": {"paper": {"force_walk": 5e-4, "torque_walk": 4e-5, "adaptive_walks": False}},
     "observer": {"paper": {"c_force": 5.0, "c_torque": 0.5}},
 }
 """Settings sets by name, per estimator (the env's ``estimator_params="paper"``):
 
 - ``ukf``, ``paper``: McKinnon & Schoellig 2016 give no covariance values, only that the estimate
-  rises "in about 1 second" to a 53 g mass hung under a rotor (their Fig. 4 and Sec. V). These random
+  rises "in about 1 second" to a 53 g mass hung under a rotor (their Fig. 4 and Sec. V). These fixed random
   walks (N and N·m per 5 ms step; the other noise as :class:`FilterNoise`'s defaults) were fitted to
   that: ``quad-wrench reproduce mckinnon --only fig4`` with them gives 10-90 % rise times of 0.96-1.10 s
   for f_z and 0.78-0.92 s for the torques (seeds 0-2), against 0.16 s and 0.22-0.30 s with the

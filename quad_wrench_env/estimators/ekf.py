@@ -33,7 +33,12 @@ from __future__ import annotations
 import numpy as np
 
 from quad_wrench_env.estimators.bank import BankOfOne, FilterBank
-from quad_wrench_env.estimators.noise import EKFNoise, rotor_spread_body, rotor_spread_covariance
+from quad_wrench_env.estimators.noise import (
+    EKFNoise,
+    rotor_spread_body,
+    rotor_spread_covariance,
+    walk_matrices,
+)
 from quad_wrench_env.kernels.ekf import (
     ekf_bank_step,
     ekf_constants,
@@ -53,7 +58,8 @@ _TINY = 1e-10
 class ExtendedFilterBank(FilterBank):
     """N Euler-angle EKFs with random-walk external force and torque (Hentzen et al. 2019), stepped together.
 
-    State arrays: ``x`` (N, 18) and ``P`` (N, 18, 18).
+    State arrays: ``x`` (N, 18), ``P`` (N, 18, 18) and ``walks`` (N, 2, 3, 3), the force's and the body
+    torque's random walks (:mod:`~quad_wrench_env.kernels.walks`).
     """
 
     name = "ekf"
@@ -84,17 +90,31 @@ class ExtendedFilterBank(FilterBank):
         noise_pose = np.repeat((n.position, n.attitude), 3) ** 2
         noise_motion = np.repeat((n.velocity, n.body_rate), 3) ** 2
         self.kernel_constants = ekf_constants(
-            dt, self.mass, self.inertia, GRAVITY, q_diag, noise_pose, noise_motion, self.P0
+            dt,
+            self.mass,
+            self.inertia,
+            GRAVITY,
+            q_diag,
+            noise_pose,
+            noise_motion,
+            self.P0,
+            n.walk_adaptation(),
         )
         """The step kernel's constants (:func:`~quad_wrench_env.kernels.ekf.ekf_constants`)."""
         self.x = np.zeros((count, STATE_DIM))
         self.P = np.tile(self.P0, (count, 1, 1))
+        self.walk_defaults = walk_matrices(q_diag[12:18])
+        """The walks (2, 3, 3) each filter starts from: force, body torque (per step)."""
+        self.walks = np.tile(self.walk_defaults, (count, 1, 1, 1))
+        """(N, 2, 3, 3) each filter's walks now (the defaults unless ``adaptive_walks`` matches them to
+        its corrections)."""
         self.reinitialisations = np.zeros(count, dtype=int)
 
     # -- bank interface ----------------------------------------------------------------------------
     def reset(self, index: int | np.ndarray, position: np.ndarray, quaternion_wxyz: np.ndarray) -> None:
         """Start the filters ``index`` afresh at the given poses, at rest, with no external wrench."""
         self._restart(index, position, quaternion_wxyz)
+        self.walks[index] = self.walk_defaults
         self.reinitialisations[index] = 0
 
     def _restart(self, index: int | np.ndarray, position: np.ndarray, quaternion_wxyz: np.ndarray) -> None:
@@ -105,7 +125,7 @@ class ExtendedFilterBank(FilterBank):
 
     def _kernel(self, thrusts, body_torques, positions, quaternions, velocities, body_rates):
         return ekf_bank_step, (
-            self.x, self.P, self.reinitialisations, thrusts, body_torques, positions, quaternions,
+            self.x, self.P, self.walks, self.reinitialisations, thrusts, body_torques, positions, quaternions,
             velocities, body_rates, self.kernel_constants,
         )  # fmt: skip
 

@@ -11,6 +11,7 @@ import numpy as np
 from quad_wrench_env.config import check_numbers
 from quad_wrench_env.kernels import njit
 from quad_wrench_env.kernels.quaternions import matrix
+from quad_wrench_env.kernels.walks import start_walks
 from quad_wrench_env.vehicle import GRAVITY, PRESETS, Mixer, VehicleParams
 
 NoiseT = TypeVar("NoiseT", bound="FilterNoise")
@@ -54,10 +55,35 @@ class FilterNoise:
     default): the filter cannot tell a rotor's error from an external wrench, so it enters the
     *reported* covariance of the wrench (:func:`rotor_spread_covariance`), never the estimate."""
 
+    adaptive_walks: bool = True
+    """Covariance-matched walks (:mod:`~quad_wrench_env.kernels.walks`): each filter's force and torque
+    walks (3x3 covariances per step) follow the outer product of the change each step makes to its own
+    estimate, with forgetting, so that its reported covariance keeps up with the disturbance it meets
+    (still air, a manoeuvre, a turbulent jet). False: the fixed walks ``force_walk`` and
+    ``torque_walk``, as the papers have them."""
+    walk_forgetting: float = 0.98
+    """α in (0, 1]: the weight of the last walk per step (0.98 at 200 Hz: a memory of about 0.25 s); 1
+    keeps the walks where they start."""
+    walk_floor: float = 0.1
+    """The smallest walk sd a matched filter reports in any direction, as a fraction (>= 0) of
+    ``force_walk`` or ``torque_walk`` (its variance is added to the matched walk's diagonal)."""
+
     def __post_init__(self) -> None:
-        unchecked = {"rotor_spread", *(k for k in REFERENCE_NOISE if getattr(self, k) is None)}
+        unchecked = {"rotor_spread", *WALK_KEYS, *(k for k in REFERENCE_NOISE if getattr(self, k) is None)}
         check_numbers("estimator_params", self, tuple(k for k in vars(self) if k not in unchecked))
-        check_numbers("estimator_params", self, ("rotor_spread",), positive=False)
+        check_numbers("estimator_params", self, ("rotor_spread", "walk_floor"), positive=False)
+        if not isinstance(self.adaptive_walks, bool):
+            raise ValueError(f"estimator_params.adaptive_walks={self.adaptive_walks!r} must be true or false")
+        check_numbers("estimator_params", self, ("walk_forgetting",))
+        if self.walk_forgetting > 1.0:
+            raise ValueError(
+                f"estimator_params.walk_forgetting={self.walk_forgetting!r} must be in (0, 1] (the weight "
+                "of the last walk variance per step)"
+            )
+
+    def walk_adaptation(self) -> tuple[float, float, float]:
+        """``(on, α, floor²)`` as the filters' kernels read them (:mod:`~quad_wrench_env.kernels.walks`)."""
+        return float(self.adaptive_walks), float(self.walk_forgetting), float(self.walk_floor) ** 2
 
     def for_vehicle(self: NoiseT, vehicle: VehicleParams) -> NoiseT:
         """These settings with every ``None`` replaced by its default for ``vehicle``
@@ -86,6 +112,8 @@ REFERENCE_NOISE: dict[str, float] = {
 N·m): the thrust model's error and the external force's random walk and initial sd (about 1.2 %, 0.1 %
 and 5 % of its weight), the motor-torque model's error and the external torque's walk and initial sd
 (0.56 %, 0.04 % and 3.8 % of weight x arm)."""
+WALK_KEYS = ("adaptive_walks", "walk_forgetting", "walk_floor")
+"""The settings of the covariance-matched walks (:func:`~quad_wrench_env.kernels.walks.match_walks`)."""
 FORCE_KEYS = frozenset({"thrust", "force_walk", "initial_force"})
 """The settings that are forces (the rest of :data:`REFERENCE_NOISE` are torques)."""
 
@@ -149,6 +177,13 @@ def _world_covariances(body, quaternions, out):
                         total += jacobian[i, a] * body[a, b] * jacobian[j, b]
                 out[n, i, j] = total
                 out[n, j, i] = total
+
+
+def walk_matrices(variances: np.ndarray) -> np.ndarray:
+    """(2, 3, 3) walks, force then torque, diagonal with these six ``variances`` (where a filter starts)."""
+    walks = np.empty((2, 3, 3))
+    start_walks(walks, np.ascontiguousarray(variances, dtype=float))
+    return walks
 
 
 def mrp_std(angle_std: float) -> float:

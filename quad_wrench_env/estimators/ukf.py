@@ -59,7 +59,13 @@ import math
 import numpy as np
 
 from quad_wrench_env.estimators.bank import BankOfOne, FilterBank
-from quad_wrench_env.estimators.noise import FilterNoise, mrp_std, rotor_spread_body, rotor_spread_covariance
+from quad_wrench_env.estimators.noise import (
+    FilterNoise,
+    mrp_std,
+    rotor_spread_body,
+    rotor_spread_covariance,
+    walk_matrices,
+)
 from quad_wrench_env.kernels import COMPILED
 from quad_wrench_env.kernels.ukf import ukf_bank_step, ukf_constants, ukf_estimates
 from quad_wrench_env.vehicle import GRAVITY, VehicleParams
@@ -73,8 +79,9 @@ _WRENCH_BLOCK = np.ix_(np.r_[15:18, 12:15], np.r_[15:18, 12:15])
 class UnscentedFilterBank(FilterBank):
     """N unscented wrench filters of one vehicle model, stepped together (McKinnon & Schoellig 2016, Sec. II).
 
-    State arrays: ``quaternions`` (N, 4), ``rests`` (N, 15) = (ω, x, ẋ, τ_e, f_e) at their mean, and
-    ``covariances`` (N, 18, 18) of the error state.
+    State arrays: ``quaternions`` (N, 4), ``rests`` (N, 15) = (ω, x, ẋ, τ_e, f_e) at their mean,
+    ``covariances`` (N, 18, 18) of the error state and ``walks`` (N, 2, 3, 3), the force's and the
+    torque's random walks (:mod:`~quad_wrench_env.kernels.walks`).
     """
 
     def __init__(self, vehicle: VehicleParams, dt: float, noise: FilterNoise | None, count: int) -> None:
@@ -103,12 +110,17 @@ class UnscentedFilterBank(FilterBank):
         centre = self.weight_centre + 2 * NOISE_DIM * self.weight_other
         self.kernel_constants = ukf_constants(
             dt, self.mass, self.inertia, GRAVITY, self.spread, centre, self.weight_other, q_diagonal,
-            g_diagonal, self.P0,
+            g_diagonal, self.P0, n.walk_adaptation(),
         )  # fmt: skip
         """The step kernel's constants (:func:`~quad_wrench_env.kernels.ukf.ukf_constants`)."""
         self.quaternions = np.tile((1.0, 0.0, 0.0, 0.0), (count, 1))
         self.rests = np.zeros((count, STATE_DIM - 3))
         self.covariances = np.tile(self.P0, (count, 1, 1))
+        self.walk_defaults = walk_matrices(np.repeat((n.force_walk, n.torque_walk), 3) ** 2)
+        """The walks (2, 3, 3) each filter starts from: force, torque (per step)."""
+        self.walks = np.tile(self.walk_defaults, (count, 1, 1, 1))
+        """(N, 2, 3, 3) each filter's walks now (the defaults unless ``adaptive_walks`` matches them to
+        its corrections)."""
         self.reinitialisations = np.zeros(count, dtype=int)
         self._step_kernel = ukf_bank_step
         """The step kernel: filter by filter, or on lanes for a bank large enough (module docstring)."""
@@ -126,13 +138,14 @@ class UnscentedFilterBank(FilterBank):
         self.rests[index] = 0.0
         self.rests[index, 3:6] = positions
         self.covariances[index] = self.P0
+        self.walks[index] = self.walk_defaults
         self.reinitialisations[index] = 0
 
     def _kernel(self, thrusts, body_torques, positions, quaternions, velocities, body_rates):
         """The filter of McKinnon & Schoellig 2016 measures the pose only: ``velocities`` and
         ``body_rates`` are unused."""
         return self._step_kernel, (
-            self.quaternions, self.rests, self.covariances, self.reinitialisations,
+            self.quaternions, self.rests, self.covariances, self.walks, self.reinitialisations,
             thrusts, body_torques, positions, quaternions, self.kernel_constants,
         )  # fmt: skip
 

@@ -11,6 +11,7 @@ import numpy as np
 from quad_wrench_env.kernels import njit
 from quad_wrench_env.kernels.linalg import cholesky, cholesky_solve_rows, inputs_finite, rows_view
 from quad_wrench_env.kernels.quaternions import matrix
+from quad_wrench_env.kernels.walks import match_walks, start_walks, walk_noise
 
 
 @njit
@@ -122,24 +123,34 @@ def ekf_transition(x, thrust, body_torque, dt, mass, inertia, gravity, r):
     x[11] += dt * (body_torque[2] + x[17] - c2) / jz
 
 
-def ekf_constants(dt, mass, inertia, gravity, q_diagonal, noise_pose, noise_motion, p0) -> np.ndarray:
+def ekf_constants(
+    dt, mass, inertia, gravity, q_diagonal, noise_pose, noise_motion, p0, adaptation
+) -> np.ndarray:
     """:func:`ekf_bank_step`'s constants in one array, in the order it reads them: ``dt``, ``mass``,
     ``inertia`` (3), ``gravity``, the diagonal of ``Q`` (18), the pose measurement variances (6), the
-    velocity and body-rate measurement variances (6), ``P₀`` (18, 18)."""
+    velocity and body-rate measurement variances (6), ``P₀`` (18, 18), and the walks' ``adaptation``
+    ``(on, α, floor²)`` (:func:`~quad_wrench_env.kernels.walks.match_walks`; the walks a filter starts
+    from are ``Q``'s last six entries)."""
     head = (dt, mass, *inertia, gravity)
-    return np.concatenate((head, q_diagonal, noise_pose, noise_motion, np.ravel(p0))).astype(float)
+    return np.concatenate((head, q_diagonal, noise_pose, noise_motion, np.ravel(p0), adaptation)).astype(
+        float
+    )
 
 
 @njit
 def ekf_bank_step(
-    x, p, reinitialisations, thrusts, body_torques, positions, quaternions, velocities, body_rates, constants
-):
+    x, p, walks, reinitialisations, thrusts, body_torques, positions, quaternions, velocities, body_rates,
+    constants,
+):  # fmt: skip
     """One predict-correct step of every filter, in place, with the constants of
-    :func:`ekf_constants`; ``velocities`` and ``body_rates`` are (N, 3) where measured, else (0, 3).
-    Returns False, touching nothing, when an input is not finite."""
+    :func:`ekf_constants` and each filter's walks ``walks`` (N, 2, 3, 3) (force, body torque covariances
+    per step: ``Q``'s entries 12-17, :mod:`~quad_wrench_env.kernels.walks`), matched to its step afterwards;
+    ``velocities`` and ``body_rates`` are (N, 3) where measured, else (0, 3). Returns False, touching
+    nothing, when an input is not finite."""
     dt, mass, inertia, gravity = constants[0], constants[1], constants[2:5], constants[5]
     q_diagonal, noise_pose, noise_motion = constants[6:24], constants[24:30], constants[30:36]
     p0 = rows_view(constants, 36, 18, 18)
+    walks0, adaptation = q_diagonal[12:18], constants[360:363]
     count = x.shape[0]
     with_velocity, with_rates = velocities.shape[0] > 0, body_rates.shape[0] > 0
     if not inputs_finite(thrusts, body_torques, positions, quaternions, velocities, body_rates):
@@ -166,8 +177,11 @@ def ekf_bank_step(
     s = np.empty((size, size))
     s_root = np.empty((size, size))
     gain = np.empty((18, size))
+    before = np.empty(6)
+    matched = adaptation[0] != 0.0
     for n in range(count):
         xn, pn = x[n], p[n]
+        before[:] = xn[12:18]
         # -- predict: F at the prior state, P' = F P Fᵀ + Q, then the forward-Euler step --
         ekf_transition_jacobian(xn, thrusts[n], dt, mass, inertia, a)
         for i in range(18):
@@ -181,7 +195,13 @@ def ekf_bank_step(
                 t = 0.0
                 for m in range(18):
                     t += fp[i, m] * a[j, m]
-                pn[i, j] = t + (q_diagonal[i] if i == j else 0.0)
+                added = q_diagonal[i] if i == j else 0.0
+                block = (i - 12) // 3
+                if i >= 12 and block == (j - 12) // 3 and (i == j or matched):  # the walks
+                    added = walk_noise(
+                        walks[n], block, i - 12 - 3 * block, j - 12 - 3 * block, walks0, adaptation
+                    )
+                pn[i, j] = t + added
         ekf_transition(xn, thrusts[n], body_torques[n], dt, mass, inertia, gravity, r)
         # -- correct (Kalman update with the measured components) --
         mroll, mpitch, myaw = euler_from_quaternion(
@@ -229,12 +249,15 @@ def ekf_bank_step(
             finite = finite and math.isfinite(xn[i])
             for j in range(18):
                 finite = finite and math.isfinite(pn[i, j])
-        if not finite:  # restart from the measured pose at rest
+        if finite:
+            match_walks(walks[n], before, xn[12:18], adaptation)
+        else:  # restart from the measured pose at rest
             xn[:] = 0.0
             for i in range(3):
                 xn[i] = positions[n, i]
             xn[6], xn[7], xn[8] = mroll, mpitch, myaw
             pn[:, :] = p0
+            start_walks(walks[n], walks0)
             reinitialisations[n] += 1
     return True
 

@@ -34,6 +34,7 @@ from quad_wrench_env.kernels.linalg import (
     weighted_gram,
 )
 from quad_wrench_env.kernels.quaternions import exp, from_mrp, matrix, qmul, to_mrp
+from quad_wrench_env.kernels.walks import match_walks, start_walks, walk_noise
 
 _MEASURED = np.array((6, 7, 8, 0, 1, 2))
 """Error-state indices of the measurement ``(x, δρ)``."""
@@ -42,20 +43,24 @@ _NONLINEAR = 6
 
 
 def ukf_constants(
-    dt, mass, inertia, gravity, spread, weight_centre, weight_other, q_diagonal, g_diagonal, p0
+    dt, mass, inertia, gravity, spread, weight_centre, weight_other, q_diagonal, g_diagonal, p0, adaptation
 ):
     """:func:`ukf_bank_step`'s constants in one array, in the order it reads them: ``dt``, ``mass``,
     ``inertia`` (3), ``gravity``, ``spread`` (``√(L+κ)``), the centre's mean weight (the noise-only
-    points' included) and every other point's, the diagonals of ``Q`` (12) and ``G`` (6), ``P₀`` (18, 18)."""
+    points' included) and every other point's, the diagonals of ``Q`` (12) and ``G`` (6), ``P₀`` (18, 18),
+    the walks' variances a filter starts from (force, torque: ``Q``'s entries 9-11 and 3-5) and the
+    walks' ``adaptation`` ``(on, α, floor²)`` (:func:`~quad_wrench_env.kernels.walks.match_walks`)."""
     head = (dt, mass, *inertia, gravity, spread, weight_centre, weight_other)
-    return np.concatenate((head, q_diagonal, g_diagonal, np.ravel(p0))).astype(float)
+    walks = np.concatenate((q_diagonal[9:12], q_diagonal[3:6]))  # force, torque
+    return np.concatenate((head, q_diagonal, g_diagonal, np.ravel(p0), walks, adaptation)).astype(float)
 
 
 @njit(inline=True)
 def unpack_ukf_constants(constants):
     """:func:`ukf_constants` as the step kernels read them: ``dt``, ``mass``, ``inertia`` (3),
     ``gravity``, ``spread``, the centre's weight with the linear pairs' share (module docstring), every
-    other point's weight ``w``, the diagonals of ``Q`` and ``G``, and ``P₀`` (18, 18)."""
+    other point's weight ``w``, the diagonals of ``Q`` and ``G``, ``P₀`` (18, 18), the walks' variances
+    a filter starts from and their adaptation."""
     w = constants[8]
     w_centre = constants[7] + 2 * (18 - _NONLINEAR) * w
     q_diagonal, g_diagonal, p0 = constants[9:21], constants[21:27], rows_view(constants, 27, 18, 18)
@@ -71,24 +76,30 @@ def unpack_ukf_constants(constants):
         q_diagonal,
         g_diagonal,
         p0,
+        constants[351:357],
+        constants[357:360],
     )
 
 
 @njit
 def ukf_bank_step(
-    quaternions, rests, covariances, reinitialisations,
+    quaternions, rests, covariances, walks, reinitialisations,
     thrusts, body_torques, positions, measured_quaternions, constants,
 ):  # fmt: skip
     """One predict-correct step of every filter, in place (see the module docstring), with the
-    constants of :func:`ukf_constants`; returns False, touching nothing, when an input is not finite."""
+    constants of :func:`ukf_constants` and each filter's walks ``walks`` (N, 2, 3, 3) (force, torque
+    covariances per step, :mod:`~quad_wrench_env.kernels.walks`), matched to its step afterwards;
+    returns False, touching nothing, when an input is not finite."""
     count = quaternions.shape[0]
     unmeasured = positions[:0]
     if not inputs_finite(thrusts, body_torques, positions, measured_quaternions, unmeasured, unmeasured):
         return False
-    dt, mass, inertia, gravity, spread, w_centre, w, q_diagonal, g_diagonal, p0 = unpack_ukf_constants(
-        constants
+    dt, mass, inertia, gravity, spread, w_centre, w, q_diagonal, g_diagonal, p0, walks0, adaptation = (
+        unpack_ukf_constants(constants)
     )
     n_points = 1 + 2 * _NONLINEAR
+    before = np.empty(6)
+    matched = adaptation[0] != 0.0
     root = np.empty((18, 18))
     q_points = np.empty((n_points, 4))
     rest_points = np.empty((n_points, 15))
@@ -115,6 +126,7 @@ def ukf_bank_step(
             cholesky(p, root)
         qw, qx, qy, qz = quaternions[n, 0], quaternions[n, 1], quaternions[n, 2], quaternions[n, 3]
         thrust = thrusts[n]
+        wrench_of_rest(rests[n], before)
         # -- the centre and the sigma points along columns 0-5 through the motion model
         # (eqs. 19-24, 2-5, 11-14) --
         for j in range(n_points):
@@ -198,8 +210,10 @@ def ukf_bank_step(
         for i in range(3):
             rate_gain = dt / inertia[i]
             p[3 + i, 3 + i] += rate_gain * q_diagonal[i] * rate_gain
-            p[12 + i, 12 + i] += q_diagonal[3 + i]
-            p[15 + i, 15 + i] += q_diagonal[9 + i]
+            for j in range(3):  # the walks (:mod:`~quad_wrench_env.kernels.walks`): torque, force
+                if i == j or matched:
+                    p[12 + i, 12 + j] += walk_noise(walks[n], 1, i, j, walks0, adaptation)
+                    p[15 + i, 15 + j] += walk_noise(walks[n], 0, i, j, walks0, adaptation)
             for k in range(3):
                 b[6 + i, 6 + k] = (0.5 * dt * dt / mass) * rotation0[i, k]
                 b[9 + i, 6 + k] = (dt / mass) * rotation0[i, k]
@@ -255,13 +269,24 @@ def ukf_bank_step(
         finite = all_finite(rests[n])
         for a in range(18):
             finite &= all_finite(p[a])
-        if not finite:  # restart from the measured pose at rest
+        if finite:
+            wrench_of_rest(rests[n], e)
+            match_walks(walks[n], before, e, adaptation)
+        else:  # restart from the measured pose at rest
             quaternions[n] = measured_quaternions[n]
             rests[n] = 0.0
             rests[n, 3:6] = positions[n]
             p[:, :] = p0
+            start_walks(walks[n], walks0)
             reinitialisations[n] += 1
     return True
+
+
+@njit(inline=True)
+def wrench_of_rest(rest, out):
+    """The wrench ``[f_e, τ_e]`` of a filter's ``rest`` (15,) into ``out`` (its first 6 entries)."""
+    for i in range(3):
+        out[i], out[3 + i] = rest[12 + i], rest[9 + i]
 
 
 @njit

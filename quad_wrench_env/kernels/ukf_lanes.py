@@ -18,6 +18,8 @@ filter, whatever its neighbours, on CPUs of any vector width (``tests/test_lanes
 
 from __future__ import annotations
 
+import numpy as np
+
 from quad_wrench_env.kernels import njit
 from quad_wrench_env.kernels.lanes import (
     WIDTH,
@@ -42,7 +44,8 @@ from quad_wrench_env.kernels.quaternions import (
     rotation_entries,
     to_mrp,
 )
-from quad_wrench_env.kernels.ukf import _MEASURED, _NONLINEAR, unpack_ukf_constants
+from quad_wrench_env.kernels.ukf import _MEASURED, _NONLINEAR, unpack_ukf_constants, wrench_of_rest
+from quad_wrench_env.kernels.walks import match_walks, start_walks, walk_noise
 
 LANES_FROM = 3
 """Smallest bank that runs on lanes: a block of eight costs about 7 µs; filter by filter
@@ -107,7 +110,7 @@ def _exp(v0, v1, v2):
 
 @njit
 def ukf_lanes_step(
-    quaternions, rests, covariances, reinitialisations,
+    quaternions, rests, covariances, walks, reinitialisations,
     thrusts, body_torques, positions, measured_quaternions, constants,
 ):  # fmt: skip
     """One predict-correct step of every filter, in place, with the arguments of
@@ -117,8 +120,8 @@ def ukf_lanes_step(
     unmeasured = positions[:0]
     if not inputs_finite(thrusts, body_torques, positions, measured_quaternions, unmeasured, unmeasured):
         return False
-    dt, mass, inertia, gravity, spread, w_centre, w, q_diagonal, g_diagonal, p0 = unpack_ukf_constants(
-        constants
+    dt, mass, inertia, gravity, spread, w_centre, w, q_diagonal, g_diagonal, p0, walks0, adaptation = (
+        unpack_ukf_constants(constants)
     )
     n_points = 1 + 2 * _NONLINEAR
     n_columns = n_points + 18 - _NONLINEAR
@@ -139,6 +142,10 @@ def ukf_lanes_step(
     innovation = empty(6)
     delta = empty(18)
     given = empty(15)  # quaternion, thrust, body torque, position, measured quaternion
+    walk_lanes = empty(18)  # the walks (2, 3, 3), force then torque, with the floor where matched
+    matched = adaptation[0] != 0.0
+    before = np.empty(6)
+    after = np.empty(6)
     zero = splat(0.0)
     for first in range(0, count, WIDTH):
         # -- the block's filters into lanes (lower triangle of P: all the Cholesky reads) --
@@ -149,6 +156,11 @@ def ukf_lanes_step(
                     p[_at(a, c, 18) + i] = covariances[n, a, c]
             for k in range(15):
                 rest[k * WIDTH + i] = rests[n, k]
+            for block in range(2):
+                for a in range(3):
+                    for c in range(3):
+                        value = walk_noise(walks[n], block, a, c, walks0, adaptation)
+                        walk_lanes[(9 * block + 3 * a + c) * WIDTH + i] = value
             for k in range(4):
                 given[k * WIDTH + i] = quaternions[n, k]
                 given[(11 + k) * WIDTH + i] = measured_quaternions[n, k]
@@ -274,10 +286,13 @@ def ukf_lanes_step(
         # -- process noise: + B Q Bᵀ, B at the prior mean attitude (ukf_bank_step) --
         for i in range(3):
             rate_gain = dt / inertia[i]
-            diagonal = ((3 + i, rate_gain * q_diagonal[i] * rate_gain), (12 + i, q_diagonal[3 + i]),
-                        (15 + i, q_diagonal[9 + i]))  # fmt: skip
-            for index, added in diagonal:
-                store(p, _at(index, index, 18), load(p, _at(index, index, 18)) + added)
+            at = _at(3 + i, 3 + i, 18)
+            store(p, at, load(p, at) + rate_gain * q_diagonal[i] * rate_gain)
+            for j in range(3):  # the walks (ukf_bank_step): torque, force
+                if i == j or matched:
+                    for row, block in ((12, 1), (15, 0)):
+                        at = _at(row + i, row + j, 18)
+                        store(p, at, load(p, at) + load(walk_lanes, (9 * block + 3 * i + j) * WIDTH))
         for a in range(6, 12):
             for c in range(a, 12):
                 total = zero
@@ -348,8 +363,11 @@ def ukf_lanes_step(
             if (finite >> i) & 1:
                 quaternions[n, 0], quaternions[n, 1] = lane(qw, i), lane(qx, i)
                 quaternions[n, 2], quaternions[n, 3] = lane(qy, i), lane(qz, i)
+                wrench_of_rest(rests[n], before)
                 for k in range(15):
                     rests[n, k] = rest[k * WIDTH + i]
+                wrench_of_rest(rests[n], after)
+                match_walks(walks[n], before, after, adaptation)
                 for a in range(18):
                     for c in range(18):
                         covariances[n, a, c] = p[_at(a, c, 18) + i]
@@ -358,5 +376,6 @@ def ukf_lanes_step(
                 rests[n] = 0.0
                 rests[n, 3:6] = positions[n]
                 covariances[n] = p0
+                start_walks(walks[n], walks0)
                 reinitialisations[n] += 1
     return True
