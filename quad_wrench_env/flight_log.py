@@ -299,12 +299,12 @@ class FlightRecorder:
     :func:`~quad_wrench_env.agents.evaluate.run_episode`)."""
 
     def __init__(self, env: gym.Env) -> None:
-        calibration = env.unwrapped.cfg.rotor_calibration
+        calibration = env.unwrapped.cfg.resolved_rotor_calibration()
         if calibration is not None:
             raise ValueError(
                 f"rotor_calibration={calibration!r}: a log holds the reported motor speeds, which a replay "
                 "turns into thrust and torque through the nominal mixer, not the calibrated one; record "
-                "with rotor_calibration=None"
+                "with rotor_calibration=None (crazyflie2 is calibrated by default)"
             )
         self._fleet = env.unwrapped.fleet
         self._inner = self._fleet.estimator

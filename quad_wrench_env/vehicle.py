@@ -208,6 +208,14 @@ PRESETS: dict[str, VehicleParams] = {
     ),
 }
 
+CALIBRATED_ROTORS: dict[str, float] = {"crazyflie2": 0.002}
+"""The presets whose rotors are calibrated by default (the env's ``rotor_calibration: "preset"``), with
+the relative residual's sd: the 27 g ``crazyflie2``, whose rotors' 2 % thrust errors make a yaw torque of
+the order of the fan's whole signal across the jet (``docs/estimators.md``, "What no tuning can fix");
+0.2 %: each rotor's coefficient fitted on a thrust stand over its speed range (at 0.5 % the default
+admittance tracker's miss grows to 1.3x the oracle's, ``docs/estimators.md``). The other presets fly the
+nominal mixer."""
+
 
 def make_vehicle(name: str, **overrides) -> VehicleParams:
     """A preset by name, optionally with fields overridden (validated)."""

@@ -15,10 +15,11 @@ vehicle preset x estimator, a single env and a 3-vehicle vector env (seeded rand
 disturbance at once, and with motion-capture latency; the classical agents and the shipped learned
 policies through the harness (one held-out seed). Not part of CI: it takes minutes.
 
-The UKF and the EKF fly with fixed walks (``estimator_params: {adaptive_walks: false}``) where the
-checkout has the setting, so that a revision with covariance-matched walks on by default is held to
-the numbers of one without; the shipped policies fly with the estimator they were trained with and
-carry its settings.
+The UKF and the EKF fly with fixed walks (``estimator_params: {adaptive_walks: false}``) and every
+vehicle with the nominal mixer (``rotor_calibration: null``) where the checkout has those defaults
+(covariance-matched walks, a calibrated ``crazyflie2``), so that such a revision is held to the numbers
+of one without; the shipped policies fly with the estimator they were trained with and carry its
+settings.
 """
 
 from __future__ import annotations
@@ -76,14 +77,17 @@ def _digest(*parts: object) -> str:
 
 
 def _fixed_walks(env_id: str, kwargs: dict) -> dict:
-    """``kwargs`` with the UKF's or the EKF's walks fixed where the checkout has the setting (module
-    docstring)."""
+    """``kwargs`` with the UKF's or the EKF's walks fixed and the nominal mixer where the checkout has
+    those settings (module docstring)."""
     import dataclasses
 
     import gymnasium as gym
 
+    from quad_wrench_env.engine.config import EnvConfig
     from quad_wrench_env.estimators import FilterNoise
 
+    if EnvConfig.rotor_calibration == "preset":
+        kwargs = {**kwargs, "rotor_calibration": None}
     if "adaptive_walks" not in {f.name for f in dataclasses.fields(FilterNoise)}:
         return kwargs
     estimator = kwargs.get("estimator")

@@ -101,6 +101,7 @@ class ReferenceUKF:
         self.rest = np.zeros(15)
         self.Q0 = self.Q.copy()
         self.adaptive, self.forgetting, self.floor = n.adaptive_walks, n.walk_forgetting, n.walk_floor
+        self.ceiling = n.walk_ceiling
         self.M: dict[int, np.ndarray] = {}
         self.reset_walks()
 
@@ -181,9 +182,9 @@ class ReferenceUKF:
     def step(self, thrust: float, torque: np.ndarray, position: np.ndarray, quaternion: np.ndarray) -> None:
         """Predict, correct, then (``adaptive_walks``) each walk block ``M`` of ``Q`` (torque: entries
         3-5, force: 9-11) moves towards the outer product of the change the step made to its wrench
-        estimate, by exponential forgetting (Akhlaghi, Zhou & Huang 2017), ``M <- α M + (1 - α) d dᵀ``;
-        ``Q`` holds ``M`` plus the floor, ``floor²`` times the walk's variance at the start, on its
-        diagonal."""
+        estimate, by exponential forgetting (Akhlaghi, Zhou & Huang 2017), ``M <- α M + (1 - α) d dᵀ``,
+        shrunk to a trace of ``ceiling²`` times the start's where above; ``Q`` holds ``M`` plus the floor,
+        ``floor²`` times the walk's variance at the start, on its diagonal."""
         before = self.rest[9:15].copy()  # τ_e, f_e
         self.predict(thrust, torque)
         self.correct(position, quaternion)
@@ -191,4 +192,6 @@ class ReferenceUKF:
             change = self.rest[9:15] - before
             for first, d in ((3, change[:3]), (9, change[3:])):
                 self.M[first] = self.forgetting * self.M[first] + (1.0 - self.forgetting) * np.outer(d, d)
+                limit = self.ceiling**2 * np.trace(self.Q0[first : first + 3, first : first + 3])
+                self.M[first] *= min(1.0, limit / np.trace(self.M[first]))
                 self._walk_into_q(first)

@@ -335,13 +335,15 @@ def test_kalman_filters_rise_as_their_noise_settings_predict(name):
 def test_a_ukf_with_a_100x_smaller_force_walk_rises_outside_the_band():
     """The mutation issue 21 names: force_walk / 100 (through the noise settings, as
     ``estimator_params`` gives them) must move the rise time of the fixed walks out of the default's
-    band; matched to its corrections (the default), the same walk is raised by the step itself and the
+    band; matched to its corrections (``adaptive_walks``), the same walk is raised by the step itself and the
     filter rises inside the band's upper edge again."""
     predicted = predicted_rise_time(NOISE)
     seconds, small = STEP_AT + RISE_BAND[1] * predicted + 0.5, NOISE.force_walk / 100
     slow = measured_rise_time("ukf", seconds, force_walk=small, adaptive_walks=False)
     assert slow > RISE_BAND[1] * predicted, (slow, predicted)
-    assert measured_rise_time("ukf", seconds, force_walk=small) < RISE_BAND[1] * predicted
+    assert (
+        measured_rise_time("ukf", seconds, force_walk=small, adaptive_walks=True) < RISE_BAND[1] * predicted
+    )
     slow_noise = FilterNoise(force_walk=NOISE.force_walk / 100).for_vehicle(VEHICLE)
     assert predicted_rise_time(slow_noise) > RISE_BAND[1] * predicted
 

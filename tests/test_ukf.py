@@ -57,7 +57,8 @@ means and 3e-12 σ_i σ_j for the covariance over 400 steps). A mistake moves th
 kernel's pairs of linear sigma points weighted 0.5 % light part them by 8e-6 σ in the first step."""
 
 
-def test_the_filter_is_the_plain_unscented_filter_step_by_step():
+@pytest.mark.parametrize("settings", [{}, {"adaptive_walks": True}], ids=["fixed walks", "matched walks"])
+def test_the_filter_is_the_plain_unscented_filter_step_by_step(settings):
     """The filter's kernel (``make_estimator("ukf")``: 13 sigma points through the model, the other
     pairs as their linear map, the noise-only points as ``B Q Bᵀ``, the correction as a Kalman update)
     against ``tests/reference_ukf.py`` (all 61 sigma points of the extended state through the model,
@@ -65,11 +66,12 @@ def test_the_filter_is_the_plain_unscented_filter_step_by_step():
     reference flight of ``tests/test_reference_estimators.py`` (body rates of 1.5-2.5 rad/s about every
     axis, a constant external wrench), with its motion-capture noise: after every step the means
     (the external wrench among them, and the attitude as the MRPs between the two quaternions) and
-    the covariance agree within ROUNDING of the filter's standard deviations."""
+    the covariance agree within ROUNDING of the filter's standard deviations; with the walks fixed and
+    matched to the corrections (the reference's own form of the rule)."""
     states, inputs = reference_flight()
-    estimator = make_estimator("ukf", VEHICLE, DT)
+    estimator = make_estimator("ukf", VEHICLE, DT, **settings)
     reference = ReferenceUKF(
-        VEHICLE.mass, np.array(VEHICLE.inertia), DT, GRAVITY, FilterNoise().for_vehicle(VEHICLE)
+        VEHICLE.mass, np.array(VEHICLE.inertia), DT, GRAVITY, FilterNoise(**settings).for_vehicle(VEHICLE)
     )
     for filter_ in (estimator, reference):
         filter_.reset(states[0, 4:7], states[0, :4])

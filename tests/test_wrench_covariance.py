@@ -154,12 +154,15 @@ def _hover_nees_weights(vehicle: str, thrust_noise_true: float, walk_true: float
     truth's noise, ``E = (I - KH)(F E Fᵀ + Q_true)(I - KH)ᵀ + K R Kᵀ``: the filter's wrench walk times
     ``walk_true`` (0: a constant wrench, as in hover), its thrust and motor-torque noise times
     ``thrust_noise_true``. The filter reports P plus the rotors' spread C (``rotor_spread``); the truth's
-    error adds the env's own rotor errors (``kf_spread``), a bias drawn once per episode. ``λ`` are the
+    error adds the env's own rotor errors (``kf_spread``; the nominal mixer, ``rotor_calibration`` null),
+    a bias drawn once per episode. ``λ`` are the
     eigenvalues of ``(P + C)⁻¹ (E + C_env)`` per block; with the truth's noise the filter's they are 1."""
     from quad_wrench_env.estimators.noise import rotor_spread_body
     from quad_wrench_env.kernels.ekf import ekf_transition_jacobian
 
-    env = gym.make(FAN_TRACKING, vehicle=vehicle, estimator="ekf", fan={"enabled": False})
+    env = gym.make(
+        FAN_TRACKING, vehicle=vehicle, estimator="ekf", fan={"enabled": False}, rotor_calibration=None
+    )
     cfg, bank = env.unwrapped.cfg, env.unwrapped.fleet.estimator
     env.close()
     assert not cfg.sensors.state_estimator  # the filter measures the pose alone: H below
@@ -240,13 +243,16 @@ def test_the_wrench_nees_in_hover_is_within_the_band_the_filters_linearisation_p
     from quad_wrench_cli.consistency import flown
     from quad_wrench_env.estimators.consistency import nees
 
-    # the fixed walks, whose linearisation this is (the matched ones: tests/test_adaptive_walks.py)
+    # the fixed walks and the nominal mixer, whose linearisation this is (a calibrated crazyflie2's torque
+    # NEES, 2.8, is above it: the 8-bit speeds' error, a bias the white thrust noise does not model, is no
+    # longer hidden under the 2 % rotor spread; matched walks: tests/test_adaptive_walks.py)
     flight = {
         "agent": "hold",
         "env": {
             "episode_seconds": 10.0,
             "fan": {"enabled": False},
             "estimator_params": {"adaptive_walks": False},
+            "rotor_calibration": None,
         },
     }
     for vehicle in PRESETS:

@@ -13,6 +13,7 @@ from quad_wrench_env.disturbances.wrench_profile import validate_segments
 from quad_wrench_env.engine.actions import ActionLimits
 from quad_wrench_env.scene import make_scene_part
 from quad_wrench_env.sensors import SensorConfig
+from quad_wrench_env.vehicle import CALIBRATED_ROTORS
 
 
 @dataclass
@@ -76,13 +77,15 @@ class EnvConfig:
     kf_spread: float = 0.02
     """Standard deviation of the per-rotor thrust-coefficient error ``ε_i`` (``docs/physics.md``,
     "Rotors")."""
-    rotor_calibration: float | None = None
+    rotor_calibration: float | str | None = "preset"
     """None: the estimators turn the reported motor speeds into thrust and torque through the nominal
     mixer (the rotors' errors look like an external wrench). A number σ: the vehicle's rotors were
     calibrated (e.g. on a thrust stand) to a relative residual of sd σ: the estimators' mixer uses
     ``k·(1 + ε_i + δ_i)``, ``δ_i ~ N(0, σ²)`` drawn per episode from a generator of their own (0: the true
-    coefficients; no other random number of the episode moves).
-    Give the filters the same residual as ``estimator_params.rotor_spread``."""
+    coefficients; no other random number of the episode moves), and the UKF and the EKF report that
+    residual (``estimator_params.rotor_spread``, unless given). ``"preset"``: the preset's own
+    (:data:`~quad_wrench_env.vehicle.CALIBRATED_ROTORS`: the 27 g ``crazyflie2`` is calibrated, the others
+    fly the nominal mixer)."""
     sensors: SensorConfig = field(default_factory=SensorConfig)
     payload: PayloadConfig = field(default_factory=PayloadConfig)
     external_wrench: list[list[float]] = field(default_factory=list)
@@ -126,8 +129,10 @@ class EnvConfig:
             raise ValueError(f"kf_spread={self.kf_spread!r} must be in [0, 0.5)")
         calibration = self.rotor_calibration
         number = isinstance(calibration, float | int) and not isinstance(calibration, bool)
-        if calibration is not None and not (number and 0 <= calibration < 0.5):
-            raise ValueError(f"rotor_calibration={calibration!r} must be None or a number in [0, 0.5)")
+        if calibration not in (None, "preset") and not (number and 0 <= calibration < 0.5):
+            raise ValueError(
+                f"rotor_calibration={calibration!r} must be None, 'preset' or a number in [0, 0.5)"
+            )
         validate_segments(self.external_wrench)
         for position, spec in enumerate(self.wind):
             wind_config(spec, position)
@@ -141,6 +146,13 @@ class EnvConfig:
             raise ValueError(f"history={self.history!r} must be an integer >= 0 (previous steps observed)")
         if not (0.0 < self.flip_tilt_deg <= 180.0):
             raise ValueError(f"flip_tilt_deg={self.flip_tilt_deg!r} must be in (0, 180]")
+
+    def resolved_rotor_calibration(self) -> float | None:
+        """The residual σ the vehicle's rotors are calibrated to (None: the nominal mixer), the preset's
+        own where ``rotor_calibration`` is ``"preset"``."""
+        if self.rotor_calibration == "preset":
+            return CALIBRATED_ROTORS.get(self.vehicle)
+        return self.rotor_calibration
 
     def resolved_estimator_params(self) -> dict[str, Any] | str:
         """The settings the env's estimator is built with: ``estimator_params`` as given (a task may

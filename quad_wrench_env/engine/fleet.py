@@ -42,7 +42,7 @@ from quad_wrench_env.engine.kernels import (
 from quad_wrench_env.engine.noise import NoiseBlocks
 from quad_wrench_env.engine.observation import ObservationLayout
 from quad_wrench_env.engine.world import RigidBodyState, Tool, World
-from quad_wrench_env.estimators import OracleBank, estimator_settings, make_estimator_bank
+from quad_wrench_env.estimators import KALMAN_FILTERS, OracleBank, estimator_settings, make_estimator_bank
 from quad_wrench_env.rotations import cross, quat_from_matrix
 from quad_wrench_env.rotors import Rotors
 from quad_wrench_env.sensors import MotionCapture, MotorSpeedSensor
@@ -107,6 +107,9 @@ class Fleet:
         if sensors.state_estimator:
             measured += [("velocity", sensors.velocity_noise), ("body_rate", sensors.body_rate_noise)]
         measurement_noise = {key: value for key, value in measured if value > 0}
+        calibration = cfg.resolved_rotor_calibration()
+        if calibration is not None and cfg.estimator in KALMAN_FILTERS:  # the residual they report
+            measurement_noise["rotor_spread"] = calibration
         refuse_uncompiled(components)
         self._estimator = make_estimator_bank(
             cfg.estimator,
@@ -220,7 +223,7 @@ class Fleet:
         """Start vehicle ``index``'s episode at ``position`` heading ``yaw``, trimmed (see
         :meth:`equilibrium`); its random draws come from ``rng`` from now on. Call :meth:`refresh`
         after the last vehicle is reset."""
-        self.rotors.reset(index, rng, self.cfg.kf_spread, self.cfg.rotor_calibration)
+        self.rotors.reset(index, rng, self.cfg.kf_spread, self.cfg.resolved_rotor_calibration())
         self.contact_force[index] = 0.0
         for wind in self.components.winds:
             wind.reset(index, rng)

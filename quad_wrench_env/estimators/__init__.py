@@ -20,6 +20,9 @@ from quad_wrench_env.vehicle import VehicleParams
 
 MEASUREMENT_NOISE_KEYS = ("position", "attitude", "velocity", "body_rate")
 """Noise settings the env fills from its sensor config; an estimator drops those it does not use."""
+KALMAN_FILTERS = ("ukf", "ekf")
+"""The estimators with :class:`FilterNoise` settings: the env fills their ``rotor_spread`` from a
+calibrated vehicle's residual (``rotor_calibration``) unless given."""
 
 
 @dataclass(frozen=True)
@@ -139,6 +142,7 @@ def make_estimator_bank(
 
 __all__ = [
     "ESTIMATORS",
+    "KALMAN_FILTERS",
     "MEASUREMENT_NOISE_KEYS",
     "NAMED_SETTINGS",
     "EKFNoise",

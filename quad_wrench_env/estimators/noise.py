@@ -55,15 +55,21 @@ class FilterNoise:
     default): the filter cannot tell a rotor's error from an external wrench, so it enters the
     *reported* covariance of the wrench (:func:`rotor_spread_covariance`), never the estimate."""
 
-    adaptive_walks: bool = True
-    """Covariance-matched walks (:mod:`~quad_wrench_env.kernels.walks`): each filter's force and torque
-    walks (3x3 covariances per step) follow the outer product of the change each step makes to its own
-    estimate, with forgetting, so that its reported covariance keeps up with the disturbance it meets
-    (still air, a manoeuvre, a turbulent jet). False: the fixed walks ``force_walk`` and
-    ``torque_walk``, as the papers have them."""
+    adaptive_walks: bool = False
+    """True: covariance-matched walks (:mod:`~quad_wrench_env.kernels.walks`): each filter's force and
+    torque walks (3x3 covariances per step) follow the outer product of the change each step makes to its
+    own estimate, with forgetting, so that its reported covariance keeps up with the disturbance it meets
+    (still air, a manoeuvre, a turbulent jet). False (the default): the fixed walks ``force_walk`` and
+    ``torque_walk``, as the papers have them (why matched walks are not the default:
+    ``docs/estimators.md``, "Covariance-matched walks")."""
     walk_forgetting: float = 0.98
     """α in (0, 1]: the weight of the last walk per step (0.98 at 200 Hz: a memory of about 0.25 s); 1
     keeps the walks where they start."""
+    walk_ceiling: float = 30.0
+    """The largest walk a matched filter keeps: a block's walk scaled down to ``walk_ceiling²`` times its
+    default's trace (an RMS sd ``walk_ceiling`` times ``force_walk`` or ``torque_walk``; > 0). The fan's
+    turbulence needs up to 11x (``fan_walks``); 30 leaves room and stops the runaway to ~200x seen on
+    ``hummingbird`` under the admittance tracker."""
     walk_floor: float = 0.1
     """The smallest walk sd a matched filter reports in any direction, as a fraction (>= 0) of
     ``force_walk`` or ``torque_walk`` (its variance is added to the matched walk's diagonal)."""
@@ -74,7 +80,7 @@ class FilterNoise:
         check_numbers("estimator_params", self, ("rotor_spread", "walk_floor"), positive=False)
         if not isinstance(self.adaptive_walks, bool):
             raise ValueError(f"estimator_params.adaptive_walks={self.adaptive_walks!r} must be true or false")
-        check_numbers("estimator_params", self, ("walk_forgetting",))
+        check_numbers("estimator_params", self, ("walk_forgetting", "walk_ceiling"))
         if self.walk_forgetting > 1.0:
             raise ValueError(
                 f"estimator_params.walk_forgetting={self.walk_forgetting!r} must be in (0, 1] (the weight "
@@ -82,8 +88,10 @@ class FilterNoise:
             )
 
     def walk_adaptation(self) -> tuple[float, float, float]:
-        """``(on, α, floor²)`` as the filters' kernels read them (:mod:`~quad_wrench_env.kernels.walks`)."""
-        return float(self.adaptive_walks), float(self.walk_forgetting), float(self.walk_floor) ** 2
+        """``(on, α, floor², ceiling²)`` as the filters' kernels read them
+        (:mod:`~quad_wrench_env.kernels.walks`)."""
+        on, floor, ceiling = float(self.adaptive_walks), float(self.walk_floor), float(self.walk_ceiling)
+        return on, float(self.walk_forgetting), floor**2, ceiling**2
 
     def for_vehicle(self: NoiseT, vehicle: VehicleParams) -> NoiseT:
         """These settings with every ``None`` replaced by its default for ``vehicle``
@@ -112,7 +120,7 @@ REFERENCE_NOISE: dict[str, float] = {
 N·m): the thrust model's error and the external force's random walk and initial sd (about 1.2 %, 0.1 %
 and 5 % of its weight), the motor-torque model's error and the external torque's walk and initial sd
 (0.56 %, 0.04 % and 3.8 % of weight x arm)."""
-WALK_KEYS = ("adaptive_walks", "walk_forgetting", "walk_floor")
+WALK_KEYS = ("adaptive_walks", "walk_forgetting", "walk_floor", "walk_ceiling")
 """The settings of the covariance-matched walks (:func:`~quad_wrench_env.kernels.walks.match_walks`)."""
 FORCE_KEYS = frozenset({"thrust", "force_walk", "initial_force"})
 """The settings that are forces (the rest of :data:`REFERENCE_NOISE` are torques)."""

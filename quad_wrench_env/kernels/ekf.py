@@ -129,8 +129,8 @@ def ekf_constants(
     """:func:`ekf_bank_step`'s constants in one array, in the order it reads them: ``dt``, ``mass``,
     ``inertia`` (3), ``gravity``, the diagonal of ``Q`` (18), the pose measurement variances (6), the
     velocity and body-rate measurement variances (6), ``P₀`` (18, 18), and the walks' ``adaptation``
-    ``(on, α, floor²)`` (:func:`~quad_wrench_env.kernels.walks.match_walks`; the walks a filter starts
-    from are ``Q``'s last six entries)."""
+    ``(on, α, floor², ceiling²)`` (:func:`~quad_wrench_env.kernels.walks.match_walks`; the walks a
+    filter starts from are ``Q``'s last six entries)."""
     head = (dt, mass, *inertia, gravity)
     return np.concatenate((head, q_diagonal, noise_pose, noise_motion, np.ravel(p0), adaptation)).astype(
         float
@@ -150,7 +150,7 @@ def ekf_bank_step(
     dt, mass, inertia, gravity = constants[0], constants[1], constants[2:5], constants[5]
     q_diagonal, noise_pose, noise_motion = constants[6:24], constants[24:30], constants[30:36]
     p0 = rows_view(constants, 36, 18, 18)
-    walks0, adaptation = q_diagonal[12:18], constants[360:363]
+    walks0, adaptation = q_diagonal[12:18], constants[360:364]
     count = x.shape[0]
     with_velocity, with_rates = velocities.shape[0] > 0, body_rates.shape[0] > 0
     if not inputs_finite(thrusts, body_torques, positions, quaternions, velocities, body_rates):
@@ -250,7 +250,7 @@ def ekf_bank_step(
             for j in range(18):
                 finite = finite and math.isfinite(pn[i, j])
         if finite:
-            match_walks(walks[n], before, xn[12:18], adaptation)
+            match_walks(walks[n], before, xn[12:18], walks0, adaptation)
         else:  # restart from the measured pose at rest
             xn[:] = 0.0
             for i in range(3):

@@ -49,7 +49,8 @@ def ukf_constants(
     ``inertia`` (3), ``gravity``, ``spread`` (``√(L+κ)``), the centre's mean weight (the noise-only
     points' included) and every other point's, the diagonals of ``Q`` (12) and ``G`` (6), ``P₀`` (18, 18),
     the walks' variances a filter starts from (force, torque: ``Q``'s entries 9-11 and 3-5) and the
-    walks' ``adaptation`` ``(on, α, floor²)`` (:func:`~quad_wrench_env.kernels.walks.match_walks`)."""
+    walks' ``adaptation`` ``(on, α, floor², ceiling²)``
+    (:func:`~quad_wrench_env.kernels.walks.match_walks`)."""
     head = (dt, mass, *inertia, gravity, spread, weight_centre, weight_other)
     walks = np.concatenate((q_diagonal[9:12], q_diagonal[3:6]))  # force, torque
     return np.concatenate((head, q_diagonal, g_diagonal, np.ravel(p0), walks, adaptation)).astype(float)
@@ -77,7 +78,7 @@ def unpack_ukf_constants(constants):
         g_diagonal,
         p0,
         constants[351:357],
-        constants[357:360],
+        constants[357:361],
     )
 
 
@@ -271,7 +272,7 @@ def ukf_bank_step(
             finite &= all_finite(p[a])
         if finite:
             wrench_of_rest(rests[n], e)
-            match_walks(walks[n], before, e, adaptation)
+            match_walks(walks[n], before, e, walks0, adaptation)
         else:  # restart from the measured pose at rest
             quaternions[n] = measured_quaternions[n]
             rests[n] = 0.0

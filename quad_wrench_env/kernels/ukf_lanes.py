@@ -367,7 +367,7 @@ def ukf_lanes_step(
                 for k in range(15):
                     rests[n, k] = rest[k * WIDTH + i]
                 wrench_of_rest(rests[n], after)
-                match_walks(walks[n], before, after, adaptation)
+                match_walks(walks[n], before, after, walks0, adaptation)
                 for a in range(18):
                     for c in range(18):
                         covariances[n, a, c] = p[_at(a, c, 18) + i]

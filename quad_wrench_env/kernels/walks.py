@@ -12,17 +12,21 @@ from quad_wrench_env.kernels import njit
 
 
 @njit(inline=True)
-def match_walks(walks, before, after, adaptation):
+def match_walks(walks, before, after, defaults, adaptation):
     """One filter's walks ``walks`` (2, 3, 3) matched to the change its step made to its wrench estimate,
-    ``d = after - before`` (force, torque: 6 each): ``M <- α M + (1 - α) d dᵀ`` per block, ``adaptation`` =
-    ``(on, α, floor²)``; nothing moves when ``on`` is 0.
+    ``d = after - before`` (force, torque: 6 each): ``M <- α M + (1 - α) d dᵀ`` per block, scaled down to
+    the ceiling's trace ``c² tr(Q₀)`` where it is above (``Q₀`` the block's ``defaults``, force then torque
+    variances), ``adaptation`` = ``(on, α, floor², c²)``; nothing moves when ``on`` is 0.
 
     Covariance matching (Mohamed & Schwarz 1999, eq. 20: the process noise from the state corrections,
     ``Q ≈ E[K ν νᵀ Kᵀ]``) with exponential forgetting (Akhlaghi, Zhou & Huang 2017, eq. 21): for a random
     walk the filter's steady state has ``P⁻ - P⁺ = Q`` on that block, and ``P⁻ - P⁺ = K S Kᵀ`` is the
     covariance of the correction, so a filter whose walk is the mean outer product of its corrections
     reports what its estimate actually moves. A disturbance that changes faster than the walk (a jet's
-    turbulence) raises it; still air lowers it towards the floor (:func:`walk_noise`)."""
+    turbulence) raises it; still air lowers it towards the floor (:func:`walk_noise`). The ceiling keeps a
+    filter out of the matching's other fixed point (Mohamed & Schwarz 1999 Sec. 5 warn of it): a walk so
+    large that the wrench follows the motion capture's noise through the twice-differentiated pose, whose
+    corrections then hold the walk up."""
     if adaptation[0] == 0.0:
         return
     forgetting = adaptation[1]
@@ -34,6 +38,10 @@ def match_walks(walks, before, after, adaptation):
                 value = forgetting * walks[block, i, j] + (1.0 - forgetting) * change_i * change_j
                 walks[block, i, j] = value
                 walks[block, j, i] = value
+        ceiling = adaptation[3] * (defaults[3 * block] + defaults[3 * block + 1] + defaults[3 * block + 2])
+        trace = walks[block, 0, 0] + walks[block, 1, 1] + walks[block, 2, 2]
+        if trace > ceiling:
+            walks[block] *= ceiling / trace
 
 
 @njit(inline=True)
