@@ -222,6 +222,135 @@ MUTATIONS = (
         ("tests/test_fan_tracking_task.py",),
     ),
     Mutation(
+        "matched walks: the forgetting's weights swapped",
+        "estimator",
+        (
+            (
+                "quad_wrench_env/kernels/walks.py",
+                "value = forgetting * walks[block, i, j] + (1.0 - forgetting) * change_i * change_j",
+                "value = (1.0 - forgetting) * walks[block, i, j] + forgetting * change_i * change_j",
+            ),
+        ),
+        ("tests/test_adaptive_walks.py",),
+    ),
+    Mutation(
+        "matched walks: the UKF on lanes adds no off-diagonal walk",
+        "estimator",
+        (
+            (
+                "quad_wrench_env/kernels/ukf_lanes.py",
+                "                if i == j or matched:\n                    for row, block in",
+                "                if i == j:\n                    for row, block in",
+            ),
+        ),
+        ("tests/test_lanes.py",),
+    ),
+    Mutation(
+        "rotor calibration: the preset's ignored",
+        "rotors",
+        (
+            (
+                "quad_wrench_env/engine/config.py",
+                "            return CALIBRATED_ROTORS.get(self.vehicle)",
+                "            return None",
+            ),
+        ),
+        ("tests/test_rotor_calibration_default.py",),
+    ),
+    Mutation(
+        "fleet: the contact force survives a vehicle's restart",
+        "reset",
+        (("quad_wrench_env/engine/fleet.py", "        self.contact_force[index] = 0.0\n", "\n"),),
+        ("tests/test_reset_equivalence.py",),
+    ),
+    Mutation(
+        "pid: the integral survives reset",
+        "reset",
+        (
+            (
+                "quad_wrench_env/agents/pid.py",
+                "        self._integral = np.zeros(3)\n        self.reference.reset()",
+                "        self._integral = getattr(self, '_integral', np.zeros(3))\n"
+                "        self.reference.reset()",
+            ),
+        ),
+        ("tests/test_reset_equivalence.py",),
+    ),
+    Mutation(
+        "mpc: the solver's warm start survives reset",
+        "reset",
+        (
+            (
+                "quad_wrench_env/agents/mpc.py",
+                "        self.mpc = PositionMPC(settings, vehicle.mass)  # a fresh solver",
+                "        if self.mpc is None or self.mpc.gains != settings:\n"
+                "            self.mpc = PositionMPC(settings, vehicle.mass)  # a fresh solver",
+            ),
+        ),
+        ("tests/test_reset_equivalence.py",),
+    ),
+    Mutation(
+        "flight log: the quaternion's scalar last, in the writer and the reader alike",
+        "convention",
+        (
+            (
+                "quad_wrench_env/flight_log.py",
+                'QUATERNION = ("qw", "qx", "qy", "qz")',
+                'QUATERNION = ("qx", "qy", "qz", "qw")',
+            ),
+        ),
+        ("tests/test_flight_log.py",),
+    ),
+    Mutation(
+        "sensors: body rates measured with the velocity's noise",
+        "settings",
+        (
+            (
+                ENGINE,
+                "motion[m, 3 + i] = body_rates[m, i] + sensing[5] * draws[9 + i]",
+                "motion[m, 3 + i] = body_rates[m, i] + sensing[4] * draws[9 + i]",
+            ),
+        ),
+        ("tests/test_sensor_settings.py",),
+    ),
+    Mutation(
+        "sensors: the motion capture one step less late than told",
+        "settings",
+        (
+            (
+                ENGINE,
+                "            line[0] = (line[0] + 1.0) % latency",
+                "            line[0] = (line[0] + 2.0) % latency",
+            ),
+        ),
+        ("tests/test_compiled_step.py",),
+    ),
+    Mutation(
+        "study: only each run's base seed counted as trained on",
+        "hygiene",
+        (
+            (
+                "quad_wrench_env/agents/study.py",
+                "used = {s + i for s in seeds for i in range(self._vehicles())}",
+                "used = set(seeds)",
+            ),
+        ),
+        ("tests/test_study.py",),
+    ),
+    Mutation(
+        "study: the selection seeds of the first arm only",
+        "hygiene",
+        (
+            (
+                "quad_wrench_env/agents/study.py",
+                "used |= {s for label in self.arms for s in self.run_config(label, seeds[0]).evaluation"
+                ".seeds}",
+                "used |= set(self.run_config(next(iter(self.arms)), seeds[0]).evaluation.seeds)",
+            ),
+        ),
+        ("tests/test_study.py",),
+    ),
+    Mutation(
         "body drag linear in airspeed",
         "drag",
         (

@@ -5,6 +5,7 @@ names the column and the row."""
 from __future__ import annotations
 
 import csv
+import math
 from collections.abc import Callable
 from pathlib import Path
 
@@ -225,3 +226,52 @@ def test_a_calibrated_vehicles_flight_is_not_recorded():
             FlightRecorder(env)
     finally:
         env.close()
+
+
+def _hand_written(path, columns: dict[str, list[float]]):
+    """A CSV written here by hand, as a user's logger would: the header, then comma-separated numbers."""
+    names = list(columns)
+    lines = [",".join(names)] + [
+        ",".join(f"{columns[n][k]:.12g}" for n in names) for k in range(len(columns["t"]))
+    ]
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+@pytest.mark.parametrize("attitude", ["quaternion", "euler"])
+def test_a_hand_written_log_of_a_rolled_vehicle_reads_to_its_attitude_and_force(tmp_path, attitude):
+    """Conventions against a log written apart from the project's writer: a vehicle at rest, rolled 0.1
+    rad about body x, its four rotors at one speed whose thrust carries its weight (4 k ω² cos φ = m g).
+    Rolling right-handed about x turns the body's z axis to (0, -sin φ, cos φ), so the thrust pushes
+    towards -y by m g tan φ, and whatever holds the vehicle at rest pushes +y by as much: with the
+    scalar first ``qw = cos(φ/2), qx = sin(φ/2)`` (or ``roll`` φ), the reader gives that quaternion, and the
+    UKF replaying the log settles at ``f = (0, m g tan φ, 0)`` (0.41 N on ardrone2) within its noise; the
+    scalar-last misreading gives about -0.02 N."""
+    from quad_wrench_cli.estimate import replay
+    from quad_wrench_env.estimators import make_estimator
+    from quad_wrench_env.vehicle import GRAVITY
+
+    roll, n, dt = 0.1, 800, 0.005
+    speed = math.sqrt(VEHICLE.mass * GRAVITY / (4.0 * VEHICLE.kf * math.cos(roll)))
+    columns = {"t": [k * dt for k in range(n)], "x": [0.0] * n, "y": [0.0] * n, "z": [1.0] * n}
+    if attitude == "quaternion":
+        columns |= {
+            "qw": [math.cos(roll / 2)] * n,
+            "qx": [math.sin(roll / 2)] * n,
+            "qy": [0.0] * n,
+            "qz": [0.0] * n,
+        }
+    else:
+        columns |= {"roll": [roll] * n, "pitch": [0.0] * n, "yaw": [0.0] * n}
+    columns |= {f"w{i}": [speed] * n for i in range(1, 5)}
+    flight = read_flight_log(_hand_written(tmp_path / "rolled.csv", columns), VEHICLE)
+    np.testing.assert_allclose(
+        flight.quaternion, [[math.cos(roll / 2), math.sin(roll / 2), 0.0, 0.0]] * n, atol=1e-12
+    )
+    np.testing.assert_array_equal(flight.motor_speeds, np.full((n, 4), float(f"{speed:.12g}")))
+    assert flight.period == pytest.approx(dt)
+    wrenches, _ = replay(flight, make_estimator("ukf", VEHICLE, flight.period), VEHICLE)
+    settled = wrenches[-200:].mean(axis=0)
+    holding = VEHICLE.mass * GRAVITY * math.tan(roll)
+    np.testing.assert_allclose(settled[:3], (0.0, holding, 0.0), atol=0.05 * holding)
+    np.testing.assert_allclose(settled[3:], 0.0, atol=1e-3)

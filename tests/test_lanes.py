@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 import quad_wrench_env.estimators.ukf as ukf_module
+from quad_wrench_env.estimators.noise import FilterNoise
 from quad_wrench_env.estimators.ukf import UnscentedFilterBank
 from quad_wrench_env.kernels import COMPILED
 from quad_wrench_env.kernels.quaternions import qmul, to_mrp
@@ -100,12 +101,12 @@ def test_lanes_outside_the_array_and_other_arrays_are_refused():
         _load_at(np.zeros((2, lanes.WIDTH)), 0)
 
 
-def _fly_banks(count: int, steps: int = 300):
+def _fly_banks(count: int, steps: int = 300, **settings):
     """Two identical UKF banks stepped by the filter-by-filter kernel and the lane kernel on the same
     inputs: tilted, moving vehicles with noisy poses; at step 150 filter 0's covariance is made
     indefinite (the Cholesky fails) and at step 250 filter 1's thrust overflows the state."""
     vehicle = make_vehicle("ardrone2")
-    banks = [UnscentedFilterBank(vehicle, 0.005, None, count) for _ in range(2)]
+    banks = [UnscentedFilterBank(vehicle, 0.005, FilterNoise(**settings), count) for _ in range(2)]
     rng = np.random.default_rng(count)
     positions = rng.normal(size=(count, 3))
     quaternions = rng.normal(size=(count, 4))
@@ -129,14 +130,16 @@ def _fly_banks(count: int, steps: int = 300):
     return banks
 
 
+@pytest.mark.parametrize("settings", [{}, {"adaptive_walks": True}], ids=["fixed walks", "matched walks"])
 @pytest.mark.parametrize("count", [3, 8, 19])  # the smallest bank on lanes, one block, three
-def test_lane_kernel_equals_the_filter_by_filter_kernel(count):
+def test_lane_kernel_equals_the_filter_by_filter_kernel(count, settings):
     """300 steps of full blocks and a short last one (spare lanes): the same filters to the bit (each
-    lane does the filter-by-filter kernel's operations in its order, on any CPU), the same restarts."""
-    by_filter, on_lanes = _fly_banks(count)
+    lane does the filter-by-filter kernel's operations in its order, on any CPU), the same restarts,
+    with fixed walks and with matched ones (the walks too)."""
+    by_filter, on_lanes = _fly_banks(count, **settings)
     np.testing.assert_array_equal(on_lanes.reinitialisations, by_filter.reinitialisations)
     assert by_filter.reinitialisations[0] >= 1 and by_filter.reinitialisations[1] >= 1
-    for name in ("quaternions", "rests", "covariances"):
+    for name in ("quaternions", "rests", "covariances", "walks"):
         np.testing.assert_array_equal(getattr(on_lanes, name), getattr(by_filter, name), err_msg=name)
     np.testing.assert_array_equal(on_lanes.covariances, on_lanes.covariances.transpose(0, 2, 1))
 
@@ -183,5 +186,5 @@ def test_a_filter_on_lanes_depends_on_its_own_inputs_only():
         measured_p = positions + 0.01 * rng.standard_normal((count, 3))
         banks[0].step(thrusts, torques, measured_p, quaternions)
         banks[1].step(thrusts[reverse], torques[reverse], measured_p[reverse], quaternions[reverse])
-    for name in ("quaternions", "rests", "covariances"):
+    for name in ("quaternions", "rests", "covariances", "walks"):
         np.testing.assert_array_equal(getattr(banks[1], name)[reverse], getattr(banks[0], name), err_msg=name)

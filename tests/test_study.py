@@ -86,6 +86,21 @@ def test_a_study_trains_every_arm_and_seed_scores_them_beside_the_classical_agen
         ({"seeds": [0, 0]}, "distinct"),
         ({"comparison": {**COMPARISON, "seeds": [1]}}, r"comparison seeds \[1\] were trained on"),
         ({"comparison": {**COMPARISON, "seeds": [900]}}, r"comparison seeds \[900\]"),
+        # vehicle i of a run trains on seed + i: the second vehicle of seed 10, and of an arm's wider run
+        ({"seeds": [0, 10], "comparison": {**COMPARISON, "seeds": [11]}}, r"comparison seeds \[11\] were"),
+        (
+            {
+                "arms": {"wide": {"num_envs": 4}},
+                "seeds": [0, 10],
+                "comparison": {**COMPARISON, "seeds": [13]},
+            },
+            r"comparison seeds \[13\] were",
+        ),
+        # selection seeds after an arm's own override
+        (
+            {"arms": {"own": {"evaluation.seeds": [2001]}}, "comparison": COMPARISON},
+            r"comparison seeds \[2001\] were",
+        ),
         ({"arms": {"a b": {}, "a-b": {}}}, "the same folder name"),
         ({"common": {"env_processes": 2}}, r"env_processes=2 is more than cpus_per_run=1.0"),
         ({"common": [1]}, "common=.* must be a mapping"),

@@ -453,8 +453,7 @@ class MPCPolicy:
             max_tilt_deg=min(g.max_tilt_deg, limits.max_tilt_deg),
             max_thrust=min(g.max_thrust, ACTION_MAX_THRUST),
         )
-        if self.mpc is None or self.mpc.gains != settings or self.mpc.mass != vehicle.mass:
-            self.mpc = PositionMPC(settings, vehicle.mass)
+        self.mpc = PositionMPC(settings, vehicle.mass)  # a fresh solver: no warm start or rho from before
         self.guidance.reset()
 
     def act(self, observation: np.ndarray) -> np.ndarray:
