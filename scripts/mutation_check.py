@@ -351,6 +351,24 @@ MUTATIONS = (
         ("tests/test_study.py",),
     ),
     Mutation(
+        "sensor block: the motor speeds over one level, not the top speed",
+        "observation",
+        (
+            (
+                ENGINE,
+                "            row[i] = quantized_speed(speeds[m, i], levels, step) / top",
+                "            row[i] = quantized_speed(speeds[m, i], levels, step) / step",
+            ),
+        ),
+        ("tests/test_sensor_block.py",),
+    ),
+    Mutation(
+        "sensor block: kept across a vehicle's restart",
+        "observation",
+        (("quad_wrench_env/engine/fleet.py", "        self.sensor_frames[index] = 0.0\n", "\n"),),
+        ("tests/test_sensor_block.py",),
+    ),
+    Mutation(
         "body drag linear in airspeed",
         "drag",
         (

@@ -51,6 +51,10 @@ ENV_CASES = {  # (env id, env settings)
         {"estimator": "observer", "sensors": {"latency_steps": 2}},
     ),
     "fan tracking, oracle, history": (FAN_TRACKING, {"estimator": "oracle", "history": 3}),
+    "fan tracking, sensor history": (
+        FAN_TRACKING,
+        {"sensor_history": 6, "sensors": {"state_estimator": True}},
+    ),
     "fan tracking, calibrated crazyflie2": (FAN_TRACKING, {"vehicle": "crazyflie2"}),
     "fan tracking, every disturbance": (FAN_TRACKING, EVERYTHING),
     "disturbance rejection": (REJECTION, {"action_type": "attitude"}),

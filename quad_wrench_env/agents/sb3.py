@@ -59,9 +59,10 @@ class ObservationScaling:
 
 
 MEANING_KEYS = (
-    "action_type", "action_limits", "observe_wrench", "history", "observe_tracking_error", "preview_seconds",
+    "action_type", "action_limits", "observe_wrench", "history", "sensor_history", "observe_tracking_error",
+    "preview_seconds",
 )  # fmt: skip
-"""Env settings that change what an action or an observation means (``history`` and
+"""Env settings that change what an action or an observation means (``history``, ``sensor_history`` and
 ``preview_seconds`` its size too; ``action_limits`` the command an action stands for;
 ``observe_tracking_error`` and ``preview_seconds`` are DisturbanceRejection's own and count only where
 the config has them)."""

@@ -28,6 +28,7 @@ from quad_wrench_env.engine.kernels import (
     STEP_WIDTH,
     component_parameters,
     physics_constants,
+    record_sensor_readings,
 )
 from quad_wrench_env.estimators.bank import FilterBank
 from quad_wrench_env.kernels import bind, specialised
@@ -119,6 +120,11 @@ class CompiledStep:
         """Takes :attr:`read_world`'s result first: a new object of the same type every step (PyBullet's
         tuples of floats for one vehicle, a float array of rows for more)."""
         self._centre_wind = bind(step.centre_wind, fleet.count, self.buffer, self.constants, *tables)
+        frames = fleet.sensor_frames
+        self._record_sensors = (
+            bind(record_sensor_readings, self.buffer, self.constants, frames) if frames.shape[1] else None
+        )
+        """The estimators' readings of each physics step into the observation's ``sensors`` block."""
         """The air at the centres of mass, after a policy step's last physics step."""
         self.bind_estimator()
 
@@ -142,7 +148,7 @@ class CompiledStep:
         self.actions[:] = actions
         world, noise, estimator, truth_fed = fleet.world, fleet.noise, fleet.estimator, fleet.truth_fed
         before, read, after_kernel, after = self._before, self.read_world, self._after_kernel, self._after
-        estimate = self.estimate
+        estimate, record_sensors = self.estimate, self._record_sensors
         forces, torques, position, one = self.forces, self.torques, self.state.position, self.single
         contacts = world.tool is not None
         for _ in range(count):
@@ -158,4 +164,6 @@ class CompiledStep:
             if truth_fed:
                 estimator.observe_truth(self.truth, self.loads)
             estimate()
+            if record_sensors is not None:
+                record_sensors()
         self._centre_wind()

@@ -113,6 +113,12 @@ class EnvConfig:
     """Observation frames of the ``history`` previous steps after the current one (each frame the
     observation without its history: the estimated state and wrench, the action before it, the task's
     blocks), ``history_1`` the last; zeros before the episode's first step. 0: none."""
+    sensor_history: int = 0
+    """The estimators' sensor readings of the last ``sensor_history`` physics steps, appended to the
+    observation (``sensors_1`` the newest ... ``sensors_K``, all of them ``sensors``; ``docs/tasks.md``):
+    per step the motor speeds as reported over the top speed, the measured position and attitude (the
+    ``attitude`` block's form), and the measured velocity and body rates with ``sensors.state_estimator``;
+    zeros before the episode's first physics step. 0: none."""
     crash_height: float = 0.1
     flip_tilt_deg: float = 90.0
 
@@ -144,6 +150,15 @@ class EnvConfig:
             raise ValueError(f"observe_wrench={self.observe_wrench!r} must be true or false")
         if not (isinstance(self.history, int) and not isinstance(self.history, bool) and self.history >= 0):
             raise ValueError(f"history={self.history!r} must be an integer >= 0 (previous steps observed)")
+        if not (
+            isinstance(self.sensor_history, int)
+            and not isinstance(self.sensor_history, bool)
+            and self.sensor_history >= 0
+        ):
+            raise ValueError(
+                f"sensor_history={self.sensor_history!r} must be an integer >= 0 (physics steps of sensor "
+                "readings observed)"
+            )
         if not (0.0 < self.flip_tilt_deg <= 180.0):
             raise ValueError(f"flip_tilt_deg={self.flip_tilt_deg!r} must be in (0, 180]")
 

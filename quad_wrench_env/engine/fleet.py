@@ -141,6 +141,9 @@ class Fleet:
         self._own_buffer()
         self.contact_force = np.zeros((count, 3))
         """(N, 3) force of the scene on each tool's tip in the last physics step (world frame, N)."""
+        self.sensor_frames = np.zeros((count, observation.sensor_history, observation.sensor_width))
+        """(N, K, width) the estimators' sensor readings of the last K physics steps, newest first (the
+        observation's ``sensors`` block; K = 0 without one)."""
         self.compiled = CompiledStep(self)
         """The physics step on the compiled kernels."""
         arena = cfg.arena
@@ -225,6 +228,7 @@ class Fleet:
         after the last vehicle is reset."""
         self.rotors.reset(index, rng, self.cfg.kf_spread, self.cfg.resolved_rotor_calibration())
         self.contact_force[index] = 0.0
+        self.sensor_frames[index] = 0.0
         for wind in self.components.winds:
             wind.reset(index, rng)
         self.time[index] = 0.0

@@ -581,6 +581,43 @@ def termination_codes(position, rotation, limits, out):
     return near
 
 
+SENSOR_READING_WIDTH = 13
+"""Numbers of one physics step's sensor reading in the observation's ``sensors`` block: the four motor
+speeds, the position, the attitude's six; :data:`MOTION_READING_WIDTH` more with an onboard state
+estimator."""
+MOTION_READING_WIDTH = 6
+
+
+@njit
+def record_sensor_readings(buffer, constants, frames):
+    """Each vehicle's last ``K`` sensor readings ``frames`` (N, K, width), newest first, moved one physics
+    step on: the readings of the step just sensed (:func:`sense`, what the estimators are handed) go
+    first. A reading: the motor speeds as reported (:func:`quantized_speed`) over the top reported speed,
+    the measured position, the measured attitude as the first two columns of its rotation matrix (the
+    ``attitude`` block's form) and, with an onboard state estimator (``width`` 19), the measured velocity
+    and body rates."""
+    n, depth = frames.shape[0], frames.shape[1]
+    speeds, motion = rows(buffer, _SPEEDS, n, 4), rows(buffer, _MOTION, n, 6)
+    position, quaternion = rows(buffer, _MEASURED_POSITION, n, 3), rows(buffer, _MEASURED_QUATERNION, n, 4)
+    levels, step = constants[_SENSING], constants[_SENSING + 1]
+    top = levels * step
+    r = np.empty((3, 3))
+    for m in range(n):
+        for k in range(depth - 1, 0, -1):
+            frames[m, k, :] = frames[m, k - 1, :]
+        row = frames[m, 0]
+        for i in range(4):
+            row[i] = quantized_speed(speeds[m, i], levels, step) / top
+        q = quaternion[m]
+        matrix(q[0], q[1], q[2], q[3], r)
+        for i in range(3):
+            row[4 + i] = position[m, i]
+            row[7 + i] = r[i, 0]
+            row[10 + i] = r[i, 1]
+        for i in range(frames.shape[2] - SENSOR_READING_WIDTH):
+            row[SENSOR_READING_WIDTH + i] = motion[m, i]
+
+
 @njit
 def assemble_observations(states, wrenches, last_actions, observe_wrench, starts, out):
     """The engine's observation blocks into ``out`` (N, width, float32), each from its column in

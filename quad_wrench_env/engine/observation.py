@@ -34,9 +34,18 @@ representation without the jumps of a quaternion kept to one hemisphere."""
 class ObservationLayout:
     """The engine's blocks followed by a task's ``(name, width, bound)`` blocks: one frame; then, with
     ``history`` K > 0, the frames of the K previous steps (``history``, and ``history_1`` ...
-    ``history_K`` each one frame, ``history_1`` the last)."""
+    ``history_K`` each one frame, ``history_1`` the last); then, with ``sensor_history`` S > 0, the
+    estimators' sensor readings of the S last physics steps (``sensors``, and ``sensors_1`` the newest ...
+    ``sensors_S``, each ``sensor_width`` numbers:
+    :func:`~quad_wrench_env.engine.kernels.record_sensor_readings`)."""
 
-    def __init__(self, task_blocks: tuple[tuple[str, int, float], ...] = (), history: int = 0) -> None:
+    def __init__(
+        self,
+        task_blocks: tuple[tuple[str, int, float], ...] = (),
+        history: int = 0,
+        sensor_history: int = 0,
+        sensor_width: int = 0,
+    ) -> None:
         names = [name for name, _ in ENGINE_BLOCKS]
         clashes = sorted({name for name, _, _ in task_blocks} & {*names, "wrench"})
         if clashes:
@@ -56,6 +65,13 @@ class ObservationLayout:
         if history:
             self.slices["history"] = slice(start, (history + 1) * start)
         self.size = (history + 1) * start
+        self.sensor_history, self.sensor_width = sensor_history, sensor_width
+        for k in range(1, sensor_history + 1):
+            first = self.size + (k - 1) * sensor_width
+            self.slices[f"sensors_{k}"] = slice(first, first + sensor_width)
+        if sensor_history:
+            self.slices["sensors"] = slice(self.size, self.size + sensor_history * sensor_width)
+        self.size += sensor_history * sensor_width
         self.slices["wrench"] = slice(self.slices["force"].start, self.slices["torque"].stop)
         self.kernel_starts = np.array([self.slices[name].start for name in names], dtype=np.int64)
         self.task_columns = slice(self.slices[ENGINE_BLOCKS[-1][0]].stop, self.frame)
@@ -72,7 +88,11 @@ class ObservationLayout:
             **self.task_bounds,
         }  # fmt: skip
         frame = np.concatenate([np.full(n, bound[name]) for name, n in self.fields])
-        high = np.tile(frame, self.history + 1).astype(np.float32)
+        reading = np.concatenate(  # motor speeds over the top speed, position, attitude, [velocity, rates]
+            (np.ones(4), np.full(3, bound["position"]), np.ones(6), np.full(self.sensor_width - 13, 100.0))
+        )
+        readings = np.tile(reading, self.sensor_history) if self.sensor_history else np.zeros(0)
+        high = np.concatenate((np.tile(frame, self.history + 1), readings)).astype(np.float32)
         return spaces.Box(-high, high, dtype=np.float32)
 
 

@@ -20,6 +20,7 @@ import numpy as np
 
 from quad_wrench_env.engine.components import assemble
 from quad_wrench_env.engine.fleet import ENGINE_TERMINATIONS, Fleet
+from quad_wrench_env.engine.kernels import MOTION_READING_WIDTH, SENSOR_READING_WIDTH
 from quad_wrench_env.engine.observation import ObservationHistory, ObservationLayout
 from quad_wrench_env.tasks.base import Task
 from quad_wrench_env.vehicle import make_vehicle
@@ -42,6 +43,8 @@ def observations(fleet: Fleet, task: Task, last_actions: np.ndarray) -> np.ndarr
     out = fleet.observations(last_actions)
     if task.observation_blocks:
         task.observe(fleet, out[:, fleet.layout.task_columns])
+    if fleet.layout.sensor_history:
+        out[:, fleet.layout.slices["sensors"]] = fleet.sensor_frames.reshape(fleet.count, -1)
     return out
 
 
@@ -50,7 +53,8 @@ def build_fleet(task_class: type[Task], cfg: Any, count: int, gui: bool = False)
     vehicle = make_vehicle(cfg.vehicle, **cfg.vehicle_params)
     task = task_class(cfg, vehicle, count)
     components = assemble(cfg, vehicle, count, task.components())
-    layout = ObservationLayout(task.observation_blocks, cfg.history)
+    width = SENSOR_READING_WIDTH + (MOTION_READING_WIDTH if cfg.sensors.state_estimator else 0)
+    layout = ObservationLayout(task.observation_blocks, cfg.history, cfg.sensor_history, width)
     return task, Fleet(cfg, vehicle, count, components, layout, gui=gui)
 
 
