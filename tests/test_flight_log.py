@@ -238,6 +238,23 @@ def _hand_written(path, columns: dict[str, list[float]]):
     return path
 
 
+def test_a_hand_written_logs_optional_columns_read_each_to_its_own_place(tmp_path):
+    """Velocity (world, m/s), body rates (body, rad/s) and the true wrench (world, N and N·m), each column
+    a value of its own, come back where their names say."""
+    n = 20
+    columns = {"t": [0.005 * k for k in range(n)], "x": [0.0] * n, "y": [0.0] * n, "z": [1.0] * n}
+    columns |= {"qw": [1.0] * n, "qx": [0.0] * n, "qy": [0.0] * n, "qz": [0.0] * n}
+    columns |= {f"w{i}": [200.0 + i] * n for i in range(1, 5)}
+    names = ["vx", "vy", "vz", "p", "q", "r", "fx", "fy", "fz", "tx", "ty", "tz"]
+    values = dict(zip(names, np.arange(1, 13) / 100.0, strict=True))
+    columns |= {name: [float(value)] * n for name, value in values.items()}
+    flight = read_flight_log(_hand_written(tmp_path / "optional.csv", columns), VEHICLE)
+    np.testing.assert_array_equal(flight.motor_speeds, [[201.0, 202.0, 203.0, 204.0]] * n)
+    np.testing.assert_allclose(flight.velocity, [[0.01, 0.02, 0.03]] * n)
+    np.testing.assert_allclose(flight.body_rates, [[0.04, 0.05, 0.06]] * n)
+    np.testing.assert_allclose(flight.wrench, [[0.07, 0.08, 0.09, 0.10, 0.11, 0.12]] * n)
+
+
 @pytest.mark.parametrize("attitude", ["quaternion", "euler"])
 def test_a_hand_written_log_of_a_rolled_vehicle_reads_to_its_attitude_and_force(tmp_path, attitude):
     """Conventions against a log written apart from the project's writer: a vehicle at rest, rolled 0.1
@@ -264,7 +281,21 @@ def test_a_hand_written_log_of_a_rolled_vehicle_reads_to_its_attitude_and_force(
     else:
         columns |= {"roll": [roll] * n, "pitch": [0.0] * n, "yaw": [0.0] * n}
     columns |= {f"w{i}": [speed] * n for i in range(1, 5)}
+    optional = {"vx": 0.0, "vy": 0.0, "vz": 0.0, "p": 0.0, "q": 0.0, "r": 0.0}  # at rest
+    optional |= {
+        "fx": 0.0,
+        "fy": VEHICLE.mass * GRAVITY * math.tan(roll),
+        "fz": 0.0,
+        "tx": 0.0,
+        "ty": 0.0,
+        "tz": 0.0,
+    }
+    columns |= {name: [value] * n for name, value in optional.items()}
     flight = read_flight_log(_hand_written(tmp_path / "rolled.csv", columns), VEHICLE)
+    for field, names in (("velocity", "vx vy vz"), ("body_rates", "p q r"), ("wrench", "fx fy fz tx ty tz")):
+        np.testing.assert_allclose(
+            getattr(flight, field), [[optional[k] for k in names.split()]] * n, rtol=1e-11
+        )
     np.testing.assert_allclose(
         flight.quaternion, [[math.cos(roll / 2), math.sin(roll / 2), 0.0, 0.0]] * n, atol=1e-12
     )
