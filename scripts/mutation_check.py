@@ -320,7 +320,7 @@ MUTATIONS = (
             (
                 ENGINE,
                 "            line[0] = (line[0] + 1.0) % latency",
-                "            line[0] = (line[0] + 2.0) % latency",
+                "            line[0] = (line[0] + 1.0) % max(latency - 1, 1)",
             ),
         ),
         ("tests/test_compiled_step.py",),

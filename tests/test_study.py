@@ -98,7 +98,7 @@ def test_a_study_trains_every_arm_and_seed_scores_them_beside_the_classical_agen
         ),
         # selection seeds after an arm's own override
         (
-            {"arms": {"own": {"evaluation.seeds": [2001]}}, "comparison": COMPARISON},
+            {"arms": {"plain": {}, "own": {"evaluation.seeds": [2001]}}, "comparison": COMPARISON},
             r"comparison seeds \[2001\] were",
         ),
         ({"arms": {"a b": {}, "a-b": {}}}, "the same folder name"),
