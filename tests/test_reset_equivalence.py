@@ -22,23 +22,13 @@ import pytest
 import quad_wrench_env
 from quad_wrench_env.agents import make_agent
 from quad_wrench_env.agents.evaluate import episode_metrics, run_episode
+from scripts.same_numbers import EVERYTHING  # every configurable disturbance at once
 
 FAN_TRACKING = "QuadWrench/FanTracking-v1"
 REJECTION = "QuadWrench/DisturbanceRejection-v0"
 EXERTION = "QuadWrench/ForceExertion-v0"
 STEPS = 40
 FIRST, SECOND = 11, 12
-EVERYTHING = {  # every configurable disturbance at once, acting within the steps flown
-    "wind": [
-        {"model": "dryden", "w20": 2.0, "altitude": 1.0, "mean": [0.5, 0.0, 0.0]},
-        {"model": "one_cosine", "peak": [0.0, 2.0, 0.0], "start": 0.1, "duration": 0.4},
-        {"model": "jet", "position": [3.0, -2.0, 1.0], "direction": [0.0, 1.0, 0.0], "speed": 6.0},
-    ],
-    "ground_effect": True,
-    "scene": [{"kind": "table", "center": [2.3, 0.0], "size": [1.0, 1.0], "height": 0.6}],
-    "payload": {"mass": 0.05, "point": [0.1, 0.1, 0.0], "attach_time": 0.1, "release_time": 0.5},
-    "external_wrench": [[0.2, 0.6, 0.2, 0.0, -0.1, 0.0, 0.01, 0.0]],
-}
 ENV_CASES = {  # (env id, env settings)
     "fan tracking, ukf": (FAN_TRACKING, {"estimator": "ukf"}),
     "fan tracking, ukf, matched walks": (FAN_TRACKING, {"estimator_params": {"adaptive_walks": True}}),
