@@ -369,6 +369,18 @@ MUTATIONS = (
         ("tests/test_sensor_block.py",),
     ),
     Mutation(
+        "pid: the thrust of the unclipped acceleration through the clipped tilt",
+        "controller",
+        (
+            (
+                "quad_wrench_env/agents/pid.py",
+                "self.desired_acceleration(observation), yaw, self._mass, self._max_tilt",
+                "self.desired_acceleration(observation), yaw, self._mass",
+            ),
+        ),
+        ("tests/test_pid_integral.py",),
+    ),
+    Mutation(
         "body drag linear in airspeed",
         "drag",
         (

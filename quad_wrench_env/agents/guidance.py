@@ -62,7 +62,7 @@ class ReferenceExtrapolator:
 
 
 def attitude_from_acceleration(
-    acceleration: np.ndarray, yaw: float, mass: float
+    acceleration: np.ndarray, yaw: float, mass: float, max_tilt: float | None = None
 ) -> tuple[float, float, float]:
     """``(thrust, roll, pitch)`` (N, rad, rad) that give the world-frame ``acceleration`` (m/s²).
 
@@ -71,6 +71,12 @@ def attitude_from_acceleration(
     ``θ = atan2(f'_x, f'_z)`` and the roll ``φ = atan2(-f'_y, sqrt(f'_x² + f'_z²))``, so that
     ``R(φ, θ, ψ)·e_z`` is along ``F``. The thrust is ``|F|``, which equals ``F·z_body`` for this
     attitude.
+
+    With ``max_tilt`` (rad), the limit the attitude action clips roll and pitch to, the vertical channel
+    comes first, as an autopilot's does: where roll or pitch passes it, both are clipped to it and the
+    thrust is the one whose vertical part is ``F_z``, ``T = F_z / (cos φ cos θ)`` (the body z axis's
+    vertical component is ``cos φ cos θ`` at any heading), so that the height holds and the horizontal
+    acceleration gets what the tilt allows. Without it, ``|F|`` through a clipped tilt climbs.
     """
     force = mass * (np.asarray(acceleration, dtype=float) + np.array((0.0, 0.0, GRAVITY)))
     c, s = math.cos(yaw), math.sin(yaw)
@@ -79,4 +85,7 @@ def attitude_from_acceleration(
     fz = float(force[2])
     pitch = math.atan2(fx, fz)
     roll = math.atan2(-fy, math.hypot(fx, fz))
+    if max_tilt is not None and max(abs(roll), abs(pitch)) > max_tilt:
+        roll, pitch = (min(max(angle, -max_tilt), max_tilt) for angle in (roll, pitch))
+        return max(fz, 0.0) / (math.cos(roll) * math.cos(pitch)), roll, pitch
     return float(np.linalg.norm(force)), roll, pitch

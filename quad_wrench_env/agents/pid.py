@@ -100,6 +100,8 @@ class PIDPolicy:
         self._mass = 1.0
         self._dt = 0.02
         self._scaling: ActionScaling | None = None
+        self._max_tilt = math.radians(30.0)
+        """The env's roll and pitch limit (rad), read at :meth:`reset`."""
 
     def reset(self, env: gym.Env) -> None:
         base = env.unwrapped
@@ -114,6 +116,7 @@ class PIDPolicy:
         self._mass = base.vehicle.mass
         self._dt = base.dt
         self._scaling = base.action_scaling
+        self._max_tilt = math.radians(base.cfg.action_limits.max_tilt_deg)
         self._integral = np.zeros(3)
         self.reference.reset()
         if self.gains.bandwidth is not None:
@@ -144,7 +147,7 @@ class PIDPolicy:
         body_x = observation[self._layout["attitude"]][:3]
         yaw = math.atan2(float(body_x[1]), float(body_x[0]))
         thrust, roll, pitch = attitude_from_acceleration(
-            self.desired_acceleration(observation), yaw, self._mass
+            self.desired_acceleration(observation), yaw, self._mass, self._max_tilt
         )
         yaw_rate = self.gains.k_yaw * wrap_angle(self.gains.yaw_reference - yaw)
         return self._scaling.to_action((roll, pitch, yaw_rate, thrust))
