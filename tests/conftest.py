@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import copy
+
 import gymnasium as gym
+import numpy as np
 import pytest
 
 import quad_wrench_env  # noqa: F401  (registers the env ids)
@@ -57,3 +60,20 @@ def controls_on_a_copy(fleet, actions, instant_motors: bool = True, buffer=None)
     controls(np.asarray(actions, dtype=float), buffer, saturated, constants)
     fields = dict(zip((name for name, _ in STEP_FIELDS), step_views(buffer, fleet.count), strict=True))
     return {**fields, "saturated": saturated}
+
+
+class EstimatorSpy:
+    """An estimator bank that records what the physics step hands its inner bank (assigned as the
+    fleet's estimator, the compiled step calls its ``step``), with the rotors' speeds and the truth."""
+
+    def __init__(self, inner, fleet) -> None:
+        self._inner, self._fleet, self.calls = inner, fleet, []
+
+    def __getattr__(self, name: str):
+        return getattr(self._inner, name)
+
+    def step(self, *args):
+        truth = copy.deepcopy(self._fleet.state)  # the fleet's state is updated in place
+        measured = [None if a is None else np.array(a, copy=True) for a in args]
+        self.calls.append((measured, self._fleet.rotors.speeds.copy(), truth))
+        return self._inner.step(*args)

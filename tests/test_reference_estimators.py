@@ -3,7 +3,6 @@ integrated here, a step in external force, and what the env actually feeds them.
 
 from __future__ import annotations
 
-import copy
 import functools
 import inspect
 import math
@@ -24,6 +23,7 @@ from quad_wrench_env.kernels.observer import observer_bank_step
 from quad_wrench_env.kernels.ukf import ukf_bank_step
 from quad_wrench_env.rotations import cross, quat_exp, quat_multiply, rotation_matrix
 from quad_wrench_env.vehicle import GRAVITY, Mixer, make_vehicle
+from tests.conftest import EstimatorSpy
 
 DT = 0.005
 VEHICLE = make_vehicle("ardrone2")
@@ -359,30 +359,13 @@ def test_observer_rises_as_exp_minus_c_t_over_m():
 
 
 # -- 3. what the env feeds the estimators ----------------------------------------------------------
-class _Spy:
-    """An estimator bank that records what the physics step hands its inner bank (assigned as the
-    fleet's estimator, the compiled step calls its ``step``), with the rotors' speeds and the truth."""
-
-    def __init__(self, inner, fleet) -> None:
-        self._inner, self._fleet, self.calls = inner, fleet, []
-
-    def __getattr__(self, name: str):
-        return getattr(self._inner, name)
-
-    def step(self, *args):
-        truth = copy.deepcopy(self._fleet.state)  # the fleet's state is updated in place
-        measured = [None if a is None else np.array(a, copy=True) for a in args]
-        self.calls.append((measured, self._fleet.rotors.speeds.copy(), truth))
-        return self._inner.step(*args)
-
-
 def _spied_flight(estimator: str, **kwargs):
     """The fleet and the spy's calls of 5 control steps of zero actions (20 physics steps)."""
     env = gym.make("QuadWrench/FanTracking-v1", estimator=estimator, **kwargs)
     try:
         env.reset(seed=3, options={"offset_y": 0.4})
         fleet = env.unwrapped.fleet
-        fleet.estimator = spy = _Spy(fleet.estimator, fleet)
+        fleet.estimator = spy = EstimatorSpy(fleet.estimator, fleet)
         for _ in range(5):
             env.step(np.zeros(4, dtype=np.float32))
     finally:
@@ -488,7 +471,7 @@ def test_the_motion_capture_noise_is_independent_of_the_fans_turbulence():
         fleet, fan = base.fleet, base.task.fan
         errors, turbulence, positions = [], [fan.noise[0].copy()], []
 
-        class Spy(_Spy):
+        class Spy(EstimatorSpy):
             def step(self, thrusts, torques, position, quaternion, velocity=None, body_rates=None):
                 errors.append((position[0] - fleet.state.position[0]) / fleet.cfg.sensors.position_noise)
                 turbulence.append(fan.noise[0].copy())

@@ -8,8 +8,7 @@ import numpy as np
 import pytest
 
 from quad_wrench_env.rotations import rotation_matrices
-from tests.conftest import FAN_TRACKING
-from tests.test_reference_estimators import _Spy
+from tests.conftest import FAN_TRACKING, EstimatorSpy
 
 K = 6  # more than one control period of physics steps (four)
 
@@ -46,7 +45,7 @@ def test_the_sensor_block_holds_what_the_estimators_were_handed(count, state_est
         observations = np.atleast_2d(observations)
         assert layout["sensors"].stop - layout["sensors"].start == K * (19 if state_estimator else 13)
         np.testing.assert_array_equal(observations[:, layout["sensors"]], 0.0)
-        fleet.estimator = spy = _Spy(fleet.estimator, fleet)
+        fleet.estimator = spy = EstimatorSpy(fleet.estimator, fleet)
         rng = np.random.default_rng(0)
         for step in range(5):
             action = rng.uniform(-0.5, 0.5, (count, 4)).astype(np.float32)

@@ -11,8 +11,7 @@ import pytest
 
 from quad_wrench_env.rotations import quat_conjugate, quat_multiply
 from quad_wrench_env.vehicle import Mixer
-from tests.conftest import FAN_TRACKING
-from tests.test_reference_estimators import _Spy
+from tests.conftest import FAN_TRACKING, EstimatorSpy
 
 SENSORS = {
     "position_noise": 0.003,
@@ -29,7 +28,7 @@ def _fly(steps: int, **settings):
     try:
         env.reset(seed=3)
         fleet = env.unwrapped.fleet
-        fleet.estimator = spy = _Spy(fleet.estimator, fleet)
+        fleet.estimator = spy = EstimatorSpy(fleet.estimator, fleet)
         for _ in range(steps):
             env.step(np.zeros(4, dtype=np.float32))
     finally:

@@ -120,12 +120,12 @@ class CompiledStep:
         """Takes :attr:`read_world`'s result first: a new object of the same type every step (PyBullet's
         tuples of floats for one vehicle, a float array of rows for more)."""
         self._centre_wind = bind(step.centre_wind, fleet.count, self.buffer, self.constants, *tables)
+        """The air at the centres of mass, after a policy step's last physics step."""
         frames = fleet.sensor_frames
         self._record_sensors = (
             bind(record_sensor_readings, self.buffer, self.constants, frames) if frames.shape[1] else None
         )
         """The estimators' readings of each physics step into the observation's ``sensors`` block."""
-        """The air at the centres of mass, after a policy step's last physics step."""
         self.bind_estimator()
 
     def bind_estimator(self) -> None:

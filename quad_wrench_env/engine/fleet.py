@@ -101,22 +101,23 @@ class Fleet:
         self.layout = observation
         dt = self.dt
         # The estimator's measurement noise defaults to the motion capture's; a noise-free capture
-        # leaves the estimator's own default (a filter needs G > 0 to stay well conditioned).
+        # leaves the estimator's own default (a filter needs G > 0 to stay well conditioned). A calibrated
+        # vehicle's filters report its residual as their rotor spread.
         sensors = cfg.sensors
         measured = [("position", sensors.position_noise), ("attitude", sensors.attitude_noise)]
         if sensors.state_estimator:
             measured += [("velocity", sensors.velocity_noise), ("body_rate", sensors.body_rate_noise)]
-        measurement_noise = {key: value for key, value in measured if value > 0}
+        from_env = {key: value for key, value in measured if value > 0}
         calibration = cfg.resolved_rotor_calibration()
         if calibration is not None and cfg.estimator in KALMAN_FILTERS:  # the residual they report
-            measurement_noise["rotor_spread"] = calibration
+            from_env["rotor_spread"] = calibration
         refuse_uncompiled(components)
         self._estimator = make_estimator_bank(
             cfg.estimator,
             vehicle,
             dt,
             count,
-            **{**measurement_noise, **estimator_settings(cfg.estimator, cfg.resolved_estimator_params())},
+            **{**from_env, **estimator_settings(cfg.estimator, cfg.resolved_estimator_params())},
         )
         self.truth_fed = isinstance(self._estimator, OracleBank)
         self.mocap = MotionCapture(sensors, count)

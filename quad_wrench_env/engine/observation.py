@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from gymnasium import spaces
 
+from quad_wrench_env.engine.kernels import SENSOR_READING_WIDTH
 from quad_wrench_env.vehicle import GRAVITY, VehicleParams
 
 if TYPE_CHECKING:
@@ -89,7 +90,12 @@ class ObservationLayout:
         }  # fmt: skip
         frame = np.concatenate([np.full(n, bound[name]) for name, n in self.fields])
         reading = np.concatenate(  # motor speeds over the top speed, position, attitude, [velocity, rates]
-            (np.ones(4), np.full(3, bound["position"]), np.ones(6), np.full(self.sensor_width - 13, 100.0))
+            (
+                np.ones(4),
+                np.full(3, bound["position"]),
+                np.ones(6),
+                np.full(self.sensor_width - SENSOR_READING_WIDTH, 100.0),
+            )
         )
         readings = np.tile(reading, self.sensor_history) if self.sensor_history else np.zeros(0)
         high = np.concatenate((np.tile(frame, self.history + 1), readings)).astype(np.float32)

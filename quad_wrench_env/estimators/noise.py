@@ -87,7 +87,7 @@ class FilterNoise:
                 "of the last walk variance per step)"
             )
 
-    def walk_adaptation(self) -> tuple[float, float, float]:
+    def walk_adaptation(self) -> tuple[float, float, float, float]:
         """``(on, α, floor², ceiling²)`` as the filters' kernels read them
         (:mod:`~quad_wrench_env.kernels.walks`)."""
         on, floor, ceiling = float(self.adaptive_walks), float(self.walk_floor), float(self.walk_ceiling)

@@ -181,7 +181,8 @@ def ekf_bank_step(
     matched = adaptation[0] != 0.0
     for n in range(count):
         xn, pn = x[n], p[n]
-        before[:] = xn[12:18]
+        if matched:
+            before[:] = xn[12:18]
         # -- predict: F at the prior state, P' = F P Fᵀ + Q, then the forward-Euler step --
         ekf_transition_jacobian(xn, thrusts[n], dt, mass, inertia, a)
         for i in range(18):
@@ -195,13 +196,14 @@ def ekf_bank_step(
                 t = 0.0
                 for m in range(18):
                     t += fp[i, m] * a[j, m]
-                added = q_diagonal[i] if i == j else 0.0
-                block = (i - 12) // 3
-                if i >= 12 and block == (j - 12) // 3 and (i == j or matched):  # the walks
-                    added = walk_noise(
-                        walks[n], block, i - 12 - 3 * block, j - 12 - 3 * block, walks0, adaptation
-                    )
-                pn[i, j] = t + added
+                pn[i, j] = t + (q_diagonal[i] if i == j and (i < 12 or not matched) else 0.0)
+        for block in range(
+            2 if matched else 0
+        ):  # each filter's walks (:mod:`~quad_wrench_env.kernels.walks`)
+            first = 12 + 3 * block
+            for i in range(3):
+                for j in range(3):
+                    pn[first + i, first + j] += walk_noise(walks[n], block, i, j, walks0, adaptation)
         ekf_transition(xn, thrusts[n], body_torques[n], dt, mass, inertia, gravity, r)
         # -- correct (Kalman update with the measured components) --
         mroll, mpitch, myaw = euler_from_quaternion(
@@ -250,7 +252,8 @@ def ekf_bank_step(
             for j in range(18):
                 finite = finite and math.isfinite(pn[i, j])
         if finite:
-            match_walks(walks[n], before, xn[12:18], walks0, adaptation)
+            if matched:
+                match_walks(walks[n], before, xn[12:18], walks0, adaptation)
         else:  # restart from the measured pose at rest
             xn[:] = 0.0
             for i in range(3):

@@ -127,7 +127,8 @@ def ukf_bank_step(
             cholesky(p, root)
         qw, qx, qy, qz = quaternions[n, 0], quaternions[n, 1], quaternions[n, 2], quaternions[n, 3]
         thrust = thrusts[n]
-        wrench_of_rest(rests[n], before)
+        if matched:
+            wrench_of_rest(rests[n], before)
         # -- the centre and the sigma points along columns 0-5 through the motion model
         # (eqs. 19-24, 2-5, 11-14) --
         for j in range(n_points):
@@ -211,10 +212,13 @@ def ukf_bank_step(
         for i in range(3):
             rate_gain = dt / inertia[i]
             p[3 + i, 3 + i] += rate_gain * q_diagonal[i] * rate_gain
-            for j in range(3):  # the walks (:mod:`~quad_wrench_env.kernels.walks`): torque, force
-                if i == j or matched:
+            if matched:  # each filter's walks (:mod:`~quad_wrench_env.kernels.walks`): torque, force
+                for j in range(3):
                     p[12 + i, 12 + j] += walk_noise(walks[n], 1, i, j, walks0, adaptation)
                     p[15 + i, 15 + j] += walk_noise(walks[n], 0, i, j, walks0, adaptation)
+            else:  # the fixed walks
+                p[12 + i, 12 + i] += q_diagonal[3 + i]
+                p[15 + i, 15 + i] += q_diagonal[9 + i]
             for k in range(3):
                 b[6 + i, 6 + k] = (0.5 * dt * dt / mass) * rotation0[i, k]
                 b[9 + i, 6 + k] = (dt / mass) * rotation0[i, k]
@@ -271,8 +275,9 @@ def ukf_bank_step(
         for a in range(18):
             finite &= all_finite(p[a])
         if finite:
-            wrench_of_rest(rests[n], e)
-            match_walks(walks[n], before, e, walks0, adaptation)
+            if matched:
+                wrench_of_rest(rests[n], e)
+                match_walks(walks[n], before, e, walks0, adaptation)
         else:  # restart from the measured pose at rest
             quaternions[n] = measured_quaternions[n]
             rests[n] = 0.0

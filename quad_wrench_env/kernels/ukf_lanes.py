@@ -156,7 +156,7 @@ def ukf_lanes_step(
                     p[_at(a, c, 18) + i] = covariances[n, a, c]
             for k in range(15):
                 rest[k * WIDTH + i] = rests[n, k]
-            for block in range(2):
+            for block in range(2 if matched else 0):  # fixed walks: the constants' (below)
                 for a in range(3):
                     for c in range(3):
                         value = walk_noise(walks[n], block, a, c, walks0, adaptation)
@@ -288,11 +288,15 @@ def ukf_lanes_step(
             rate_gain = dt / inertia[i]
             at = _at(3 + i, 3 + i, 18)
             store(p, at, load(p, at) + rate_gain * q_diagonal[i] * rate_gain)
-            for j in range(3):  # the walks (ukf_bank_step): torque, force
-                if i == j or matched:
+            if matched:  # each lane's walks (ukf_bank_step): torque, force
+                for j in range(3):
                     for row, block in ((12, 1), (15, 0)):
                         at = _at(row + i, row + j, 18)
                         store(p, at, load(p, at) + load(walk_lanes, (9 * block + 3 * i + j) * WIDTH))
+            else:  # the fixed walks, every lane's the same
+                for index, walk in ((12 + i, q_diagonal[3 + i]), (15 + i, q_diagonal[9 + i])):
+                    at = _at(index, index, 18)
+                    store(p, at, load(p, at) + walk)
         for a in range(6, 12):
             for c in range(a, 12):
                 total = zero
@@ -363,11 +367,13 @@ def ukf_lanes_step(
             if (finite >> i) & 1:
                 quaternions[n, 0], quaternions[n, 1] = lane(qw, i), lane(qx, i)
                 quaternions[n, 2], quaternions[n, 3] = lane(qy, i), lane(qz, i)
-                wrench_of_rest(rests[n], before)
+                if matched:
+                    wrench_of_rest(rests[n], before)
                 for k in range(15):
                     rests[n, k] = rest[k * WIDTH + i]
-                wrench_of_rest(rests[n], after)
-                match_walks(walks[n], before, after, walks0, adaptation)
+                if matched:
+                    wrench_of_rest(rests[n], after)
+                    match_walks(walks[n], before, after, walks0, adaptation)
                 for a in range(18):
                     for c in range(18):
                         covariances[n, a, c] = p[_at(a, c, 18) + i]

@@ -46,12 +46,13 @@ def match_walks(walks, before, after, defaults, adaptation):
 
 @njit(inline=True)
 def walk_noise(walks, block, i, j, defaults, adaptation):
-    """Entry ``(i, j)`` of the walk covariance a filter adds to its ``block`` (0 force, 1 torque) this step:
-    the walks' entry and, matched (``adaptation[0]`` on), the floor ``floor² q₀`` on the diagonal, so that no
+    """Entry ``(i, j)`` of the matched walk covariance a filter adds to its ``block`` (0 force, 1 torque)
+    this step: the walks' entry and the floor ``floor² q₀`` on the diagonal, so that no
     direction's walk falls below the floor's fraction of its default sd ``q₀`` (``defaults``, force then
-    torque variances). The kernels add an off-diagonal entry only when matched (with fixed walks it is 0)."""
+    torque variances). Fixed walks do not come here: the kernels add their constants' diagonal, as before
+    matched walks existed."""
     value = walks[block, i, j]
-    if adaptation[0] != 0.0 and i == j:
+    if i == j:
         value += adaptation[2] * defaults[3 * block + i]
     return value
 
