@@ -130,7 +130,7 @@ def run(args: argparse.Namespace) -> int:
     with usage_errors():
         env_kwargs, agent_params = apply_overrides({}, args.env), apply_overrides({}, args.agent_param)
         policy = make_agent(args.agent, **agent_params)
-        env_kwargs = flying_settings(policy, env_kwargs)  # a learned policy: its training env's meaning
+        env_kwargs = flying_settings(policy, env_kwargs, args.env_id)  # a learned policy: its training env
         env = gym.make(args.env_id, **env_kwargs)  # bad settings and reset options, before any episode
         try:
             env.reset(seed=args.seeds[0], options=args.options)

@@ -126,6 +126,12 @@ def lookup(kind: str, name: str) -> Any:
     return entries[name]
 
 
+def bare_env_id(env_id: str) -> str:
+    """``env_id`` without a ``module:`` prefix (``quad_wrench_env:QuadWrench/FanTracking-v1``: the
+    ``QuadWrench/FanTracking-v1`` a task registers)."""
+    return env_id.split(":", 1)[1] if ":" in env_id else env_id
+
+
 def env_entry_points(task: type) -> tuple[str, str]:
     """The single and the vector entry point of ``task``'s env id (classes generated on first use by
     :mod:`quad_wrench_env.envs.registry`)."""

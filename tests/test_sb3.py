@@ -278,10 +278,46 @@ def test_the_train_command_refuses_an_unknown_key_with_exit_code_2():
     assert "'nonsense'" in done.stderr
 
 
+def test_a_lone_evaluation_flies_a_shipped_policy_in_its_training_world(capsys):
+    """ppo_disturbance_rejection was trained with the jet from either side and the figure-8 wind from
+    any heading: `quad-wrench evaluate` of it on its env flies that world unless told otherwise (a
+    section given is merged key by key) and prints it; a comparison (no env id) and another env keep
+    their own world."""
+    import gymnasium as gym
+
+    from quad_wrench_cli.main import main
+    from quad_wrench_env.agents import make_agent
+    from quad_wrench_env.agents.evaluate import flying_settings
+
+    policy = make_agent("ppo_disturbance_rejection")
+    env_id = "QuadWrench/DisturbanceRejection-v0"
+    world = {"jet_crossing": {"jet_sides": ["-y", "+y"]}, "figure8": {"wind_heading_spread": math.pi}}
+    alone = flying_settings(policy, {}, env_id)
+    assert {key: alone[key] for key in world} == world
+    assert alone["estimator"] == "ekf" and alone["observe_tracking_error"] is True
+    speeds = flying_settings(policy, {"jet_crossing": {"jet_speeds": [5.0]}}, f"quad_wrench_env:{env_id}")
+    assert speeds["jet_crossing"] == {"jet_sides": ["-y", "+y"], "jet_speeds": [5.0]}
+    assert flying_settings(policy, {"jet_crossing": {"jet_sides": ["+y"]}}, env_id)["jet_crossing"] == {
+        "jet_sides": ["+y"]
+    }
+    for compared in (flying_settings(policy, {}), flying_settings(policy, {}, "QuadWrench/FanTracking-v1")):
+        assert not set(world) & set(compared)
+    env = gym.make(env_id, **alone)
+    try:
+        assert env.unwrapped.cfg.jet_crossing.jet_sides == ("-y", "+y")
+        assert env.unwrapped.cfg.figure8.wind_heading_spread == pytest.approx(math.pi)
+    finally:
+        env.close()
+    args = ["evaluate", "ppo_disturbance_rejection", env_id, "--seeds", "3", "--no-progress"]
+    assert main([*args, "--env", "episode_seconds=0.1"]) == 0
+    assert "'jet_sides': ['-y', '+y']" in capsys.readouterr().out
+
+
 def test_a_shipped_policy_flies_with_its_training_envs_meaning_unless_told_otherwise():
     """ppo_fan_tracking_no_wrench was trained with observe_wrench=false, the velocity action and the UKF
     with fixed walks: by name it flies so with no settings given (its estimator's settings too, where it
-    flies with that estimator; another estimator flies with its own defaults, and settings given win);
+    flies with that estimator; another estimator flies with its own defaults, and settings given win,
+    key by key);
     a contradicting meaning is refused by name."""
     from quad_wrench_env.agents import make_agent
     from quad_wrench_env.agents.evaluate import evaluate, flying_settings
@@ -292,8 +328,9 @@ def test_a_shipped_policy_flies_with_its_training_envs_meaning_unless_told_other
     assert flying_settings(policy, {"vehicle": "ardrone2"}) == {**meaning, **fixed, "vehicle": "ardrone2"}
     assert flying_settings(policy, {"estimator": "ukf"}) == {**meaning, **fixed}
     assert flying_settings(policy, {"estimator": "oracle"}) == {**meaning, "estimator": "oracle"}
-    given = {"estimator_params": {"force_walk": 0.01}}
-    assert flying_settings(policy, given) == {**meaning, **fixed, **given}
+    given = {"estimator_params": {"force_walk": 0.01}}  # merged into the trained settings, key by key
+    merged = {"estimator_params": {"adaptive_walks": False, "force_walk": 0.01}}
+    assert flying_settings(policy, given) == {**meaning, **fixed, **merged}
     result = evaluate(policy, "QuadWrench/FanTracking-v1", [3], episode_seconds=0.2)
     assert result.per_seed[0]["episode_seconds"] == pytest.approx(0.2)
     refused = "trained with observe_wrench=False, the env has observe_wrench=True"

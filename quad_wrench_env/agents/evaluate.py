@@ -17,7 +17,7 @@ import numpy as np
 
 from quad_wrench_env.agents.base import Policy
 from quad_wrench_env.config import merged
-from quad_wrench_env.registry import registered
+from quad_wrench_env.registry import bare_env_id, registered
 
 TRACE_KEYS = ("time", "position", "wrench_true", "wrench_est", "wind_velocity")
 """``info`` entries recorded at every step of every task (plus ``reward`` and the task's own
@@ -55,17 +55,13 @@ def episode_metrics(task: Any, episode: Episode) -> dict[str, float]:
     length, return and whether it ended early. ``task``: the env's (``env.unwrapped.task``) or an env
     id, whose registered task scores (an id of no registered task: only the scores of every task)."""
     if isinstance(task, str):
-        task = registered("task").get(_canonical_id(task))
+        task = registered("task").get(bare_env_id(task))
     return {
         **(task.metrics(episode.trace) if task is not None else {}),
         "episode_seconds": float(episode.trace["time"][-1]),
         "return": episode.total_reward,
         "terminated_early": float(episode.termination_reason is not None),
     }
-
-
-def _canonical_id(env_id: str) -> str:
-    return env_id.split(":", 1)[1] if ":" in env_id else env_id
 
 
 def run_episode(
@@ -103,15 +99,20 @@ def run_episode(
     return Episode(seed, trace, float(total), length, reason)
 
 
-def flying_settings(policy: Policy, env_kwargs: Mapping[str, Any]) -> dict[str, Any]:
+def flying_settings(
+    policy: Policy, env_kwargs: Mapping[str, Any], env_id: str | None = None
+) -> dict[str, Any]:
     """``env_kwargs`` with, for a learned policy, the settings that give its actions and
     observations their meaning (:data:`~quad_wrench_env.agents.sb3.MEANING_KEYS`: action type and
     limits, observed wrench, history, DisturbanceRejection's tracking error) and, with the estimator it
     was trained with, that estimator's settings (e.g. the filters' fixed walks) as its training env had
     them, where ``env_kwargs`` does not set them (a meaning setting given that differs is refused by the
-    policy's ``reset``, naming it)."""
+    policy's ``reset``, naming it). With ``env_id`` the env it was trained on (a lone evaluation, as
+    ``quad-wrench evaluate``), every other setting of its training env too: its world. A comparison
+    leaves ``env_id`` out, so that every agent meets the same episodes. A mapping given is merged into
+    the trained one key by key (``jet_crossing.jet_speeds`` keeps the trained ``jet_sides``)."""
     settings = getattr(policy, "env_settings", None)
-    return {**(settings(env_kwargs) if callable(settings) else {}), **env_kwargs}
+    return merged(settings(env_kwargs, env_id) if callable(settings) else {}, env_kwargs)
 
 
 def evaluate(
@@ -163,7 +164,7 @@ ENDED_EARLY_COLUMN = ("terminated_early", "ended early", "{:.0%}")
 def table_columns(env_id: str) -> tuple[tuple[str, str, str], ...]:
     """The columns of :func:`metrics_table` for ``env_id``: its task's ``metric_columns``, then whether
     an episode ended early."""
-    task = registered("task").get(_canonical_id(env_id))
+    task = registered("task").get(bare_env_id(env_id))
     if task is None:
         raise ValueError(f"unknown env id {env_id!r}; allowed: {sorted(registered('task'))}")
     return (*task.metric_columns, ENDED_EARLY_COLUMN)

@@ -29,6 +29,7 @@ from stable_baselines3.common.vec_env import VecNormalize
 
 from quad_wrench_env.agents.normalize import CompiledVecNormalize
 from quad_wrench_env.config import build, check_numbers, load_yaml, merged, set_keys
+from quad_wrench_env.registry import bare_env_id
 
 
 @dataclass(frozen=True)
@@ -78,30 +79,37 @@ class SB3Policy:
         model: BaseAlgorithm,
         scaling: ObservationScaling | None = None,
         trained_on: dict[str, Any] | None = None,
+        trained_env_id: str | None = None,
     ) -> None:
         """``trained_on``: the training env's settings (a run's ``env`` section; a key not in it had
         the task's default); :meth:`reset` refuses an env whose :data:`MEANING_KEYS` differ from them.
-        None: unknown (a bare model), nothing but the observation's shape is checked."""
+        None: unknown (a bare model), nothing but the observation's shape is checked.
+        ``trained_env_id``: the env id it was trained on (None: unknown)."""
         self.model = model
         self.scaling = scaling
         self.trained_on = None if trained_on is None else dict(trained_on)
+        self.trained_env_id = trained_env_id
         self._memory: Any = None
         """A recurrent model's hidden state (None: a new episode; always None for the others)."""
         self._start = np.ones(1, dtype=bool)
 
-    def env_settings(self, given: Mapping[str, Any] | None = None) -> dict[str, Any]:
+    def env_settings(
+        self, given: Mapping[str, Any] | None = None, env_id: str | None = None
+    ) -> dict[str, Any]:
         """What the harness flies it with where ``given`` (the env settings asked for) leaves them: the
         :data:`MEANING_KEYS` its training env set (the others had the task's defaults), and its training
         env's estimator with that estimator's settings (``estimator_params``, e.g. the filters' fixed
         walks): it reads estimates made as in training. With another estimator ``given``, that
-        estimator's defaults."""
+        estimator's defaults. With ``env_id`` the env it was trained on (a lone evaluation), every
+        other setting of its training env too: its world (vehicle, scenario settings, curricula)."""
         trained, given = self.trained_on or {}, given or {}
-        settings = {key: trained[key] for key in MEANING_KEYS if key in trained}
+        home = self.trained_env_id is not None and env_id is not None
+        home = home and bare_env_id(env_id) == bare_env_id(self.trained_env_id)
+        estimator_keys = ("estimator", "estimator_params")
+        keys = [key for key in (trained if home else MEANING_KEYS) if key not in estimator_keys]
         if given.get("estimator", trained.get("estimator")) == trained.get("estimator"):
-            settings.update(
-                {key: trained[key] for key in ("estimator", "estimator_params") if key in trained}
-            )
-        return settings
+            keys += estimator_keys
+        return {key: trained[key] for key in keys if key in trained}
 
     def reset(self, env: gym.Env) -> None:
         self._memory, self._start = None, np.ones(1, dtype=bool)
@@ -424,6 +432,7 @@ def load_policy(folder: str | Path) -> SB3Policy:
                 _algorithm(settings.get("algorithm", "ppo")).load(model, device="cpu"),
                 ObservationScaling.load(scaling) if scaling.is_file() else None,
                 trained_on=settings.get("env", {}),
+                trained_env_id=settings.get("env_id"),
             )
     raise FileNotFoundError(f"{str(folder)!r} holds no best/model.zip or final/model.zip")
 
@@ -586,7 +595,7 @@ def train(config: TrainConfig, folder: str | Path, resume: bool = False, progres
 
         def evaluate(self) -> None:
             self.next_eval = self.num_timesteps + e.every_steps
-            policy = SB3Policy(model, scaling(), trained_on=config.env)
+            policy = SB3Policy(model, scaling(), trained_on=config.env, trained_env_id=config.env_id)
             value = float(  # check_training made sure the harness scores it
                 np.mean([
                     evaluate(policy, config.env_id, e.seeds, options=e.options, **settings).mean[e.metric]
