@@ -115,6 +115,22 @@ def test_force_exertion_reward_terms_by_hand(make_env, surface):
     assert approach_seen >= 5, approach_seen
 
 
+@pytest.mark.parametrize(("surface", "push"), [("wall", 3.0), ("wall", -3.0), ("ceiling", -3.0)])
+def test_the_first_steps_shaping_starts_from_the_tilted_start(make_env, surface, push):
+    """Under a push the vehicle starts trimmed against it, tilted, so its tip is not ``start_gap``
+    from the surface: the first step's shaping is γ·Φ(s₁) - Φ(s₀) with Φ(s₀) from the start's own
+    pose (the reward table), not from ``start_gap``. A 3 N push on the 1 kg vehicle tilts it about
+    17°, which moves the tip by centimetres."""
+    env = make_env(FORCE_EXERTION, estimator="oracle", action_type="velocity")
+    env.reset(seed=0, options={"surface": surface, "target_force": TARGET, "push": push})
+    start = -APPROACH_WEIGHT * _gap(env, surface)
+    assert start < 0.0  # a gap to close
+    assert abs(start + APPROACH_WEIGHT * START_GAP) > 0.05 * APPROACH_WEIGHT * START_GAP  # tilted
+    _, _, _, _, info = env.step(np.zeros(4, dtype=np.float32))
+    after = -APPROACH_WEIGHT * _gap(env, surface)
+    assert info["reward_terms"]["approach"] == pytest.approx(DISCOUNT * after - start, rel=1e-9, abs=1e-12)
+
+
 # -- DisturbanceRejection ------------------------------------------------------------------------------
 EASE = 1.0
 """s: each straight move's speed eases up as (1 - cos(π t/EASE))/2 (the task's ``_glide`` docstring)."""

@@ -133,6 +133,7 @@ class Simulation:
         """Read the vehicles ``index`` back after their :meth:`start` (the others keep their bits) and
         return every vehicle's observation, new for them, their history begun afresh."""
         self.fleet.refresh(index)
+        self.task.read_start(self.fleet, index)
         self.history.restart(index)
         return self.observe(index)
 

@@ -70,6 +70,10 @@ class Task(Protocol):
     ) -> tuple[np.ndarray, float]:
         """Prepare vehicle ``index``'s new episode; return its initial position (3,) and yaw."""
 
+    def read_start(self, fleet: Fleet, index: np.ndarray) -> None:
+        """Read the start of the vehicles ``index`` once the fleet has placed them (after
+        :meth:`reset_vehicle`: trimmed, so tilted against a steady push), e.g. a shaping potential."""
+
     def step(self, fleet: Fleet, actions: np.ndarray, ended: np.ndarray) -> TaskStep:
         """What the step just flown with (N, 4) ``actions`` means: the reward terms and the task's own
         terminations, in one call (the only one that may change the task's state, e.g. a potential);
@@ -99,6 +103,9 @@ class TaskDefaults:
     termination_reasons: ClassVar[tuple[str, ...]] = ()
     trace_keys: ClassVar[tuple[str, ...]] = ()
     metric_columns: ClassVar[tuple[tuple[str, str, str], ...]] = ()
+
+    def read_start(self, fleet: Fleet, index: np.ndarray) -> None:
+        """Nothing to read (:meth:`Task.read_start`)."""
 
     def observe(self, fleet: Fleet, out: np.ndarray) -> None:
         """No blocks of its own."""

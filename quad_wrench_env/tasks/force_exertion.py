@@ -167,7 +167,7 @@ class ForceExertion(TaskDefaults):
         self.target_force = np.zeros((count, 3))
         """(N, 3) each vehicle's ``f*`` (world frame, N)."""
         self.potential = np.zeros(count)
-        """(N,) each vehicle's shaping potential Φ after its last step (or its reset)."""
+        """(N,) each vehicle's shaping potential Φ after its last step (or at its start)."""
 
     def components(self) -> Components:
         return Components(loads=[self.push], scene=[self.wall, self.ceiling])
@@ -206,8 +206,12 @@ class ForceExertion(TaskDefaults):
             self.target_force[index] = (0.0, 0.0, magnitude)
             z = cfg.ceiling_height - gap - radius - tip[2] - cfg.roughness
             position = np.array((1.75, 0.0, z))
-        self.potential[index] = -cfg.reward.approach_weight * gap
         return position, 0.0
+
+    def read_start(self, fleet: Fleet, index: np.ndarray) -> None:
+        """Φ(s₀) from each start's own pose: under a push the trimmed start is tilted, and the tip is
+        not ``start_gap`` from the surface."""
+        self.potential[index] = -self.cfg.reward.approach_weight * self.gap(fleet)[index]
 
     def gap(self, fleet: Fleet) -> np.ndarray:
         """(N,) distance (m) from each tip to its surface's face (0 when touching or beyond)."""
