@@ -9,9 +9,14 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parent.parent
+POLICIES = ROOT / "quad_wrench_env" / "agents" / "policies"
 PAGES = sorted(
-    [ROOT / "README.md", *(ROOT / "docs").rglob("*.md"), *(ROOT / "configs").glob("*.yaml")]
-    + list((ROOT / "quad_wrench_env" / "agents" / "policies").glob("*/*.md"))
+    [
+        ROOT / "README.md",
+        *(ROOT / "docs").rglob("*.md"),
+        *(ROOT / "configs").glob("*.yaml"),
+        *POLICIES.glob("*/*.md"),
+    ]
 )
 MACHINE_PATH = re.compile(r"(?<![\w.~-])/(?:work|root|home|tmp|Users|mnt|scratch)/|\b[A-Z]:\\\\")
 """An absolute folder of a machine (``/work/runs/...``, ``/home/me/...``, ``C:\\...``)."""
