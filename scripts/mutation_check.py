@@ -790,6 +790,24 @@ MUTATIONS = (
         ("tests/test_mpc_exact_penalty.py",),
     ),
     Mutation(
+        "MPC: the soft problem's slack kept where the hard problem solves",
+        "mpc",
+        (("quad_wrench_env/agents/mpc.py", 'if hard.info.status == "solved":', "if False:"),),
+        ("tests/test_mpc_exact_penalty.py",),
+    ),
+    Mutation(
+        "MPC: the input reference's thrust unclipped beyond the tilt limit",
+        "mpc",
+        (
+            (
+                "quad_wrench_env/agents/mpc.py",
+                "attitude_from_acceleration(acceleration - force / self.mass, yaw, self.mass, tilt)",
+                "attitude_from_acceleration(acceleration - force / self.mass, yaw, self.mass)",
+            ),
+        ),
+        ("tests/test_mpc.py",),
+    ),
+    Mutation(
         "observation scaling loaded with mean and variance swapped",
         "training",
         (

@@ -57,6 +57,20 @@ def rollout(mpc: PositionMPC) -> np.ndarray:
     return np.array(states)
 
 
+def test_the_input_reference_beyond_the_tilt_limit_balances_the_weight():
+    """The input reference the MPC's input cost pulls to, for an acceleration of g sideways (45 deg of
+    tilt) under a 30 deg limit and a push of 1 N up: roll clipped to the limit and the thrust whose
+    vertical part balances the weight less the push, ``T cos 30 = m g - 1``, not ``|F| = m g sqrt 2``,
+    which would pull the vehicle up (the vertical channel first, as the PID's)."""
+    mpc = make_mpc(max_tilt_deg=30.0)
+    push_up = np.array((0.0, 0.0, 1.0))
+    thrust, roll, pitch = mpc.equilibrium_input(np.array((0.0, -GRAVITY, 0.0)), 0.0, push_up)
+    assert roll == pytest.approx(math.radians(30.0), abs=1e-12) and pitch == pytest.approx(0.0, abs=1e-12)
+    assert thrust * math.cos(math.radians(30.0)) == pytest.approx(MASS * GRAVITY - 1.0, rel=1e-12)
+    within = mpc.equilibrium_input(np.array((0.0, -1.0, 0.0)), 0.0, np.zeros(3))  # 5.8 deg: unclipped
+    assert within[0] == pytest.approx(MASS * math.hypot(1.0, GRAVITY), rel=1e-12)
+
+
 # -- guidance ------------------------------------------------------------------------------------
 @pytest.mark.parametrize("seed", range(5))
 def test_attitude_from_acceleration_reproduces_the_thrust_vector(seed):

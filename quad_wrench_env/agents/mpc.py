@@ -25,8 +25,15 @@ The input reference (where the input cost pulls) is the equilibrium input: the t
 give the reference acceleration against gravity and, with ``compensation``, against ``f̂``
 (:func:`quad_wrench_env.agents.guidance.attitude_from_acceleration`); the attitude states are pulled towards
 its tilt. Soft constraint (Sec. IV-D c)): ``|p_x - p_r,x|, |p_y - p_r,y| <= e_max + ε_k``, ``ε_k >= 0`` on
-every predicted state, with the cost ``w_1·ε + w_2·ε²`` (the linear term makes the penalty exact: no
-slack is used while the constraint can be met).
+every predicted state, with the cost ``w_1·ε + w_2·ε²``. The linear term makes the penalty exact only
+where ``w_1`` exceeds the hard constraint's multiplier, which grows without bound towards the edge of
+feasibility; so where the soft solution uses slack, the hard problem (every ``ε`` bounded to 0) is
+solved from it, and its solution is flown where OSQP solves it: no slack is used while the constraint
+can be met, up to its edge.
+
+The input reference beyond the tilt limit puts the vertical channel first (roll and pitch clipped, the
+thrust whose vertical part balances): an input reference of the unclipped thrust ``|F|`` would pull
+the vehicle up.
 """
 
 from __future__ import annotations
@@ -65,6 +72,9 @@ _B_PATTERN[6, 1] = _B_PATTERN[7, 2] = True
 """Entries of ``A_d`` and ``B_d`` that can be non-zero at any linearisation point (p from p, v and the
 attitude, v from v and the attitude, each attitude angle from itself and its reference; the thrust
 along every axis): the QP's constraint matrix keeps this pattern, so only its values change."""
+SLACK_USED = 1.0e-5
+"""m: a slack above this in the soft problem's solution sends the MPC to the hard problem (ten times
+OSQP's default tolerance: below it, the slack is the solver's rounding)."""
 ACTION_MAX_THRUST = 2.0
 """The attitude action's largest thrust, in hover thrusts (``(1 + a3)·m·g`` with ``a3 <= 1``)."""
 
@@ -108,9 +118,10 @@ class MPCGains:
     """``e_max`` (m) of the soft constraint on the x and y position errors."""
     slack_weight_linear: float | None = None
     """Linear cost on the slack (1/m, per step). None derives it from the exact-penalty condition: it
-    must exceed the multiplier the hard constraint would have, at most the slope of the terminal
-    position cost at ``e_max``, ``2·q_p·e_max·terminal_weight`` (1300 with the tuned weights of
-    ``configs/reproduce_hentzen.yaml``), so that no slack is used while the constraint can be met."""
+    must exceed the multiplier the hard constraint would have, away from the edge of feasibility at
+    most the slope of the terminal position cost at ``e_max``, ``2·q_p·e_max·terminal_weight`` (1300
+    with the tuned weights of ``configs/reproduce_hentzen.yaml``); near the edge the hard problem's
+    own solve keeps the slack at zero (module docstring)."""
     slack_weight_quadratic: float | None = None
     """Quadratic cost on the slack (1/m², per step); None: the linear weight over ``e_max`` (both terms
     equal at a slack of ``e_max``)."""
@@ -314,6 +325,25 @@ class PositionMPC:
         settings.update(osqp_settings)
         self.solver.setup(p, np.zeros(size), self._matrix(), self._lower, self._upper, **settings)
 
+    def _hard_or(self, soft: Any) -> Any:
+        """The hard problem's solution (every slack bounded to 0) where OSQP solves it, else ``soft``
+        (the solver warm-started from it again): the two-stage solve that keeps the slack at zero
+        whenever the hard constraint can be met, up to the edge of feasibility, where the hard
+        constraint's multiplier exceeds any fixed linear weight (Hentzen et al. 2019 Sec. IV-D c))."""
+        n, nu = self.horizon, self.nu
+        slack_bounds = n * NX + NU + nu * np.arange(n)  # rows of the slack's bounds ε_k <= ∞
+        self._upper[slack_bounds] = 0.0
+        self.solver.update(l=self._lower, u=self._upper)
+        hard = self.solver.solve(raise_error=False)
+        self._upper[slack_bounds] = np.inf
+        self.solver.update(l=self._lower, u=self._upper)
+        self.iterations += hard.info.iter
+        self.solve_time += hard.info.solve_time
+        if hard.info.status == "solved":
+            return hard
+        self.solver.warm_start(x=soft.x, y=soft.y)
+        return soft
+
     def _constraint_data(self) -> np.ndarray:
         values = self._values.copy()
         n = self.horizon
@@ -328,7 +358,8 @@ class PositionMPC:
     # -- solve -----------------------------------------------------------------------------------
     def equilibrium_input(self, acceleration: np.ndarray, yaw: float, force: np.ndarray) -> np.ndarray:
         """``(T, φ, θ)`` that holds ``acceleration`` (m/s², world) against gravity and ``force`` (N)."""
-        return np.array(attitude_from_acceleration(acceleration - force / self.mass, yaw, self.mass))
+        tilt = math.radians(self.gains.max_tilt_deg)
+        return np.array(attitude_from_acceleration(acceleration - force / self.mass, yaw, self.mass, tilt))
 
     def solve(
         self,
@@ -380,9 +411,10 @@ class PositionMPC:
             Ax=self._constraint_data(),
         )  # fmt: skip
         result = self.solver.solve(raise_error=False)
+        self.iterations, self.solve_time = result.info.iter, result.info.solve_time
+        if g.slack and result.x is not None and result.x[n * NX + NU :: nu].max() > SLACK_USED:
+            result = self._hard_or(result)
         self.status = result.info.status
-        self.iterations = result.info.iter
-        self.solve_time = result.info.solve_time
         z = result.x
         if z is None or not np.all(np.isfinite(z)):  # no solution: hold the equilibrium input
             self.predicted_inputs = inputs.copy()
