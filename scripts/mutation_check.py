@@ -808,6 +808,18 @@ MUTATIONS = (
         ("tests/test_mpc.py",),
     ),
     Mutation(
+        "DisturbanceRejection: the path ahead relative to the reference now, not the vehicle",
+        "observation",
+        (
+            (
+                "quad_wrench_env/tasks/disturbance_rejection.py",
+                "out[:, column + 3 * k : column + 3 * k + 3] = ahead - states[:, :3]",
+                'out[:, column + 3 * k : column + 3 * k + 3] = ahead - numbers["reference_position"]',
+            ),
+        ),
+        ("tests/test_disturbance_rejection.py",),
+    ),
+    Mutation(
         "observation scaling loaded with mean and variance swapped",
         "training",
         (

@@ -374,3 +374,59 @@ def test_the_preview_is_the_references_velocity_that_far_ahead():
     env.close()
     with pytest.raises(ValueError, match="preview_seconds=-0.1"):
         gym.make(ENV_ID, preview_seconds=-0.1)
+
+
+@pytest.mark.parametrize("scenario", ["figure8", "jet_crossing"])
+def test_the_path_ahead_and_the_references_acceleration(scenario):
+    """``path_ahead_seconds`` (0.1, 0.3) adds ``p_ref(t + τ) - p̂`` for each τ: checked against the
+    env's own ``info["reference_position"]`` read τ later (5 and 15 policy steps) minus the estimated
+    position observed now; ``observe_reference_acceleration`` adds ``a_ref(t)``: checked against the
+    central difference of ``info["reference_velocity"]`` over one policy step each way, whose error
+    is at most dt²/6 times the largest jerk (estimated by the third differences of the same
+    velocities, 4 times over: sampled at 50 Hz they miss the peak of the figure-8's easing in, where
+    the difference was off by 1.2 times the bound with the peak taken as sampled). The blocks follow
+    ``preview_seconds``' in that order."""
+    env = gym.make(
+        ENV_ID, action_type="velocity", preview_seconds=0.2, observe_reference_acceleration=True,
+        path_ahead_seconds=[0.1, 0.3],
+    )  # fmt: skip
+    layout = env.unwrapped.obs_layout
+    assert (layout["reference_acceleration"].start, layout["path_ahead"].start) == (34, 37)
+    assert env.observation_space.shape == (43,)
+    calm = {"wind_speed": 0.0} if scenario == "figure8" else {"jet_speed": 3.0}
+    obs, info = env.reset(seed=0, options={"scenario": scenario, **calm})
+    observed, references, velocities = [obs], [info["reference_position"]], [info["reference_velocity"]]
+    for _ in range(180):
+        obs, _, terminated, truncated, info = env.step(np.full(4, 0.1, dtype=np.float32))
+        observed.append(obs)
+        references.append(info["reference_position"])
+        velocities.append(info["reference_velocity"])
+        assert not (terminated or truncated)
+    observed, references, velocities = np.array(observed), np.array(references), np.array(velocities)
+    dt = env.unwrapped.dt
+    for k in range(len(observed) - 15):
+        ahead = observed[k, layout["path_ahead"]].reshape(2, 3)
+        estimate = observed[k, layout["position"]]
+        np.testing.assert_allclose(ahead[0], references[k + 5] - estimate, atol=1e-5)
+        np.testing.assert_allclose(ahead[1], references[k + 15] - estimate, atol=1e-5)
+    acceleration = observed[1:-1, layout["reference_acceleration"]]
+    difference = (velocities[2:] - velocities[:-2]) / (2.0 * dt)
+    jerk = np.abs(np.diff(velocities, n=3, axis=0)).max() / dt**3
+    np.testing.assert_allclose(acceleration, difference, atol=4.0 * jerk * dt**2 / 6.0 + 1e-5)
+    assert np.abs(acceleration).max() > 0.1  # the reference does accelerate here
+    env.close()
+
+
+@pytest.mark.parametrize(
+    ("settings", "named"),
+    [
+        ({"path_ahead_seconds": [0.3, 0.1]}, "path_ahead_seconds=\\[0.3, 0.1\\]"),
+        ({"path_ahead_seconds": [-0.1]}, "path_ahead_seconds=\\[-0.1\\]"),
+        ({"path_ahead_seconds": [0.1] * 11}, "path_ahead_seconds="),
+        ({"path_ahead_seconds": "soon"}, "path_ahead_seconds='soon'"),
+        ({"observe_reference_acceleration": "yes"}, "observe_reference_acceleration='yes'"),
+    ],
+)
+def test_bad_path_ahead_settings_are_refused_by_name(settings, named):
+    with pytest.raises(ValueError, match=named):
+        gym.make(ENV_ID, **settings)

@@ -61,12 +61,12 @@ class ObservationScaling:
 
 MEANING_KEYS = (
     "action_type", "action_limits", "observe_wrench", "history", "sensor_history", "observe_tracking_error",
-    "preview_seconds",
+    "preview_seconds", "observe_reference_acceleration", "path_ahead_seconds",
 )  # fmt: skip
-"""Env settings that change what an action or an observation means (``history``, ``sensor_history`` and
-``preview_seconds`` its size too; ``action_limits`` the command an action stands for;
-``observe_tracking_error`` and ``preview_seconds`` are DisturbanceRejection's own and count only where
-the config has them)."""
+"""Env settings that change what an action or an observation means (``history``, ``sensor_history``,
+``preview_seconds``, ``observe_reference_acceleration`` and ``path_ahead_seconds`` its size too;
+``action_limits`` the command an action stands for; the last four and ``observe_tracking_error`` are
+DisturbanceRejection's own and count only where the config has them)."""
 
 
 class SB3Policy:

@@ -49,6 +49,11 @@ With ``preview_seconds`` T > 0 the observation adds ``reference_velocity_ahead``
 ``v_ref(t + T) - v_ref(t)``, the reference's velocity change over the next T seconds (m/s, world frame;
 about T times its acceleration), the feed-forward PID and MPC take from the reference.
 
+With ``observe_reference_acceleration=True`` the observation adds ``reference_acceleration`` (3, after
+the blocks above): the reference's acceleration now (m/s², world frame). With ``path_ahead_seconds``
+``(τ_1, ..., τ_K)`` it adds ``path_ahead`` (3K, last): ``p_ref(t + τ_k) - p̂`` for each k, the path ahead
+relative to the vehicle's estimated position (m, world frame).
+
 With ``observe_tracking_error=True`` the same columns hold the tracking error as the vehicle sees it
 instead (what PID and MPC, which read the reference, refuse):
 
@@ -112,6 +117,14 @@ ERROR_BLOCKS = (("position_error", 3, 20.0), ("velocity_error", 3, 20.0))
 """Its blocks with ``observe_tracking_error``."""
 PREVIEW_BLOCK = ("reference_velocity_ahead", 3, 20.0)
 """The block ``preview_seconds`` > 0 adds after them."""
+ACCELERATION_BLOCK = ("reference_acceleration", 3, 50.0)
+"""The block ``observe_reference_acceleration`` adds after those."""
+ACCELERATION_STEP = 1.0e-3
+"""s: the half-width of the central difference of the reference's velocity that gives its acceleration
+(exact to ~1e-6 m/s² on these paths, whose velocity is smooth but where a straight move's easing
+starts and ends)."""
+PATH_AHEAD_MAX = 10
+"""The most times ``path_ahead_seconds`` may name."""
 EASE = 1.0
 """Seconds over which the reference's speed eases up and down at each end of a straight move."""
 
@@ -333,10 +346,31 @@ class DisturbanceRejectionConfig(EnvConfig):
     reference's velocity changes over the next ``T`` (about ``T`` times its acceleration), the
     feed-forward that PID and MPC take from the reference they read. 0: no block."""
 
+    observe_reference_acceleration: bool = False
+    """True adds the block ``reference_acceleration``: the reference's acceleration now (m/s², world
+    frame), what a tracking controller feeds forward."""
+    path_ahead_seconds: tuple[float, ...] = ()
+    """s, increasing, each > 0 (at most :data:`PATH_AHEAD_MAX`); adds the block ``path_ahead``: for each
+    time ``τ`` the reference position ``τ`` ahead relative to the vehicle's estimate, ``p_ref(t + τ) -
+    p̂`` (m, world frame), so that a bend of the path can be anticipated. Empty: no block."""
+
     def __post_init__(self) -> None:
         super().__post_init__()
-        if not isinstance(self.observe_tracking_error, bool):
-            raise ValueError(f"observe_tracking_error={self.observe_tracking_error!r} must be true or false")
+        for name in ("observe_tracking_error", "observe_reference_acceleration"):
+            if not isinstance(getattr(self, name), bool):
+                raise ValueError(f"{name}={getattr(self, name)!r} must be true or false")
+        ahead = self.path_ahead_seconds
+        times = tuple(ahead) if isinstance(ahead, (list, tuple)) else None
+        numbers = times is not None and all(
+            isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) and x > 0
+            for x in times
+        )
+        if not (numbers and len(times) <= PATH_AHEAD_MAX and all(np.diff(times) > 0)):
+            raise ValueError(
+                f"path_ahead_seconds={ahead!r} must list up to {PATH_AHEAD_MAX} increasing times > 0 (s; "
+                "[] for no block)"
+            )
+        self.path_ahead_seconds = tuple(float(x) for x in times)
         preview = self.preview_seconds
         finite = (
             isinstance(preview, (int, float)) and not isinstance(preview, bool) and math.isfinite(preview)
@@ -383,6 +417,11 @@ class DisturbanceRejection(TaskDefaults):
             self.observation_blocks = ERROR_BLOCKS
         if cfg.preview_seconds > 0.0:
             self.observation_blocks = (*self.observation_blocks, PREVIEW_BLOCK)
+        if cfg.observe_reference_acceleration:
+            self.observation_blocks = (*self.observation_blocks, ACCELERATION_BLOCK)
+        if cfg.path_ahead_seconds:
+            width = 3 * len(cfg.path_ahead_seconds)
+            self.observation_blocks = (*self.observation_blocks, ("path_ahead", width, 20.0))
         jc, tp, fig = cfg.jet_crossing, cfg.table_pass, cfg.figure8
         x, y = jc.path
         self.jets = [
@@ -556,9 +595,21 @@ class DisturbanceRejection(TaskDefaults):
             position, velocity = position - states[:, :3], velocity - states[:, 3:6]
         out[:, :3] = position
         out[:, 3:6] = velocity
-        if self.cfg.preview_seconds > 0.0:
-            _, ahead = self.reference(fleet.time + self.cfg.preview_seconds, self.scenario)
+        cfg, column = self.cfg, 6
+        if cfg.preview_seconds > 0.0:
+            _, ahead = self.reference(fleet.time + cfg.preview_seconds, self.scenario)
             out[:, 6:9] = ahead - numbers["reference_velocity"]
+            column = 9
+        if cfg.observe_reference_acceleration:
+            _, later = self.reference(fleet.time + ACCELERATION_STEP, self.scenario)
+            _, earlier = self.reference(fleet.time - ACCELERATION_STEP, self.scenario)
+            out[:, column : column + 3] = (later - earlier) / (2.0 * ACCELERATION_STEP)
+            column += 3
+        if cfg.path_ahead_seconds:
+            states, _ = fleet.estimates()
+            for k, ahead_seconds in enumerate(cfg.path_ahead_seconds):
+                ahead, _ = self.reference(fleet.time + ahead_seconds, self.scenario)
+                out[:, column + 3 * k : column + 3 * k + 3] = ahead - states[:, :3]
 
     def info(self, fleet: Fleet) -> dict[str, np.ndarray]:
         return dict(self._numbers(fleet))
