@@ -296,13 +296,21 @@ def run(args: argparse.Namespace) -> int:
     shares = paired_floor_shares(args.steps // 4, 4 * args.repeats, estimator="ukf")
     show(
         markdown_table(
-            ["single env, timed with the floors in alternating blocks", "µs/physics step",
-             *(f"floor ({floor}) / ours" for floor in FLOORS)],
-            [["FanTracking-v1, ukf", f"{shares['physics step'] * 1e6:.1f}",
-              *(f"{shares[floor]:.1%}" for floor in FLOORS)]],
+            [
+                "single env, timed with the floors in alternating blocks",
+                "µs/physics step",
+                *(f"floor ({floor}) / ours" for floor in FLOORS),
+            ],
+            [
+                [
+                    "FanTracking-v1, ukf",
+                    f"{shares['physics step'] * 1e6:.1f}",
+                    *(f"{shares[floor]:.1%}" for floor in FLOORS),
+                ]
+            ],
         )
         + "\n"
-    )  # fmt: skip
+    )
     show(
         markdown_table(["every disturbance on", "µs/physics step", "vs plain"], disturbance_rows(args)) + "\n"
     )

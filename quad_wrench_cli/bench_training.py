@@ -71,9 +71,11 @@ def wrapper_rows(config: Any, blocks: int) -> list[list[str]]:
     monitored = VecMonitor(SB3VecEnv(vector(), step_infos=False))
     whole = training_env(dataclasses.replace(config, env_processes=1))[1]
     plain = VecNormalize(
-        VecMonitor(SB3VecEnv(vector(), step_infos=False)), clip_obs=config.clip_observations,
-        norm_obs=config.normalize_observations, norm_reward=config.normalize_rewards,
-    )  # fmt: skip
+        VecMonitor(SB3VecEnv(vector(), step_infos=False)),
+        clip_obs=config.clip_observations,
+        norm_obs=config.normalize_observations,
+        norm_reward=config.normalize_rewards,
+    )
     processes = processes_compared(config)[-1]
     split = SB3VecEnv(
         ProcessVectorEnv(config.env_id, config.num_envs, processes, **config.env), step_infos=False
@@ -165,7 +167,7 @@ def learning_rows(config: Any, steps: int) -> list[list[str]]:
         ["env stepping (the whole wrapper stack)", f"{env_clock.wall:.1f} s ({env_clock.wall / wall:.0%})"],
         ["policy inference, rollout bookkeeping", f"{inference:.1f} s ({inference / wall:.0%})"],
         ["updates", f"{update_clock.wall:.1f} s ({update_clock.wall / wall:.0%})"],
-    ]  # fmt: skip
+    ]
 
 
 def report(config_file: str | Path, steps: int | None, repeats: int) -> None:

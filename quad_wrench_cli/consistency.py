@@ -98,15 +98,24 @@ class Flown:
 
 
 def flown(
-    env_id: str, flight: Mapping[str, Any], name: str, vehicle: str, estimator: str, seeds: list[int],
+    env_id: str,
+    flight: Mapping[str, Any],
+    name: str,
+    vehicle: str,
+    estimator: str,
+    seeds: list[int],
     settle: float,
-) -> Flown:  # fmt: skip
+) -> Flown:
     """Fly ``flight`` (``agent`` or ``weave``; optional ``env_id``, ``env`` settings and reset ``options``)
     with M = len(``seeds``) vehicles of one vector env, the estimator in the loop, and record it."""
     env = gym.make_vec(
-        flight.get("env_id", env_id), num_envs=len(seeds), vectorization_mode="vector_entry_point",
-        vehicle=vehicle, estimator=estimator, **flight.get("env", {}),
-    )  # fmt: skip
+        flight.get("env_id", env_id),
+        num_envs=len(seeds),
+        vectorization_mode="vector_entry_point",
+        vehicle=vehicle,
+        estimator=estimator,
+        **flight.get("env", {}),
+    )
     try:
         base = env.unwrapped
         observations, _ = env.reset(seed=seeds, options=flight.get("options"))

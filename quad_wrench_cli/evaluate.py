@@ -153,10 +153,19 @@ def run(args: argparse.Namespace) -> int:
     show("\n".join([title, "", *metrics_table(rows, columns)]))
     per_seed = [{"seed": s, **m} for s, m in zip(result.seeds, result.per_seed, strict=True)]
     if args.json:
-        write_json(args.json, {
-            "agent": args.agent, "agent_params": agent_params, "env_id": args.env_id, "env": env_kwargs,
-            "options": args.options, "seeds": result.seeds, "per_seed": per_seed, "mean": result.mean,
-        })  # fmt: skip
+        write_json(
+            args.json,
+            {
+                "agent": args.agent,
+                "agent_params": agent_params,
+                "env_id": args.env_id,
+                "env": env_kwargs,
+                "options": args.options,
+                "seeds": result.seeds,
+                "per_seed": per_seed,
+                "mean": result.mean,
+            },
+        )
     if args.csv:
         write_csv(args.csv, [*per_seed, {"seed": "mean", **result.mean}])
     if args.video:
@@ -165,9 +174,15 @@ def run(args: argparse.Namespace) -> int:
         )
 
         record_video(
-            policy, args.env_id, args.video, args.seeds[0], args.options, args.video_every,
-            progress=not args.no_progress, **env_kwargs,
-        )  # fmt: skip
+            policy,
+            args.env_id,
+            args.video,
+            args.seeds[0],
+            args.options,
+            args.video_every,
+            progress=not args.no_progress,
+            **env_kwargs,
+        )
     written = [path for path in (args.json, args.csv, args.video, args.log) if path]
     if written:
         print("wrote " + ", ".join(written))

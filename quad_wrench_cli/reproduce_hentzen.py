@@ -101,14 +101,21 @@ def table1(config: dict, out: Path) -> list[str]:
     lines = [
         f"## Table I: max horizontal deviation (cm) through the jet (mean ± sd over seeds {seeds}{settings})",
         "",
-        "| controller | estimator | " + " | ".join(f"{v:g} m/s" for v in speeds)
-        + " | improvement over PID | paper (" + ", ".join(f"{v:g}" for v in speeds) + " m/s) |",
+        "| controller | estimator | "
+        + " | ".join(f"{v:g} m/s" for v in speeds)
+        + " | improvement over PID | paper ("
+        + ", ".join(f"{v:g}" for v in speeds)
+        + " m/s) |",
         "|---|---|" + "---|" * len(speeds) + "---|---|",
-    ]  # fmt: skip
+    ]
     results = sweep(
-        config, setup["controllers"], speeds, "Table I", "max_horizontal_deviation",
+        config,
+        setup["controllers"],
+        speeds,
+        "Table I",
+        "max_horizontal_deviation",
         lambda speed: ({"jet_speed": speed}, {"episode_seconds": setup["seconds"], **env}),
-    )  # fmt: skip
+    )
     for estimator in config["estimators"]:
         base = {v: np.mean(results[estimator, setup["baseline"], v]) for v in speeds}
         for label in setup["controllers"]:
@@ -130,9 +137,11 @@ def table1(config: dict, out: Path) -> list[str]:
 def fig11(config: dict, out: Path) -> list[str]:
     setup, seeds = config["fig11"], config["seeds"]
     lines = [
-        f"## Fig. 11: table pass, z error (cm) over the table (seeds {seeds})", "",
-        "| controller | estimator | max z error | max z error over the table |", "|---|---|---|---|",
-    ]  # fmt: skip
+        f"## Fig. 11: table pass, z error (cm) over the table (seeds {seeds})",
+        "",
+        "| controller | estimator | max z error | max z error over the table |",
+        "|---|---|---|---|",
+    ]
     table = setup["table_x"]
     for estimator in config["estimators"]:
         fig, (top, bottom) = plt.subplots(2, 1, figsize=(7, 6), sharex=True)
@@ -179,8 +188,14 @@ def fig9(config: dict, out: Path) -> list[str]:
     for label in tqdm(setup["controllers"], desc="Fig. 9", unit="controller"):
         samples: list[float] = []
         for seed in config["seeds"]:
-            _, timing = fly(config, label, setup["estimator"], seed, {"jet_speed": setup["jet_speed"]},
-                            episode_seconds=config["table1"]["seconds"])  # fmt: skip
+            _, timing = fly(
+                config,
+                label,
+                setup["estimator"],
+                seed,
+                {"jet_speed": setup["jet_speed"]},
+                episode_seconds=config["table1"]["seconds"],
+            )
             samples += timing[1:]  # the first call of an episode sets up the solver
         seconds[label] = 1e3 * np.array(samples)
     fig, ax = plt.subplots(figsize=(6, 4))
@@ -190,8 +205,12 @@ def fig9(config: dict, out: Path) -> list[str]:
     ax.set_ylabel("time per iteration (ms)")
     ax.set_title(f"Controller iteration, jet crossing at {setup['jet_speed']:g} m/s (this machine)")
     save_figure(fig, out / "fig9.png")
-    lines = ["## Fig. 9: time per controller iteration (ms, this machine; paper: Odroid XU4)", "",
-             "| controller | mean | max | paper mean |", "|---|---|---|---|"]  # fmt: skip
+    lines = [
+        "## Fig. 9: time per controller iteration (ms, this machine; paper: Odroid XU4)",
+        "",
+        "| controller | mean | max | paper mean |",
+        "|---|---|---|---|",
+    ]
     for label, ms in seconds.items():
         lines.append(f"| {label} | {np.mean(ms):.2f} | {np.max(ms):.2f} | {setup['paper_ms'][label]} |")
     return lines
@@ -210,11 +229,13 @@ def figure8(config: dict, out: Path) -> list[str]:
         lambda speed: ({"wind_speed": speed}, {}),
     )
     lines = [
-        f"## Figure-8 (x = 1.25 sin t, z = 0.75 sin 2t): mean tracking error (cm), seeds {seeds}", "",
-        "Simulation here; Neural-Fly's rows are real flights in a wind tunnel (O'Connell et al. 2022).", "",
+        f"## Figure-8 (x = 1.25 sin t, z = 0.75 sin 2t): mean tracking error (cm), seeds {seeds}",
+        "",
+        "Simulation here; Neural-Fly's rows are real flights in a wind tunnel (O'Connell et al. 2022).",
+        "",
         "| controller | estimator | " + " | ".join(f"{v:g} m/s" for v in speeds) + " |",
         "|---|---|" + "---|" * len(speeds),
-    ]  # fmt: skip
+    ]
     for estimator in config["estimators"]:
         for label in setup["controllers"]:
             cells = " | ".join(_cells(results[estimator, label, v]) for v in speeds)

@@ -44,9 +44,15 @@ def _hold(config: dict) -> Any:
 def _hover(config: dict, seed: int, payload: dict, seconds: float, **env_overrides: Any) -> Episode:
     """The hold agent hovering on the fan's axis with the fan off, carrying ``payload``."""
     return _episode(
-        config, _hold(config), seed, {"offset_y": 0.0, "fan_motion": "static"}, fan={"enabled": False},
-        payload=payload, episode_seconds=seconds, **env_overrides,
-    )  # fmt: skip
+        config,
+        _hold(config),
+        seed,
+        {"offset_y": 0.0, "fan_motion": "static"},
+        fan={"enabled": False},
+        payload=payload,
+        episode_seconds=seconds,
+        **env_overrides,
+    )
 
 
 def rise_time(t: np.ndarray, signal: np.ndarray, start: float, before: float, step: float) -> float:

@@ -38,11 +38,17 @@ DRAG_FREE = {"drag_area": 0.0, "rotor_drag_decel": 0.0}
 def free_air(config: dict, profile: list, drag: bool) -> gym.Env:
     """yuksel1kg in free air with the scheduled wrench ``profile`` (the FanTracking env, fan off)."""
     return gym.make(
-        "QuadWrench/FanTracking-v1", vehicle="yuksel1kg", action_type="wrench", estimator=config["estimator"],
-        fan={"enabled": False, "height": config["free_air_height"]}, kf_spread=0.0,
-        vehicle_params={} if drag else DRAG_FREE, episode_seconds=config["free_air_seconds"],
-        arena=config["free_air_arena"], external_wrench=profile,
-    )  # fmt: skip
+        "QuadWrench/FanTracking-v1",
+        vehicle="yuksel1kg",
+        action_type="wrench",
+        estimator=config["estimator"],
+        fan={"enabled": False, "height": config["free_air_height"]},
+        kf_spread=0.0,
+        vehicle_params={} if drag else DRAG_FREE,
+        episode_seconds=config["free_air_seconds"],
+        arena=config["free_air_arena"],
+        external_wrench=profile,
+    )
 
 
 def record(env: gym.Env, policy: IDAPBCPolicy, seed: int, options: dict) -> dict[str, np.ndarray]:
@@ -82,12 +88,14 @@ def _plot_wrench(axes: Any, rec: dict, label: str) -> None:
 def fig6(config: dict, out: Path) -> list[str]:
     setup = config["fig6"]
     lines = [
-        f"## Fig. 6: balance mode ({setup['params']}), {config['estimator']}, seeds {config['seeds']}", "",
+        f"## Fig. 6: balance mode ({setup['params']}), {config['estimator']}, seeds {config['seeds']}",
+        "",
         "Per settled window: max |acceleration| (m/s²) and the largest per-axis error of f_ne against -f_e "
-        "(N); pass: |a| < 0.05 and every axis within 10 % of the target (0.1 N).", "",
+        "(N); pass: |a| < 0.05 and every axis within 10 % of the target (0.1 N).",
+        "",
         "| torque scale | air | window (s) | max abs(a) | max f_ne error | passes |",
         "|---|---|---|---|---|---|",
-    ]  # fmt: skip
+    ]
     for scale, drag in ((s, d) for s in setup["torque_scales"] for d in (False, True)):
         profile = [[*row[:5], *(scale * np.array(row[5:]))] for row in setup["profile"]]
         records = []
@@ -134,9 +142,11 @@ def fig6(config: dict, out: Path) -> list[str]:
 def fig4(config: dict, out: Path) -> list[str]:
     setup = config["fig4"]
     lines = [
-        f"## Fig. 4: IDA-PBC on the observer's estimate, drag-free, seed {config['seeds'][0]}", "",
-        "| parameter set | max position excursion x, y, z (m) | max roll, pitch (deg) |", "|---|---|---|",
-    ]  # fmt: skip
+        f"## Fig. 4: IDA-PBC on the observer's estimate, drag-free, seed {config['seeds'][0]}",
+        "",
+        "| parameter set | max position excursion x, y, z (m) | max roll, pitch (deg) |",
+        "|---|---|---|",
+    ]
     fig, axes = plt.subplots(3, 2, figsize=(11, 7), sharex=True)
     for name in setup["params"]:
         env = free_air(config, setup["profile"], drag=False)
@@ -174,10 +184,12 @@ def fig5(config: dict, out: Path) -> list[str]:
     setup = config["fig5"]
     lines = [
         f"## Fig. 5: tip sliding along a rough ceiling (ridges up to {setup['roughness'] * 100:g} cm) at "
-        f"{setup['speed']} m/s, set-point {setup['press']} m beyond it, seeds {config['seeds']}", "",
+        f"{setup['speed']} m/s, set-point {setup['press']} m beyond it, seeds {config['seeds']}",
+        "",
         "| parameter set | time in contact | longest loss (s) | mean force on the ceiling (N) "
-        "| distance slid (m) |", "|---|---|---|---|---|",
-    ]  # fmt: skip
+        "| distance slid (m) |",
+        "|---|---|---|---|---|",
+    ]
     fig, axes = plt.subplots(3, 1, figsize=(8, 7), sharex=True)
     for name, colour in zip(setup["params"], ("tab:blue", "tab:red"), strict=False):
         fractions, losses, forces, slid = [], [], [], []
@@ -187,9 +199,11 @@ def fig5(config: dict, out: Path) -> list[str]:
             )
             gap = env.unwrapped.cfg.start_gap
             params = replace(
-                load_param_set(name), mode="position", reference_offset=(0.0, 0.0, gap + setup["press"]),
+                load_param_set(name),
+                mode="position",
+                reference_offset=(0.0, 0.0, gap + setup["press"]),
                 reference_velocity=(setup["speed"], 0.0, 0.0),
-            )  # fmt: skip
+            )
             try:
                 rec = record(env, IDAPBCPolicy(params), seed, {"surface": "ceiling"})
             finally:
@@ -228,10 +242,12 @@ def fig5(config: dict, out: Path) -> list[str]:
 def wall(config: dict, out: Path) -> list[str]:
     setup = config["wall"]
     lines = [
-        f"## Wall pressing, IDA-PBC, {config['estimator']}, seeds {config['seeds']}", "",
+        f"## Wall pressing, IDA-PBC, {config['estimator']}, seeds {config['seeds']}",
+        "",
         "| vehicle | parameter set | target (N) | mean force last 5 s (N) | within 10 % "
-        "| longest loss after first touch (s) | ended early |", "|---|---|---|---|---|---|---|",
-    ]  # fmt: skip
+        "| longest loss after first touch (s) | ended early |",
+        "|---|---|---|---|---|---|---|",
+    ]
     reference_margin = None
     for vehicle in setup["vehicles"]:
         env = gym.make("QuadWrench/ForceExertion-v0", vehicle=vehicle)
@@ -248,9 +264,11 @@ def wall(config: dict, out: Path) -> list[str]:
                 env = gym.make("QuadWrench/ForceExertion-v0", vehicle=vehicle)
                 try:
                     episode = run_episode(
-                        IDAPBCPolicy(load_param_set(setup["params"][vehicle])), env, seed,
+                        IDAPBCPolicy(load_param_set(setup["params"][vehicle])),
+                        env,
+                        seed,
                         {"surface": "wall", "target_force": scaled},
-                    )  # fmt: skip
+                    )
                 finally:
                     env.close()
                 scores.append(episode_metrics("QuadWrench/ForceExertion-v0", episode))
@@ -258,9 +276,11 @@ def wall(config: dict, out: Path) -> list[str]:
             force = [s["mean_contact_force_last_5s"] for s in scores]
             within = sum(abs(f - scaled) <= 0.1 * scaled for f in force)
             loss = max(s["longest_contact_loss_s"] for s in scores)
-            lines.append(f"| {vehicle} | {setup['params'][vehicle]} | {scaled:.2f} | "
-                         f"{np.mean(force):.3f} ± {np.std(force):.3f} | "
-                         f"{within}/{len(force)} | {loss:.2f} | {early}/{len(force)} |")  # fmt: skip
+            lines.append(
+                f"| {vehicle} | {setup['params'][vehicle]} | {scaled:.2f} | "
+                f"{np.mean(force):.3f} ± {np.std(force):.3f} | "
+                f"{within}/{len(force)} | {loss:.2f} | {early}/{len(force)} |"
+            )
     return lines
 
 

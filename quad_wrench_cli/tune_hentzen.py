@@ -82,12 +82,14 @@ def step_response(
     offset[axis] = config["step"]
     env = ReferenceStep(
         gym.make(
-            ENV_ID, estimator=config["estimator"], estimator_params=config.get("estimator_params", {}),
+            ENV_ID,
+            estimator=config["estimator"],
+            estimator_params=config.get("estimator_params", {}),
             episode_seconds=config["seconds"],
             gusts={"w20": 0.0, "peak": [0.0, 0.0]},
         ),
         offset,
-    )  # fmt: skip
+    )
     try:
         episode = run_episode(make_agent(agent, **gains), env, seed, {"scenario": "gusts"})
     finally:
@@ -104,11 +106,15 @@ def tune(agent: str, bandwidths: list[float], config: dict) -> tuple[float, list
         results = [
             step_response(agent, gains, axis, seed, config) for axis in (0, 2) for seed in config["seeds"]
         ]
-        rows.append({
-            "bandwidth": lam, "rise_x": np.mean([r for r, _ in results[: len(config["seeds"])]]),
-            "rise_z": np.mean([r for r, _ in results[len(config["seeds"]) :]]),
-            "overshoot": max(o for _, o in results), "rise": max(r for r, _ in results),
-        })  # fmt: skip
+        rows.append(
+            {
+                "bandwidth": lam,
+                "rise_x": np.mean([r for r, _ in results[: len(config["seeds"])]]),
+                "rise_z": np.mean([r for r, _ in results[len(config["seeds"]) :]]),
+                "overshoot": max(o for _, o in results),
+                "rise": max(r for r, _ in results),
+            }
+        )
         print(f"{agent} λ={lam}: {rows[-1]}", flush=True)
     admissible = [r for r in rows if r["overshoot"] <= config["max_overshoot"]]
     if not admissible:
@@ -135,9 +141,11 @@ def run(args: argparse.Namespace) -> int:
         lines = [
             f"# Tuning of Hentzen et al.'s (2019) controllers ({config['estimator']}, "
             f"seeds {config['seeds']}, step {config['step']} m, "
-            f"overshoot <= {config['max_overshoot']:.0%})", "",
-            "| agent | λ (1/s) | rise x (s) | rise z (s) | max overshoot |", "|---|---|---|---|---|",
-        ]  # fmt: skip
+            f"overshoot <= {config['max_overshoot']:.0%})",
+            "",
+            "| agent | λ (1/s) | rise x (s) | rise z (s) | max overshoot |",
+            "|---|---|---|---|---|",
+        ]
     out.mkdir(parents=True, exist_ok=True)
     chosen = {}
     for agent, bandwidths in config["bandwidths"].items():

@@ -127,12 +127,15 @@ class Autopilot:
         g = self.gains
         return np.concatenate(
             (
-                self._velocity_p, self._velocity_i, (g.setpoint_weight, math.tan(g.max_tilt)),
+                self._velocity_p,
+                self._velocity_i,
+                (g.setpoint_weight, math.tan(g.max_tilt)),
                 self._attitude_p,
                 (g.max_rate, g.max_yaw_error, g.rate_p, g.rate_i, self.vehicle.mass, GRAVITY, self.dt),
-                (self._w2_min, self._w2_max), self._inertia,
+                (self._w2_min, self._w2_max),
+                self._inertia,
             )
-        )  # fmt: skip
+        )
 
     def reset(self, index: np.ndarray, yaw: np.ndarray) -> None:
         """Zero the integrators of vehicles ``index`` and hold their ``yaw`` (rad)."""

@@ -122,8 +122,10 @@ class Wall:
 
     def boxes(self):
         half = (0.5 * self.thickness, 0.5 * self.width, 0.5 * self.height)
-        ridges = [((self.x - 0.5 * h, y, half[2]), (0.5 * h, 0.25 * self.ridge_spacing, half[2]))
-                  for y, h in _ridges(self)]  # fmt: skip
+        ridges = [
+            ((self.x - 0.5 * h, y, half[2]), (0.5 * h, 0.25 * self.ridge_spacing, half[2]))
+            for y, h in _ridges(self)
+        ]
         return [((self.x + half[0], 0.0, half[2]), half), *ridges]
 
     def top(self):
@@ -148,15 +150,18 @@ class Ceiling:
 
     def __post_init__(self) -> None:
         _check(
-            self, ("center", "size"),
+            self,
+            ("center", "size"),
             ("size", "height", "thickness", "friction", "ridge_spacing", "rough_length"),
-        )  # fmt: skip
+        )
         _check_roughness(self)
 
     def boxes(self):
         (x, y), (sx, sy) = self.center, self.size
-        ridges = [((x + offset, y, self.height - 0.5 * h), (0.25 * self.ridge_spacing, 0.5 * sy, 0.5 * h))
-                  for offset, h in _ridges(self)]  # fmt: skip
+        ridges = [
+            ((x + offset, y, self.height - 0.5 * h), (0.25 * self.ridge_spacing, 0.5 * sy, 0.5 * h))
+            for offset, h in _ridges(self)
+        ]
         return [
             ((x, y, self.height + 0.5 * self.thickness), (0.5 * sx, 0.5 * sy, 0.5 * self.thickness)),
             *ridges,

@@ -115,10 +115,6 @@ class VehicleParams:
         return 4.0 * self.arm * self.kf * margin / max(self.inertia[0], self.inertia[1])
 
     @property
-    def inertia_matrix(self) -> np.ndarray:
-        return np.diag(self.inertia)
-
-    @property
     def rotor_positions(self) -> np.ndarray:
         """(4, 3) rotor hub positions in the body frame."""
         return np.column_stack((self.arm * MOTOR_X, self.arm * MOTOR_Y, np.zeros(4)))

@@ -894,8 +894,12 @@ def _run(root: Path, mutation: Mutation, timeout: float) -> tuple[str, str, floa
     try:
         done = subprocess.run(
             [sys.executable, "-m", "pytest", "-x", "-q", "-p", "no:cacheprovider", *tests],
-            cwd=root, env=env, capture_output=True, text=True, timeout=timeout,
-        )  # fmt: skip
+            cwd=root,
+            env=env,
+            capture_output=True,
+            text=True,
+            timeout=timeout,
+        )
     except subprocess.TimeoutExpired:
         return "timeout", "", time.perf_counter() - start
     seconds = time.perf_counter() - start

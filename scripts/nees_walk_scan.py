@@ -30,9 +30,12 @@ SETTINGS = {
     "walks x1/4": {"force_walk": 0.25, "torque_walk": 0.25},
     "walks x1/40": {"force_walk": 0.025, "torque_walk": 0.025},
     "walks x1/40, thrust and motor torque x1/50": {
-        "force_walk": 0.025, "torque_walk": 0.025, "thrust": 0.02, "motor_torque": 0.02,
+        "force_walk": 0.025,
+        "torque_walk": 0.025,
+        "thrust": 0.02,
+        "motor_torque": 0.02,
     },
-}  # fmt: skip
+}
 """Each setting's factors on the vehicle's default of the named ``estimator_params``."""
 FLIGHTS = ("hover", "manoeuvre")
 

@@ -180,8 +180,11 @@ def _checkout(revision: str | None, folder: Path) -> Path:
     """The package of ``revision`` (the work tree when None) in ``folder``."""
     if revision is None:
         return ROOT
-    subprocess.run(["git", "-C", str(ROOT), "worktree", "add", "--detach", "-f", str(folder), revision],
-                   check=True, capture_output=True)  # fmt: skip
+    subprocess.run(
+        ["git", "-C", str(ROOT), "worktree", "add", "--detach", "-f", str(folder), revision],
+        check=True,
+        capture_output=True,
+    )
     return folder
 
 

@@ -38,8 +38,17 @@ COMMANDS = dict(_commands(build_parser()))
 def test_every_command_of_the_issue_is_there():
     top = {path[0] for path in COMMANDS if path}
     assert top == {
-        "demo", "train", "evaluate", "estimate", "compare", "reproduce", "bench", "sweep", "study", "list",
-    }  # fmt: skip
+        "demo",
+        "train",
+        "evaluate",
+        "estimate",
+        "compare",
+        "reproduce",
+        "bench",
+        "sweep",
+        "study",
+        "list",
+    }
     assert {("reproduce", p) for p in ("mckinnon", "yuksel", "hentzen")} <= set(COMMANDS)
     assert {("compare", "agents"), ("compare", "estimators")} <= set(COMMANDS)
 

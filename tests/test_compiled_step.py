@@ -42,18 +42,26 @@ def test_the_components_state_stays_in_the_compiled_steps_buffer():
     try:
         fleet = env.unwrapped.fleet
         parts = (
-            fleet.autopilot.yaw_setpoint, fleet.autopilot.velocity_integral, fleet.autopilot.rate_integral,
-            fleet.rotors.speeds, fleet.rotors.allocations, env.unwrapped.task.fan.noise,
+            fleet.autopilot.yaw_setpoint,
+            fleet.autopilot.velocity_integral,
+            fleet.autopilot.rate_integral,
+            fleet.rotors.speeds,
+            fleet.rotors.allocations,
+            env.unwrapped.task.fan.noise,
             fleet.mocap.delay_line,
-        )  # fmt: skip
+        )
         for seed in (0, 1):
             env.reset(seed=seed)
             env.step(np.full(4, 0.3, dtype=np.float32))
         now = (
-            fleet.autopilot.yaw_setpoint, fleet.autopilot.velocity_integral, fleet.autopilot.rate_integral,
-            fleet.rotors.speeds, fleet.rotors.allocations, env.unwrapped.task.fan.noise,
+            fleet.autopilot.yaw_setpoint,
+            fleet.autopilot.velocity_integral,
+            fleet.autopilot.rate_integral,
+            fleet.rotors.speeds,
+            fleet.rotors.allocations,
+            env.unwrapped.task.fan.noise,
             fleet.mocap.delay_line,
-        )  # fmt: skip
+        )
         for before, after in zip(parts, now, strict=True):
             assert after is before and np.shares_memory(after, fleet.compiled.buffer)
     finally:

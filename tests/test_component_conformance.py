@@ -121,8 +121,11 @@ def test_a_point_loads_kernel_is_the_resultant_of_its_point_load(name):
     time = np.linspace(0.0, 10.0, COUNT)
     body = type("Body", (), {})()
     body.position, body.velocity, body.angular_velocity, body.rotation = (
-        position, velocity, angular_velocity, rotation,
-    )  # fmt: skip
+        position,
+        velocity,
+        angular_velocity,
+        rotation,
+    )
     out = rng.standard_normal((COUNT, 6))
     before = out.copy()
     _kernel(load, "load")(
@@ -135,8 +138,12 @@ def test_a_point_loads_kernel_is_the_resultant_of_its_point_load(name):
 
 
 def test_a_rotor_modifiers_kernel_is_its_added_thrust():
-    tops = surface_tops([Table(center=(2.0, 0.0), size=(1.0, 0.6), height=0.75),
-                         Table(center=(2.2, 0.2), size=(0.4, 0.4), height=0.9)])  # fmt: skip
+    tops = surface_tops(
+        [
+            Table(center=(2.0, 0.0), size=(1.0, 0.6), height=0.75),
+            Table(center=(2.2, 0.2), size=(0.4, 0.4), height=0.9),
+        ]
+    )
     effect = GroundEffect(0.1, tops)
     rng = np.random.default_rng(4)
     hubs = np.column_stack(

@@ -98,9 +98,11 @@ def test_friction_at_the_tip_is_coulombs(side, slides):
 def test_the_hull_touching_a_wall_is_a_crash():
     """Without a tool, flying into a wall ends the episode as a crash (it did not before the tool came)."""
     env = gym.make(
-        "QuadWrench/FanTracking-v1", estimator="oracle", fan={"enabled": False},
+        "QuadWrench/FanTracking-v1",
+        estimator="oracle",
+        fan={"enabled": False},
         scene=[{"kind": "wall", "x": 2.6}],
-    )  # fmt: skip
+    )
     try:
         env.reset(seed=0, options={"offset_y": 0.0, "fan_motion": "static"})
         for _ in range(200):
@@ -275,9 +277,11 @@ def test_the_stiff_set_keeps_the_tip_on_a_rough_ceiling_longer():
         for seed in range(3):
             env = gym.make(ENV_ID, roughness=0.01, episode_seconds=15.0)
             params = replace(
-                load_param_set(name), mode="position", reference_offset=(0.0, 0.0, 0.175),
+                load_param_set(name),
+                mode="position",
+                reference_offset=(0.0, 0.0, 0.175),
                 reference_velocity=(0.08, 0.0, 0.0),
-            )  # fmt: skip
+            )
             try:
                 episode = run_episode(IDAPBCPolicy(params), env, seed, {"surface": "ceiling"})
             finally:

@@ -105,8 +105,9 @@ def test_references_follow_the_papers_paths(make_env):
     jc, tp = cfg.jet_crossing, cfg.table_pass
     position, velocity = _reference(env, np.array((0.0, 0.99, 15.0)), "jet_crossing")
     np.testing.assert_allclose(position, [[2.0, 0.0, 2.2], [2.0, 0.0, 2.2], [2.0, 0.0, 0.6]], atol=1e-12)
-    _, cruise = _reference(env, np.array((1.0 + (jc.start_height - jc.end_height) / jc.descent_speed / 2,)),
-                           "jet_crossing")  # fmt: skip
+    _, cruise = _reference(
+        env, np.array((1.0 + (jc.start_height - jc.end_height) / jc.descent_speed / 2,)), "jet_crossing"
+    )
     np.testing.assert_allclose(cruise, [[0.0, 0.0, -0.5]], atol=1e-12)
     position, velocity = _reference(env, np.linspace(0.0, 15.0, 1501), "table_pass")
     hull_bottom = position[:, 2] - 0.5 * env.unwrapped.vehicle.hull_height
@@ -250,9 +251,13 @@ FORCE = np.array((0.5, -0.3))
 
 def _hover_under_push(agent_params: dict, seconds: float):
     env = gym.make(
-        ENV_ID, estimator="oracle", episode_seconds=seconds, gusts=STILL_AIR, kf_spread=0.0,
+        ENV_ID,
+        estimator="oracle",
+        episode_seconds=seconds,
+        gusts=STILL_AIR,
+        kf_spread=0.0,
         external_wrench=[[0.0, 100.0, *FORCE, 0.0, 0.0, 0.0, 0.0]],
-    )  # fmt: skip
+    )
     try:
         return run_episode(make_agent("pid", **agent_params), env, 0, {"scenario": "gusts"})
     finally:
@@ -309,8 +314,10 @@ def test_pid_tilts_against_the_estimated_force():
     assert (1.0 + action[3]) == pytest.approx(1.0 / math.cos(math.radians(10.0)), abs=1e-3)
 
 
-GAINS = {"pid": {"bandwidth": 3.5}, "mpc": {"position_weight": [1298.89, 1298.89, 625.0],
-                                            "velocity_weight": [103.91, 103.91, 50.0]}}  # fmt: skip
+GAINS = {
+    "pid": {"bandwidth": 3.5},
+    "mpc": {"position_weight": [1298.89, 1298.89, 625.0], "velocity_weight": [103.91, 103.91, 50.0]},
+}
 """The tuned gains of ``configs/reproduce_hentzen.yaml``."""
 
 
@@ -334,9 +341,12 @@ def test_compensation_helps_where_paper_003_says_it_does():
     """Table I's ordering at 10 m/s over 5 seeds with the UKF (quad-wrench reproduce hentzen has the
     full table): PID + comp below PID, MPC + comp below MPC, MPC + slack below MPC."""
     switches = {
-        "PID": ("pid", {}), "PID + comp": ("pid", {"compensation": True}), "MPC": ("mpc", {}),
-        "MPC + comp": ("mpc", {"compensation": True}), "MPC + slack": ("mpc", {"slack": True}),
-    }  # fmt: skip
+        "PID": ("pid", {}),
+        "PID + comp": ("pid", {"compensation": True}),
+        "MPC": ("mpc", {}),
+        "MPC + comp": ("mpc", {"compensation": True}),
+        "MPC + slack": ("mpc", {"slack": True}),
+    }
     deviation = {}
     for label, (agent, extra) in switches.items():
         scores = []
@@ -387,9 +397,12 @@ def test_the_path_ahead_and_the_references_acceleration(scenario):
     the difference was off by 1.2 times the bound with the peak taken as sampled). The blocks follow
     ``preview_seconds``' in that order."""
     env = gym.make(
-        ENV_ID, action_type="velocity", preview_seconds=0.2, observe_reference_acceleration=True,
+        ENV_ID,
+        action_type="velocity",
+        preview_seconds=0.2,
+        observe_reference_acceleration=True,
         path_ahead_seconds=[0.1, 0.3],
-    )  # fmt: skip
+    )
     layout = env.unwrapped.obs_layout
     assert (layout["reference_acceleration"].start, layout["path_ahead"].start) == (34, 37)
     assert env.observation_space.shape == (43,)

@@ -303,8 +303,11 @@ def _hover(make_env, table: dict):
     (the hubs are at body z = 0, so the rotors are 8 cm above it), after 2 s of zero actions."""
     height = table["height"] + 0.08
     env = make_env(
-        fan={"enabled": False, "height": height}, estimator="oracle", ground_effect=True, scene=[table],
-    )  # fmt: skip
+        fan={"enabled": False, "height": height},
+        estimator="oracle",
+        ground_effect=True,
+        scene=[table],
+    )
     env.reset(seed=0, options=STEADY)
     for _ in range(100):
         _, _, terminated, truncated, info = env.step(np.zeros(4))
@@ -499,9 +502,13 @@ def test_an_hour_of_dryden_gusts_at_the_vehicle_has_the_specified_statistics(mak
     About 40 s (200 Hz) and 65 s (400 Hz) with numba, after the compile."""
     spec = {"model": "dryden", "w20": 1.0, "altitude": 1.0, "mean": [MEAN_WIND, 0.0, 0.0]}
     env = make_env(
-        wind=[spec], fan={"enabled": False}, estimator="oracle", physics_hz=physics_hz, policy_hz=50,
+        wind=[spec],
+        fan={"enabled": False},
+        estimator="oracle",
+        physics_hz=physics_hz,
+        policy_hz=50,
         episode_seconds=3600.0,
-    )  # fmt: skip
+    )
     env.reset(seed=1, options=STEADY)
     steps = 3600 * 50
     wind = np.empty((steps, 3))

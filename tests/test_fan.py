@@ -75,8 +75,12 @@ def test_axis_follows_the_fan_with_the_transit_delay(x):
     the closed form under test), inside the core (0.5 m) and beyond it."""
     jet = FanJet(FanConfig(motion="constant_speed", turbulence_intensity=0.0))
     xi = np.linspace(1e-9, x, 20001)  # the field is zero at the outlet plane itself (x > 0 only)
-    speed = jet.velocity_at(np.column_stack((xi, np.zeros_like(xi), np.ones_like(xi)))[None], np.zeros(1),
-                            np.array((0,)), mean=True)[0, :, 0]  # fmt: skip
+    speed = jet.velocity_at(
+        np.column_stack((xi, np.zeros_like(xi), np.ones_like(xi)))[None],
+        np.zeros(1),
+        np.array((0,)),
+        mean=True,
+    )[0, :, 0]
     delay = np.trapezoid(1.0 / speed, xi)
     assert float(jet.transit_time(np.asarray(x))) == pytest.approx(delay, rel=1e-5)
     assert float(jet.axis_y(np.array((x,)), np.array((10.0,)))[0]) == pytest.approx(0.1 * (10.0 - delay))

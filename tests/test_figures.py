@@ -229,10 +229,15 @@ def _yuksel_record(env: Any, policy: Any, seed: int, options: dict) -> dict[str,
     n = trace["time"].size
     contact = np.outer(trace["time"] > 1.0, (0.0, 0.0, -1.0))
     return {
-        "t": trace["time"], "p": trace["position"], "v": 0.01 * trace["position"], "eta": np.zeros((n, 3)),
-        "fne": -trace["wrench_true"][:, :3], "w": trace["wrench_true"], "w_hat": trace["wrench_est"],
+        "t": trace["time"],
+        "p": trace["position"],
+        "v": 0.01 * trace["position"],
+        "eta": np.zeros((n, 3)),
+        "fne": -trace["wrench_true"][:, :3],
+        "w": trace["wrench_true"],
+        "w_hat": trace["wrench_est"],
         "contact": contact,
-    }  # fmt: skip
+    }
 
 
 class _FakeEnv:

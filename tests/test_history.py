@@ -98,9 +98,15 @@ def _wrench_regression(history: int, seed: int) -> np.ndarray:
     the fan's default episodes. Samples up to 10 steps after a restart are left out (a new episode's
     history is still filling)."""
     env = gym.make_vec(
-        FAN_TRACKING, num_envs=16, vectorization_mode="vector_entry_point", observe_wrench=False,
-        estimator="oracle", action_type="velocity", history=history, episode_seconds=10.0,
-    )  # fmt: skip
+        FAN_TRACKING,
+        num_envs=16,
+        vectorization_mode="vector_entry_point",
+        observe_wrench=False,
+        estimator="oracle",
+        action_type="velocity",
+        history=history,
+        episode_seconds=10.0,
+    )
     try:
         env.reset(seed=seed)
         rng = np.random.default_rng(seed)

@@ -37,12 +37,15 @@ def _env_kwargs(**overrides):
     """FanTracking as a free-flight test bench: yuksel1kg (Yüksel et al.'s (2014) m = 1 kg, J = diag(0.13,
     0.13, 0.22)), wrench action, no fan, drag-free as in the paper's Sec. V, nominal rotors, a roomy arena."""
     return {
-        "vehicle": "yuksel1kg", "action_type": "wrench", "estimator": "oracle",
+        "vehicle": "yuksel1kg",
+        "action_type": "wrench",
+        "estimator": "oracle",
         "fan": {"enabled": False, "height": 5.0},
-        "vehicle_params": {"drag_area": 0.0, "rotor_drag_decel": 0.0}, "kf_spread": 0.0,
+        "vehicle_params": {"drag_area": 0.0, "rotor_drag_decel": 0.0},
+        "kf_spread": 0.0,
         "arena": {"x_min": -50.0, "x_max": 50.0, "y_half_width": 50.0, "z_max": 50.0},
         **overrides,
-    }  # fmt: skip
+    }
 
 
 def _forward_map(vehicle, speeds: np.ndarray) -> np.ndarray:
@@ -388,8 +391,16 @@ def test_target_force_block_drives_the_force_mode():
     """With an observation block ``target_force`` (the ForceExertion env's), ``"auto"`` is the force
     mode and ``f*`` is the block, in the world frame; without one, ``params.target_force``."""
     vehicle = make_vehicle("yuksel1kg")
-    names = [("position", 3), ("velocity", 3), ("attitude", 6), ("body_rates", 3), ("force", 3),
-             ("torque", 3), ("last_action", 4), ("target_force", 3)]  # fmt: skip
+    names = [
+        ("position", 3),
+        ("velocity", 3),
+        ("attitude", 6),
+        ("body_rates", 3),
+        ("force", 3),
+        ("torque", 3),
+        ("last_action", 4),
+        ("target_force", 3),
+    ]
     layout, start = {}, 0
     for name, width in names:
         layout[name] = slice(start, start + width)

@@ -54,9 +54,14 @@ def test_the_jet_turbulence_has_the_intensity_and_length_scale_asked_for(intensi
     does): each component's sd is ``I·u_c`` and its autocorrelation time ``L/u_c`` (L the half-width
     there when none is given), within 4 sd of their estimates for this many correlated samples."""
     config = JetConfig(
-        position=ORIGIN, direction=(0.0, 1.0, 0.0), speed=1.0, diameter=DIAMETER, spread=SPREAD,
-        turbulence_intensity=intensity, turbulence_length=length,
-    )  # fmt: skip
+        position=ORIGIN,
+        direction=(0.0, 1.0, 0.0),
+        speed=1.0,
+        diameter=DIAMETER,
+        spread=SPREAD,
+        turbulence_intensity=intensity,
+        turbulence_length=length,
+    )
     jet = Jet(config, COPIES)
     jet.speed_scale[:] = SCALE
     u, b = _axis_speed_and_half_width(1.0)

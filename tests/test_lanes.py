@@ -28,9 +28,20 @@ if COMPILED:
     def _lane_arithmetic(a, b, out):
         x, y = lanes.load(a, 0), lanes.load(b, 0)
         results = (
-            x + y, x - y, x * y, x / y, -x, 2.0 * x, x / 3.0, 1.0 - x, lanes.sqrt(abs(x)), abs(x),
-            math.copysign(1.0, x), math.copysign(x, y), lanes.splat(0.5),
-        )  # fmt: skip
+            x + y,
+            x - y,
+            x * y,
+            x / y,
+            -x,
+            2.0 * x,
+            x / 3.0,
+            1.0 - x,
+            lanes.sqrt(abs(x)),
+            abs(x),
+            math.copysign(1.0, x),
+            math.copysign(x, y),
+            lanes.splat(0.5),
+        )
         for k in range(len(results)):
             lanes.store(out, k * lanes.WIDTH, results[k])
         w, qx, qy, qz = qmul(x, y, x * y, x - y, y, x, 0.5, y / x)  # a float function, compiled for lanes
@@ -43,9 +54,20 @@ if COMPILED:
         for i in range(a.shape[0]):
             x, y = a[i], b[i]
             results = (
-                x + y, x - y, x * y, x / y, -x, 2.0 * x, x / 3.0, 1.0 - x, math.sqrt(abs(x)), abs(x),
-                math.copysign(1.0, x), math.copysign(x, y), 0.5,
-            )  # fmt: skip
+                x + y,
+                x - y,
+                x * y,
+                x / y,
+                -x,
+                2.0 * x,
+                x / 3.0,
+                1.0 - x,
+                math.sqrt(abs(x)),
+                abs(x),
+                math.copysign(1.0, x),
+                math.copysign(x, y),
+                0.5,
+            )
             w, qx, qy, qz = qmul(x, y, x * y, x - y, y, x, 0.5, y / x)
             for k, value in enumerate((*results, w, qx, qy, qz, *to_mrp(w, qx, qy, qz))):
                 out[k * a.shape[0] + i] = value
@@ -55,9 +77,13 @@ if COMPILED:
         x = lanes.load(a, 0)
         replaced = lanes.with_lane(x, 3, -7.0)
         return (
-            lanes.greater_mask(x, lanes.splat(bound)), lanes.finite_mask(x), lanes.all_less(x, bound),
-            lanes.lane(x, 2), lanes.lane(replaced, 3), lanes.lane(replaced, 4),
-        )  # fmt: skip
+            lanes.greater_mask(x, lanes.splat(bound)),
+            lanes.finite_mask(x),
+            lanes.all_less(x, bound),
+            lanes.lane(x, 2),
+            lanes.lane(replaced, 3),
+            lanes.lane(replaced, 4),
+        )
 
     @numba.njit
     def _load_at(array, offset):

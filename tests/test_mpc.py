@@ -108,8 +108,9 @@ def test_discretised_linear_model_matches_the_nonlinear_model_for_small_deviatio
     def error(scale: float) -> float:
         x0 = point + scale * direction[:NX]
         u = np.array((thrust, point[6], point[7])) + scale * direction[NX:]
-        exact = solve_ivp(lambda t, x: nonlinear_rhs(x, u, yaw, force), (0.0, 0.1), x0,
-                          rtol=1e-12, atol=1e-12).y[:, -1]  # fmt: skip
+        exact = solve_ivp(
+            lambda t, x: nonlinear_rhs(x, u, yaw, force), (0.0, 0.1), x0, rtol=1e-12, atol=1e-12
+        ).y[:, -1]
         return float(np.abs(a_d @ x0 + b_d @ u + c_d - exact).max())
 
     assert error(0.0) < 1e-10  # exact at the linearisation point
@@ -214,11 +215,16 @@ class FakeEnv:
     """What :class:`MPCPolicy` reads from an env (``env.unwrapped``) and nothing else."""
 
     LAYOUT: ClassVar[dict[str, slice]] = {
-        "position": slice(0, 3), "velocity": slice(3, 6), "attitude": slice(6, 12),
-        "body_rates": slice(12, 15), "force": slice(15, 18), "torque": slice(18, 21),
-        "last_action": slice(21, 25), "reference_position": slice(25, 28),
+        "position": slice(0, 3),
+        "velocity": slice(3, 6),
+        "attitude": slice(6, 12),
+        "body_rates": slice(12, 15),
+        "force": slice(15, 18),
+        "torque": slice(18, 21),
+        "last_action": slice(21, 25),
+        "reference_position": slice(25, 28),
         "reference_velocity": slice(28, 31),
-    }  # fmt: skip
+    }
 
     def __init__(self, action_type: str = "attitude", vehicle: str = "hummingbird") -> None:
         self.unwrapped = self
@@ -245,8 +251,9 @@ def test_policy_conforms_and_returns_clipped_float32_actions():
     policy.reset(env)
     rng = np.random.default_rng(3)
     for _ in range(10):
-        obs = env.observation(rng.uniform(-2, 2, 3), *rng.uniform(-0.5, 0.5, 2), rng.uniform(-3, 3),
-                              force=rng.uniform(-2, 2, 3))  # fmt: skip
+        obs = env.observation(
+            rng.uniform(-2, 2, 3), *rng.uniform(-0.5, 0.5, 2), rng.uniform(-3, 3), force=rng.uniform(-2, 2, 3)
+        )
         action = policy.act(obs)
         assert action.dtype == np.float32 and action.shape == (4,)
         assert np.all(np.abs(action) <= 1.0)

@@ -41,9 +41,14 @@ def _solve(
     ``reference_velocity``, to OSQP's ``tolerance``; with the predicted cross-track error (max over x
     and y) of each step."""
     gains = MPCGains(
-        attitude_time_constant=TAU, slack=slack, slack_weight_linear=linear, eps_abs=tolerance,
-        eps_rel=tolerance, max_iter=100_000, **TUNED,
-    )  # fmt: skip
+        attitude_time_constant=TAU,
+        slack=slack,
+        slack_weight_linear=linear,
+        eps_abs=tolerance,
+        eps_rel=tolerance,
+        max_iter=100_000,
+        **TUNED,
+    )
     mpc = PositionMPC(gains, MASS)
     guidance = ReferenceExtrapolator()
     guidance.update(np.array((0.0, 0.0, 1.0)), np.array(reference_velocity, dtype=float), 0.02)

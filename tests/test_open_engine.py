@@ -161,9 +161,9 @@ def test_a_component_without_a_compiled_form_is_refused_by_name():
         HoldEnv(wind_field="uncompiled")
 
 
-def test_the_removed_backend_key_names_the_debugging_mode():
+def test_the_removed_backend_key_is_refused_by_name():
     for backend in ("numpy", "numba", "auto"):
-        with pytest.raises(ValueError, match=rf"backend='{backend}': the key is gone.*NUMBA_DISABLE_JIT=1"):
+        with pytest.raises(ValueError, match="'backend'"):
             gym.make(FAN_TRACKING, backend=backend)
 
 

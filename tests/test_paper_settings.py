@@ -19,9 +19,13 @@ def _rise_times(estimator_params) -> np.ndarray:
     """10-90 % rise times (s) of the UKF's f_z, tau_x and tau_y after the mass is hung, the vehicle
     holding its position in still air (the paper's experiment), from the recorded ``info``."""
     env = gym.make(
-        FAN_TRACKING, estimator="ukf", estimator_params=estimator_params, fan={"enabled": False},
-        payload={"mass": 0.053, "point": [0.129, 0.129, 0.0], "attach_time": ATTACH}, episode_seconds=12.0,
-    )  # fmt: skip
+        FAN_TRACKING,
+        estimator="ukf",
+        estimator_params=estimator_params,
+        fan={"enabled": False},
+        payload={"mass": 0.053, "point": [0.129, 0.129, 0.0], "attach_time": ATTACH},
+        episode_seconds=12.0,
+    )
     policy = make_agent("hold", k_xy=1.0, k_z=1.0, k_yaw=1.0)
     try:
         observation, info = env.reset(seed=1, options={"offset_y": 0.0, "fan_motion": "static"})

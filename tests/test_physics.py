@@ -121,8 +121,13 @@ def test_motor_lag_is_first_order(make_env):
     lag; a command beyond the range stops at the motors' limit."""
     vehicle = make_vehicle("hummingbird", motor_time_constant_up=0.05, motor_time_constant_down=0.1)
     lags = {"motor_time_constant_up": 0.05, "motor_time_constant_down": 0.1}
-    env = make_env(vehicle="hummingbird", action_type="motors", estimator="oracle", fan={"enabled": False},
-                   vehicle_params=lags)  # fmt: skip
+    env = make_env(
+        vehicle="hummingbird",
+        action_type="motors",
+        estimator="oracle",
+        fan={"enabled": False},
+        vehicle_params=lags,
+    )
     env.reset(seed=0)
     fleet = env.unwrapped.fleet
     buffer = fleet.buffer.copy()

@@ -30,8 +30,14 @@ def env():
     env.close()
 
 
-def _observation(env, position, velocity=(0.0, 0.0, 0.0), reference=None, reference_velocity=(0.0, 0.0, 0.0),
-                 force=(0.0, 0.0, 0.0)) -> np.ndarray:  # fmt: skip
+def _observation(
+    env,
+    position,
+    velocity=(0.0, 0.0, 0.0),
+    reference=None,
+    reference_velocity=(0.0, 0.0, 0.0),
+    force=(0.0, 0.0, 0.0),
+) -> np.ndarray:
     """A level observation with these blocks (every number exact in float32)."""
     layout = env.unwrapped.obs_layout
     obs = np.zeros(env.observation_space.shape, dtype=np.float32)

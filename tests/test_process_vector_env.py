@@ -95,12 +95,17 @@ def test_each_group_flies_its_own_settings() -> None:
     )
     alone = [
         SB3VecEnv(
-            gym.make_vec("QuadWrench/FanTracking-v1", num_envs=4, vectorization_mode="vector_entry_point",
-                         vehicle=v, **kwargs),
+            gym.make_vec(
+                "QuadWrench/FanTracking-v1",
+                num_envs=4,
+                vectorization_mode="vector_entry_point",
+                vehicle=v,
+                **kwargs,
+            ),
             step_infos=False,
         )
         for v in presets
-    ]  # fmt: skip
+    ]
     try:
         for env in (split, *alone):
             env.seed(7)
@@ -151,18 +156,22 @@ def test_training_config_takes_env_processes() -> None:
         TrainConfig(num_envs=8, env_processes=2, env_groups=[{"history": 2}, {}])
     with pytest.raises(ValueError, match=r"env_groups set \['policy_hz'\]"):
         TrainConfig(num_envs=8, env_processes=2, env_groups=[{"policy_hz": 25}, {}])
-    single = train_config({"num_envs": 2, "env": {"estimator": "oracle"}},
-                          {"env_groups": [{"vehicle": "hummingbird"}]})  # fmt: skip
+    single = train_config(
+        {"num_envs": 2, "env": {"estimator": "oracle"}}, {"env_groups": [{"vehicle": "hummingbird"}]}
+    )
     adapter, env = training_env(single)  # one process, one group: the group's preset flies
     try:
         assert adapter.venv.cfg.vehicle == "hummingbird"
     finally:
         env.close()
     groups = [{"vehicle": "ardrone2"}, {"vehicle": "hummingbird"}]
-    two = train_config({"env": {"estimator": "ukf"}, "evaluation": {"env": {"episode_seconds": 5.0}}},
-                       {"env_processes": 2, "env_groups": groups})  # fmt: skip
-    assert evaluation_envs(two) == [{"estimator": "ukf", "vehicle": v, "episode_seconds": 5.0}
-                                    for v in ("ardrone2", "hummingbird")]  # fmt: skip
+    two = train_config(
+        {"env": {"estimator": "ukf"}, "evaluation": {"env": {"episode_seconds": 5.0}}},
+        {"env_processes": 2, "env_groups": groups},
+    )
+    assert evaluation_envs(two) == [
+        {"estimator": "ukf", "vehicle": v, "episode_seconds": 5.0} for v in ("ardrone2", "hummingbird")
+    ]
     config = train_config(
         {"num_envs": 4, "env": {"estimator": "oracle", "action_type": "velocity"}}, {"env_processes": 2}
     )

@@ -197,9 +197,12 @@ def _lagged_response(target_speeds: np.ndarray, steps: int) -> tuple[float, np.n
 
 def _hovering(make_env, action_type: str, **kwargs):
     env = make_env(
-        estimator="oracle", fan={"enabled": False}, kf_spread=0.0, action_type=action_type,
+        estimator="oracle",
+        fan={"enabled": False},
+        kf_spread=0.0,
+        action_type=action_type,
         **kwargs,
-    )  # fmt: skip
+    )
     env.reset(seed=0, options={"offset_y": 0.0, "fan_motion": "static"})
     return env
 
@@ -383,9 +386,16 @@ def test_the_rate_loop_adds_the_torque_that_keeps_a_rotation_steady(make_env):
     vehicle, dt, autopilot = fleet.vehicle, fleet.dt, fleet.autopilot
     omega = np.array((0.6, -0.4, 0.3))
     buffer = fleet.buffer.copy()
-    level = {"rotation": np.eye(3), "quaternion": (1.0, 0.0, 0.0, 0.0), "angular_velocity": omega,
-             "body_rates": omega, "velocity": 0.0, "yaw_setpoint": 0.0, "velocity_integral": 0.0,
-             "rate_integral": 0.0}  # fmt: skip
+    level = {
+        "rotation": np.eye(3),
+        "quaternion": (1.0, 0.0, 0.0, 0.0),
+        "angular_velocity": omega,
+        "body_rates": omega,
+        "velocity": 0.0,
+        "yaw_setpoint": 0.0,
+        "velocity_integral": 0.0,
+        "rate_integral": 0.0,
+    }
     views = dict(zip((name for name, _ in STEP_FIELDS), step_views(buffer, 1), strict=True))
     for name, value in level.items():
         views[name][...] = value
@@ -412,9 +422,11 @@ def test_a_spinning_body_in_still_air_feels_drag_against_its_rotation(make_env):
     fleet, vehicle = env.unwrapped.fleet, env.unwrapped.vehicle
     spin = 10.0
     state = RigidBodyState.from_motion(
-        np.array(((2.3, 0.0, 1.0),)), np.array(((1.0, 0.0, 0.0, 0.0),)), np.zeros((1, 3)),
+        np.array(((2.3, 0.0, 1.0),)),
+        np.array(((1.0, 0.0, 0.0, 0.0),)),
+        np.zeros((1, 3)),
         np.array(((0.0, 0.0, spin),)),
-    )  # fmt: skip
+    )
     torque_z = fleet.external_loads(state, slice(None))[0, 5]
     points = vehicle.drag_points()
     radius = np.hypot(points[:, 0], points[:, 1])

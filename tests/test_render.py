@@ -56,9 +56,11 @@ def test_a_force_arrow_appears_with_a_true_external_force_and_not_without(make_e
     """Oracle estimator, no fan: at rest after the reset there is no external force and no arrow; a push
     of 1 N along x draws the true force's arrow (its colour appears beyond the legend's swatch)."""
     env = make_env(
-        render_mode="rgb_array", estimator="oracle", fan={"enabled": False},
+        render_mode="rgb_array",
+        estimator="oracle",
+        fan={"enabled": False},
         external_wrench=[[0.1, 5.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0]],
-    )  # fmt: skip
+    )
     _, info = env.reset(seed=0)
     still = env.render()
     renderer = env.unwrapped._renderer

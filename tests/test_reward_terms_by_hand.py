@@ -83,9 +83,12 @@ def test_force_exertion_reward_terms_by_hand(make_env, surface):
     unclipped action or summed, a crash penalty outside an early end."""
     crash_height = 1.0 if surface == "wall" else 1.7  # the wall's start is at 1.2 m, the ceiling's ~1.9 m
     env = make_env(
-        FORCE_EXERTION, estimator="oracle", kf_spread=0.0, action_type="velocity",
+        FORCE_EXERTION,
+        estimator="oracle",
+        kf_spread=0.0,
+        action_type="velocity",
         crash_height=crash_height,
-    )  # fmt: skip
+    )
     _, info = env.reset(seed=0, options={"surface": surface, "target_force": TARGET})
     normal = NORMALS[surface]
     np.testing.assert_array_equal(info["target_force"], TARGET * normal)

@@ -122,8 +122,15 @@ def test_a_run_meets_the_comparisons_world_with_its_estimator_and_its_arms_own_s
     """The base's training world (a short episode, a curriculum, a drawn heading) stays behind: in the
     comparison every agent meets the same episodes; the estimator trained on and the arm's (and
     ``common``'s) env overrides come along."""
-    base = {**BASE, "env": {"episode_seconds": 2.0, "estimator": "ekf", "estimator_params": "paper",
-                            "fan": {"speed": 3.0}}}  # fmt: skip
+    base = {
+        **BASE,
+        "env": {
+            "episode_seconds": 2.0,
+            "estimator": "ekf",
+            "estimator_params": "paper",
+            "fan": {"speed": 3.0},
+        },
+    }
     arms = {"oracle": {"env.estimator": "oracle"}, "ekf": {}}
     config = _config(base=base, common={"env.history": 3}, arms=arms)
     assert config.flying_env("ekf", 0) == {"estimator": "ekf", "estimator_params": "paper", "history": 3}

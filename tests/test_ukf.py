@@ -123,8 +123,11 @@ def test_default_noise_is_sized_to_the_vehicle():
     are its own numbers to the bit, given values are kept, and the measurement noise is not scaled."""
     ardrone2 = FilterNoise().for_vehicle(make_vehicle("ardrone2"))
     assert (ardrone2.thrust, ardrone2.force_walk, ardrone2.motor_torque, ardrone2.torque_walk) == (
-        0.05, 4e-3, 3e-3, 2e-4,
-    )  # fmt: skip
+        0.05,
+        4e-3,
+        3e-3,
+        2e-4,
+    )
     crazyflie2 = FilterNoise(torque_walk=1e-6).for_vehicle(make_vehicle("crazyflie2"))
     force_ratio, torque_ratio = 0.027 / 0.42, 0.027 * 0.0397 / 2**0.5 / (0.42 * 0.129)
     assert crazyflie2.force_walk == pytest.approx(4e-3 * force_ratio, rel=1e-12)

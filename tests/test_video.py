@@ -56,9 +56,12 @@ def test_the_progress_bar_counts_the_frames(tmp_path, bars):
 def test_an_episode_that_ends_early_ends_its_bar_at_its_frames(tmp_path, bars):
     path = tmp_path / "episode.mp4"
     episode = record_video(
-        Zero(), "quad_wrench_env:QuadWrench/DisturbanceRejection-v0", path, every=10,
+        Zero(),
+        "quad_wrench_env:QuadWrench/DisturbanceRejection-v0",
+        path,
+        every=10,
         options={"scenario": "figure8", "wind_speed": 8.5},
-    )  # fmt: skip
+    )
     (bar,) = bars
     assert episode.length == 100 and bar.expected == 76  # 750 steps
     assert bar.total == bar.n == frames(path) == 11
@@ -69,9 +72,13 @@ def test_a_gif_of_a_short_episode_stays_small(tmp_path):
     palette, under 200 kB (each frame on its own palette, every step: about 1.5 MB)."""
     path = tmp_path / "episode.gif"
     record_video(
-        make_agent("pid", bandwidth=3.5), "quad_wrench_env:QuadWrench/DisturbanceRejection-v0", path,
-        options={"scenario": "jet_crossing", "jet_speed": 10.0}, progress=False, episode_seconds=1.0,
-    )  # fmt: skip
+        make_agent("pid", bandwidth=3.5),
+        "quad_wrench_env:QuadWrench/DisturbanceRejection-v0",
+        path,
+        options={"scenario": "jet_crossing", "jet_speed": 10.0},
+        progress=False,
+        episode_seconds=1.0,
+    )
     assert frames(path) == 13  # the reset's and every 4th of 50 steps
     assert path.stat().st_size < 200_000, path.stat().st_size
 

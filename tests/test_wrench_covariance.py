@@ -27,9 +27,11 @@ def _fly_yawed(estimator: str, yaw: float) -> dict:
     world is the same in every horizontal direction, so the flight is the yaw-0 flight turned about
     the start point. Returns the last step's info."""
     env = gym.make(
-        FAN_TRACKING, estimator=estimator, fan={"enabled": False},
+        FAN_TRACKING,
+        estimator=estimator,
+        fan={"enabled": False},
         sensors={"position_noise": 0.0, "attitude_noise": 0.0},
-    )  # fmt: skip
+    )
     task = env.unwrapped.task
     start = task.reset_vehicle
 
@@ -132,8 +134,9 @@ def test_the_rotor_spread_covariance_is_the_spread_of_the_rotors_wrench():
     # τ = r × (0, 0, T): τ_x = y·T, τ_y = -x·T; the spin's reaction torque about z
     columns = np.array([(thrust, y * thrust, -x * thrust, spin * yaw_torque) for x, y, spin in hubs]).T
     tilt, yaw = 0.3, 1.1
-    rotation = _yaw_matrix(yaw) @ np.array(((1.0, 0.0, 0.0), (0.0, math.cos(tilt), -math.sin(tilt)),
-                                            (0.0, math.sin(tilt), math.cos(tilt))))  # fmt: skip
+    rotation = _yaw_matrix(yaw) @ np.array(
+        ((1.0, 0.0, 0.0), (0.0, math.cos(tilt), -math.sin(tilt)), (0.0, math.sin(tilt), math.cos(tilt)))
+    )
     delta = spread * np.random.default_rng(0).standard_normal((200_000, 4))
     body = delta @ columns.T  # (n, 4): thrust and body torques
     world = np.concatenate((body[:, :1] * rotation[:, 2], body[:, 1:] @ rotation.T), axis=1)

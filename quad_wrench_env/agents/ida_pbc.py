@@ -273,8 +273,14 @@ def euler_zyx(rotation: np.ndarray) -> np.ndarray:
 
 def rotation_zyx(roll: float, pitch: float, yaw: float) -> np.ndarray:
     """``R_z(ψ) R_y(θ) R_x(φ)``."""
-    cr, sr, cp, sp, cy, sy = (math.cos(roll), math.sin(roll), math.cos(pitch), math.sin(pitch),
-                              math.cos(yaw), math.sin(yaw))  # fmt: skip
+    cr, sr, cp, sp, cy, sy = (
+        math.cos(roll),
+        math.sin(roll),
+        math.cos(pitch),
+        math.sin(pitch),
+        math.cos(yaw),
+        math.sin(yaw),
+    )
     return np.array(
         (
             (cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr),
@@ -413,14 +419,6 @@ class IDAPBCPolicy:
         return cls(load_param_set(name, path))
 
     @property
-    def k_v(self) -> np.ndarray:
-        """Eq. (31)'s ``K_v`` (diagonal) for the vehicle of the last :meth:`reset`: the thrust row
-        ``K_v,ρ = (m/m_d)² R_d,x`` (of the z axis, the thrust's at hover) and the rotational rows
-        ``K_v,η = N⁻¹(R_d,η - k_d N)N⁻¹``."""
-        ratio = self._mass / self.params.m_d
-        return np.concatenate(((ratio * ratio * self._r_x[2],), self._k_v_eta))
-
-    @property
     def mode(self) -> str:
         """The mode in use (``"auto"`` resolved at :meth:`reset`)."""
         return self._mode
@@ -458,8 +456,9 @@ class IDAPBCPolicy:
         self.last = {}
 
     # -- the two halves of the law -------------------------------------------------------------------
-    def desired_force(self, position: np.ndarray, velocity: np.ndarray, force: np.ndarray,
-                      target: np.ndarray | None) -> np.ndarray:  # fmt: skip
+    def desired_force(
+        self, position: np.ndarray, velocity: np.ndarray, force: np.ndarray, target: np.ndarray | None
+    ) -> np.ndarray:
         """``f*`` (N, world): the force the vehicle must exert, ``f_ne = ρ R e₃ - m g e₃``, in the mode in
         use (``target``: the observation's ``target_force`` block, if any)."""
         p = self.params
@@ -588,9 +587,12 @@ class IDAPBCPolicy:
         tau_body = self.body_torque(rotation, body_rates, eta_bar, torque_world, eta_star_rate)
         rho = rho_star if p.thrust_law == "norm" else max(0.0, float(thrust_vector @ rotation[:, 2]))
         self.last.update(
-            f_star=f_star, rho=rho, eta_star=np.array((roll_star, pitch_star, psi)), eta_bar=eta_bar,
+            f_star=f_star,
+            rho=rho,
+            eta_star=np.array((roll_star, pitch_star, psi)),
+            eta_bar=eta_bar,
             body_torque=tau_body,
-        )  # fmt: skip
+        )
         return self._scaling.to_action((rho, *tau_body))
 
 

@@ -167,8 +167,14 @@ class MPCGains:
 
 def thrust_direction(roll: float, pitch: float, yaw: float) -> np.ndarray:
     """``R(φ, θ, ψ)·e_z``, the body z axis in the world frame, for ``R = Rz(ψ)·Ry(θ)·Rx(φ)``."""
-    cr, sr, cp, sp, cy, sy = (math.cos(roll), math.sin(roll), math.cos(pitch), math.sin(pitch),
-                              math.cos(yaw), math.sin(yaw))  # fmt: skip
+    cr, sr, cp, sp, cy, sy = (
+        math.cos(roll),
+        math.sin(roll),
+        math.cos(pitch),
+        math.sin(pitch),
+        math.cos(yaw),
+        math.sin(yaw),
+    )
     return np.array((cy * sp * cr + sy * sr, sy * sp * cr - cy * sr, cp * cr))
 
 
@@ -189,8 +195,14 @@ def linearize(
     attitude of ``state`` and ``thrust`` (N), discretised exactly over ``step`` (s) with the input held
     (the matrix exponential of the augmented system)."""
     roll, pitch = float(state[6]), float(state[7])
-    cr, sr, cp, sp, cy, sy = (math.cos(roll), math.sin(roll), math.cos(pitch), math.sin(pitch),
-                              math.cos(yaw), math.sin(yaw))  # fmt: skip
+    cr, sr, cp, sp, cy, sy = (
+        math.cos(roll),
+        math.sin(roll),
+        math.cos(pitch),
+        math.sin(pitch),
+        math.cos(yaw),
+        math.sin(yaw),
+    )
     d_roll = np.array((-cy * sp * sr + sy * cr, -sy * sp * sr - cy * cr, -cp * sr))
     d_pitch = np.array((cy * cp * cr, sy * cp * cr, -sp * cr))
     a = np.zeros((NX, NX))
@@ -320,8 +332,14 @@ class PositionMPC:
         diagonal = np.concatenate((state_weights.ravel(), np.tile(r_input, n)))
         p = sparse.diags(2.0 * diagonal, format="csc")
         self.solver = osqp.OSQP()
-        settings = {"eps_abs": g.eps_abs, "eps_rel": g.eps_rel, "max_iter": g.max_iter,
-                    "warm_starting": g.warm_start, "polishing": False, "verbose": False}  # fmt: skip
+        settings = {
+            "eps_abs": g.eps_abs,
+            "eps_rel": g.eps_rel,
+            "max_iter": g.max_iter,
+            "warm_starting": g.warm_start,
+            "polishing": False,
+            "verbose": False,
+        }
         settings.update(osqp_settings)
         self.solver.setup(p, np.zeros(size), self._matrix(), self._lower, self._upper, **settings)
 
@@ -410,9 +428,11 @@ class PositionMPC:
             self._lower[slack_rows] = lower.ravel()
             self._upper[slack_rows] = upper.ravel()
         self.solver.update(
-            q=np.concatenate((q_state.ravel(), q_input.ravel())), l=self._lower, u=self._upper,
+            q=np.concatenate((q_state.ravel(), q_input.ravel())),
+            l=self._lower,
+            u=self._upper,
             Ax=self._constraint_data(),
-        )  # fmt: skip
+        )
         result = self.solver.solve(raise_error=False)
         self.iterations, self.solve_time = result.info.iter, result.info.solve_time
         if g.slack and result.x is not None and result.x[n * NX + NU :: nu].max() > SLACK_USED:

@@ -64,8 +64,16 @@ def _merge(mean: np.ndarray, var: np.ndarray, count: float, batch_mean, batch_su
 
 
 @njit
-def _observations_step(obs: np.ndarray, mean: np.ndarray, var: np.ndarray, count: float, update: bool,
-                       epsilon: float, clip: float, out: np.ndarray) -> float:  # fmt: skip
+def _observations_step(
+    obs: np.ndarray,
+    mean: np.ndarray,
+    var: np.ndarray,
+    count: float,
+    update: bool,
+    epsilon: float,
+    clip: float,
+    out: np.ndarray,
+) -> float:
     """The observation statistics updated with the (N, D) float32 batch ``obs`` (if ``update``) and
     the batch scaled into ``out``; returns the new count."""
     n, d = obs.shape
@@ -89,9 +97,19 @@ def _observations_step(obs: np.ndarray, mean: np.ndarray, var: np.ndarray, count
 
 
 @njit
-def _rewards_step(rewards: np.ndarray, returns: np.ndarray, gamma: float, mean: np.ndarray,
-                  var: np.ndarray, count: float, update: bool, scale_rewards: bool, epsilon: float,
-                  clip: float, out: np.ndarray) -> float:  # fmt: skip
+def _rewards_step(
+    rewards: np.ndarray,
+    returns: np.ndarray,
+    gamma: float,
+    mean: np.ndarray,
+    var: np.ndarray,
+    count: float,
+    update: bool,
+    scale_rewards: bool,
+    epsilon: float,
+    clip: float,
+    out: np.ndarray,
+) -> float:
     """The discounted returns and their statistics updated (if ``update``) and the rewards scaled
     into ``out`` (float32; unscaled without ``scale_rewards``); returns the new count."""
     n = rewards.shape[0]
@@ -146,9 +164,18 @@ class CompiledVecNormalize(VecNormalize):
         rms = self.ret_rms
         mean, var = rms.mean.reshape(1), rms.var.reshape(1)
         rms.count = _rewards_step(
-            np.asarray(rewards), self.returns, self.gamma, mean, var, rms.count, self.training,
-            self.norm_reward, self.epsilon, self.clip_reward, scaled_rewards,
-        )  # fmt: skip
+            np.asarray(rewards),
+            self.returns,
+            self.gamma,
+            mean,
+            var,
+            rms.count,
+            self.training,
+            self.norm_reward,
+            self.epsilon,
+            self.clip_reward,
+            scaled_rewards,
+        )
         for i in np.flatnonzero(dones).tolist():
             if "terminal_observation" in infos[i]:
                 infos[i]["terminal_observation"] = self.normalize_obs(infos[i]["terminal_observation"])

@@ -67,8 +67,10 @@ class PIDGains:
 
     def __post_init__(self) -> None:
         check_numbers(
-            "pid", self, ("k_p_xy", "k_d_xy", "k_p_z", "k_d_z", "max_integral_acceleration", "k_yaw"),
-        )  # fmt: skip
+            "pid",
+            self,
+            ("k_p_xy", "k_d_xy", "k_p_z", "k_d_z", "max_integral_acceleration", "k_yaw"),
+        )
         check_numbers("pid", self, ("k_i_xy", "k_i_z"), positive=False)
         if self.bandwidth is not None:
             check_numbers("pid", self, ("bandwidth",))

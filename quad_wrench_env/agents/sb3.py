@@ -60,9 +60,16 @@ class ObservationScaling:
 
 
 MEANING_KEYS = (
-    "action_type", "action_limits", "observe_wrench", "history", "sensor_history", "observe_tracking_error",
-    "preview_seconds", "observe_reference_acceleration", "path_ahead_seconds",
-)  # fmt: skip
+    "action_type",
+    "action_limits",
+    "observe_wrench",
+    "history",
+    "sensor_history",
+    "observe_tracking_error",
+    "preview_seconds",
+    "observe_reference_acceleration",
+    "path_ahead_seconds",
+)
 """Env settings that change what an action or an observation means (``history``, ``sensor_history``,
 ``preview_seconds``, ``observe_reference_acceleration`` and ``path_ahead_seconds`` its size too;
 ``action_limits`` the command an action stands for; the last four and ``observe_tracking_error`` are
@@ -395,8 +402,11 @@ def _check_schedule_kept(config: TrainConfig, folder: Path) -> None:
         section, _, name = key.rpartition(".")
         return (values.get(section) or {}).get(name) if section else values.get(name)
 
-    changed = [f"{key}: {value(before, key)!r} -> {value(now, key)!r}" for key in SCHEDULE_KEYS
-               if value(before, key) != value(now, key)]  # fmt: skip
+    changed = [
+        f"{key}: {value(before, key)!r} -> {value(now, key)!r}"
+        for key in SCHEDULE_KEYS
+        if value(before, key) != value(now, key)
+    ]
     if changed:
         raise ValueError(
             f"resuming {str(folder)!r} would change its learning-rate schedule ({'; '.join(changed)}); "
@@ -499,9 +509,15 @@ def new_model(config: TrainConfig, env: Any, tensorboard_log: str | None = None)
         start = hyperparameters.get("learning_rate", _default(algorithm, "learning_rate"))
         hyperparameters["learning_rate"] = LinearRate(float(start), float(config.learning_rate_end))
     return algorithm(
-        POLICY_CLASSES[config.algorithm], env, seed=config.seed, device="cpu", verbose=0,
-        policy_kwargs=policy_kwargs, tensorboard_log=tensorboard_log, **hyperparameters,
-    )  # fmt: skip
+        POLICY_CLASSES[config.algorithm],
+        env,
+        seed=config.seed,
+        device="cpu",
+        verbose=0,
+        policy_kwargs=policy_kwargs,
+        tensorboard_log=tensorboard_log,
+        **hyperparameters,
+    )
 
 
 def train(config: TrainConfig, folder: str | Path, resume: bool = False, progress: bool = True) -> Path:
@@ -597,11 +613,13 @@ def train(config: TrainConfig, folder: str | Path, resume: bool = False, progres
             self.next_eval = self.num_timesteps + e.every_steps
             policy = SB3Policy(model, scaling(), trained_on=config.env, trained_env_id=config.env_id)
             value = float(  # check_training made sure the harness scores it
-                np.mean([
-                    evaluate(policy, config.env_id, e.seeds, options=e.options, **settings).mean[e.metric]
-                    for settings in evaluation_envs(config)
-                ])
-            )  # fmt: skip
+                np.mean(
+                    [
+                        evaluate(policy, config.env_id, e.seeds, options=e.options, **settings).mean[e.metric]
+                        for settings in evaluation_envs(config)
+                    ]
+                )
+            )
             self.logger.record(f"eval/{e.metric}", value)
             returns = [info["r"] for info in model.ep_info_buffer]
             mean_return = sum(returns) / len(returns) if returns else math.nan

@@ -256,11 +256,16 @@ def summary(config: StudyConfig, results: dict[tuple[str, str], Evaluation]) -> 
                 values = np.array(values, dtype=float)
                 rows.append(
                     {
-                        "case": case, "agent": label, "kind": kind, "metric": metric,
-                        "mean": float(np.mean(values)), "sd": float(np.std(values)), "n": len(values),
+                        "case": case,
+                        "agent": label,
+                        "kind": kind,
+                        "metric": metric,
+                        "mean": float(np.mean(values)),
+                        "sd": float(np.std(values)),
+                        "n": len(values),
                         "values": ";".join(f"{v:.6g}" for v in values),
                     }
-                )  # fmt: skip
+                )
     return rows
 
 
@@ -366,9 +371,13 @@ def figure(rows: list[dict[str, Any]], env_id: str) -> Any:
     for k, agent in enumerate(agents):
         picked = [next(r for r in chosen if r["agent"] == agent and r["case"] == c) for c in cases]
         ax.bar(
-            np.arange(len(cases)) + k * width, [r["mean"] for r in picked], width,
-            yerr=[r["sd"] for r in picked], label=agent, capsize=2,
-        )  # fmt: skip
+            np.arange(len(cases)) + k * width,
+            [r["mean"] for r in picked],
+            width,
+            yerr=[r["sd"] for r in picked],
+            label=agent,
+            capsize=2,
+        )
     ax.set_xticks(np.arange(len(cases)) + 0.4 - width / 2, cases, rotation=20, ha="right")
     ax.set_xlabel("case")
     ax.set_ylabel(title)

@@ -77,9 +77,11 @@ def record_video(
     every = default_every(path, fps) if every is None else every
     steps = getattr(env.unwrapped, "max_steps", None)
     bar = tqdm(
-        total=None if steps is None else steps // every + 1, desc=f"recording {path.name}", unit="frame",
+        total=None if steps is None else steps // every + 1,
+        desc=f"recording {path.name}",
+        unit="frame",
         disable=not progress,
-    )  # fmt: skip
+    )
     with contextlib.closing(env), _writer(path, fps / every) as writer, bar:
         count = itertools.count()
 
@@ -153,18 +155,25 @@ class Still:
 
 STILLS = (
     Still(
-        "fan_tracking", "quad_wrench_env:QuadWrench/FanTracking-v1", "admittance", 3.0,
+        "fan_tracking",
+        "quad_wrench_env:QuadWrench/FanTracking-v1",
+        "admittance",
+        3.0,
         {"offset_y": 0.6, "fan_motion": "static"},
     ),
     Still(  # 3 s: the descent crosses the jet's axis (1.4 m high), where the jet pushes hardest
-        "disturbance_rejection", "quad_wrench_env:QuadWrench/DisturbanceRejection-v0", "pid", 3.0,
-        {"scenario": "jet_crossing", "jet_speed": 10.0}, {"bandwidth": 3.5, "compensation": True},
+        "disturbance_rejection",
+        "quad_wrench_env:QuadWrench/DisturbanceRejection-v0",
+        "pid",
+        3.0,
+        {"scenario": "jet_crossing", "jet_speed": 10.0},
+        {"bandwidth": 3.5, "compensation": True},
         {"estimator": "ekf"},
     ),
     Still(
         "force_exertion", "quad_wrench_env:QuadWrench/ForceExertion-v0", "ida_pbc", 5.0, {"surface": "wall"}
     ),
-)  # fmt: skip
+)
 """The pictures of ``docs/frames/``: each task with a classical agent of its paper."""
 
 

@@ -274,9 +274,16 @@ class FanJet:
         self._core = 0.5 * config.outlet_diameter / config.spread
         """Length ``x_c = D/(2c)`` of the core, where the centre-line speed is still ``U0``."""
         self._kernel = np.array(
-            (float(config.enabled), config.outlet_speed, self._core, 0.5 * config.outlet_diameter,
-             config.spread, config.height, config.turbulence_intensity)
-        )  # fmt: skip
+            (
+                float(config.enabled),
+                config.outlet_speed,
+                self._core,
+                0.5 * config.outlet_diameter,
+                config.spread,
+                config.height,
+                config.turbulence_intensity,
+            )
+        )
         self.noise = np.zeros((count, 3))
         """(N, 3) unit-variance Ornstein-Uhlenbeck state of each vehicle's turbulence."""
         first = Static() if config.motion == RANDOM else config.make_motion(config.motion)

@@ -111,9 +111,18 @@ class Jet:
         radius = 0.5 * c.diameter
         length = c.turbulence_length or 0.0
         return np.array(
-            (1.0, c.speed, radius / c.spread, radius, c.spread, *self.origin, *self.direction,
-             c.turbulence_intensity, length)
-        )  # fmt: skip
+            (
+                1.0,
+                c.speed,
+                radius / c.spread,
+                radius,
+                c.spread,
+                *self.origin,
+                *self.direction,
+                c.turbulence_intensity,
+                length,
+            )
+        )
 
     def reset(self, index: int, rng: np.random.Generator) -> None:
         if self.noise_width:  # the stationary distribution of the process

@@ -84,8 +84,9 @@ class ActionScaling:
     def kernel_parameters(self) -> tuple[int, np.ndarray]:
         """The action type's index in :data:`ACTION_TYPES` and the scales as the ``controls`` kernel
         reads them: velocity (3), yaw rate, tilt, hover thrust, torque (3), max rotor speed."""
-        scales = np.array((*self.velocity, self.yaw_rate, self.tilt, self.hover_thrust, *self.torque,
-                           self.max_rotor_speed))  # fmt: skip
+        scales = np.array(
+            (*self.velocity, self.yaw_rate, self.tilt, self.hover_thrust, *self.torque, self.max_rotor_speed)
+        )
         return ACTION_TYPES.index(self.action_type), scales
 
     def to_action(self, command: np.ndarray | tuple[float, ...]) -> np.ndarray:

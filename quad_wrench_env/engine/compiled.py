@@ -46,21 +46,28 @@ class CompiledStep:
         latency = sensors.latency_steps
         action_type, scales = fleet.action_scaling.kernel_parameters()
         sensing = (
-            fleet.motor_sensor.levels, fleet.motor_sensor.step, sensors.position_noise,
-            sensors.attitude_noise, sensors.velocity_noise, sensors.body_rate_noise,
+            fleet.motor_sensor.levels,
+            fleet.motor_sensor.step,
+            sensors.position_noise,
+            sensors.attitude_noise,
+            sensors.velocity_noise,
+            sensors.body_rate_noise,
             float(sensors.state_estimator),
-        )  # fmt: skip
+        )
         engine = physics_constants(
             {
-                "action_type": action_type, "scales": scales, "autopilot": ap.kernel_parameters(),
+                "action_type": action_type,
+                "scales": scales,
+                "autopilot": ap.kernel_parameters(),
                 "inverse": ap.mixer.inverse,
                 "motors": np.append(fleet.rotors.kernel_parameters(), fleet.drag.coefficient),
-                "sensing": np.array(sensing), "dt": fleet.dt,
+                "sensing": np.array(sensing),
+                "dt": fleet.dt,
                 "noise_column": fleet.sensor_noise_column,
                 "delay_line": (latency, fleet.delay_line_start if latency else 0),  # unused without latency
             },
             fleet.drag_points,
-        )  # fmt: skip
+        )
         components = fleet.components.ordered()
         self._components = [component for _, component in components]
         numbers = [c.kernel_parameters() for c in self._components]
@@ -107,9 +114,13 @@ class CompiledStep:
         tables = [getattr(owner, name) for owner, name in self._table_owners]
         one, world, step = self.single, fleet.world, self._step
         self._before = bind(
-            step.before_world_step_one if one else step.before_world_step, self.actions, self.buffer,
-            fleet.autopilot.saturated, self.constants, *tables,
-        )  # fmt: skip
+            step.before_world_step_one if one else step.before_world_step,
+            self.actions,
+            self.buffer,
+            fleet.autopilot.saturated,
+            self.constants,
+            *tables,
+        )
         """Returns the loads as ``World.step_one`` takes them for one vehicle (PyBullet's sequences:
         Python builds no lists from arrays), nothing for more (they are in the buffer)."""
         self._after = (self.buffer, fleet.noise.buffer, fleet.noise.cursor, self.constants, *tables)
@@ -131,9 +142,13 @@ class CompiledStep:
     def bind_estimator(self) -> None:
         """Bind :attr:`estimate` to the fleet's estimator bank (again whenever it is swapped)."""
         measured = (
-            self.thrusts, self.body_torques, self.measured_position, self.measured_quaternion,
-            self.velocity_measured, self.body_rates_measured,
-        )  # fmt: skip
+            self.thrusts,
+            self.body_torques,
+            self.measured_position,
+            self.measured_quaternion,
+            self.velocity_measured,
+            self.body_rates_measured,
+        )
         estimator = self.fleet.estimator
         self.estimate = (
             estimator.bind_step(*measured)

@@ -25,17 +25,20 @@ class Components:
 
     def __add__(self, other: Components) -> Components:
         return Components(
-            self.winds + other.winds, self.rotors + other.rotors, self.loads + other.loads,
+            self.winds + other.winds,
+            self.rotors + other.rotors,
+            self.loads + other.loads,
             self.scene + other.scene,
-        )  # fmt: skip
+        )
 
     def ordered(self) -> list[tuple[str, Any]]:
         """``(kind, component)`` of every physics component in the step's order: the wind fields
         (``"wind"``), the rotor modifiers (``"rotor"``), the point loads (``"load"``)."""
         return (
-            [("wind", w) for w in self.winds] + [("rotor", r) for r in self.rotors]
+            [("wind", w) for w in self.winds]
+            + [("rotor", r) for r in self.rotors]
             + [("load", p) for p in self.loads]
-        )  # fmt: skip
+        )
 
 
 def assemble(cfg: EnvConfig, vehicle: VehicleParams, count: int, task: Components) -> Components:

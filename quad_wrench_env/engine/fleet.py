@@ -150,10 +150,15 @@ class Fleet:
         arena = cfg.arena
         self._limits = np.array(
             (
-                cfg.crash_height, math.cos(math.radians(cfg.flip_tilt_deg)), arena.x_min, arena.x_max,
-                arena.y_half_width, arena.z_max, self.world.clear_height,
+                cfg.crash_height,
+                math.cos(math.radians(cfg.flip_tilt_deg)),
+                arena.x_min,
+                arena.x_max,
+                arena.y_half_width,
+                arena.z_max,
+                self.world.clear_height,
             )
-        )  # fmt: skip
+        )
         self._observe_wrench = float(cfg.observe_wrench)
         self.revision = 0
         """Counts the changes of the fleet's state (steps and resets): a key for what tasks cache."""
@@ -182,8 +187,14 @@ class Fleet:
         self.component_states = []
         """``(component, attribute)`` of each component's state in the buffer, in step order."""
         ap, rotors, start = self.autopilot, self.rotors, STEP_WIDTH
-        owners = [(ap, "yaw_setpoint"), (ap, "velocity_integral"), (ap, "rate_integral"), (rotors, "speeds"),
-                  (rotors, "allocations"), (rotors, "sensed_allocations")]  # fmt: skip
+        owners = [
+            (ap, "yaw_setpoint"),
+            (ap, "velocity_integral"),
+            (ap, "rate_integral"),
+            (rotors, "speeds"),
+            (rotors, "allocations"),
+            (rotors, "sensed_allocations"),
+        ]
         views = [self.fields[name] for _, name in owners]
         for (owner, name), width in zip(states, widths, strict=True):
             owners.append((owner, name))

@@ -34,12 +34,31 @@ def offsets(fields: tuple[tuple[str, int], ...]) -> dict[str, int]:
 
 
 STEP_FIELDS: tuple[tuple[str, int], ...] = (
-    ("time", 1), ("position", 3), ("quaternion", 4), ("velocity", 3), ("angular_velocity", 3),
-    ("rotation", 9), ("body_rates", 3), ("forces", 3), ("torques", 3), ("loads", 6), ("thrusts", 1),
-    ("body_torques", 3), ("measured_position", 3), ("measured_quaternion", 4), ("motion", 6), ("truth", 13),
-    ("yaw_setpoint", 1), ("velocity_integral", 3), ("rate_integral", 3), ("speeds", 4), ("allocations", 16),
-    ("sensed_allocations", 16), ("rotor_wrench", 4), ("wind_velocity", 3),
-)  # fmt: skip
+    ("time", 1),
+    ("position", 3),
+    ("quaternion", 4),
+    ("velocity", 3),
+    ("angular_velocity", 3),
+    ("rotation", 9),
+    ("body_rates", 3),
+    ("forces", 3),
+    ("torques", 3),
+    ("loads", 6),
+    ("thrusts", 1),
+    ("body_torques", 3),
+    ("measured_position", 3),
+    ("measured_quaternion", 4),
+    ("motion", 6),
+    ("truth", 13),
+    ("yaw_setpoint", 1),
+    ("velocity_integral", 3),
+    ("rate_integral", 3),
+    ("speeds", 4),
+    ("allocations", 16),
+    ("sensed_allocations", 16),
+    ("rotor_wrench", 4),
+    ("wind_velocity", 3),
+)
 """The engine's per-vehicle arrays (widths per vehicle), in the order :func:`step_views` cuts them out
 of one flat buffer of ``n`` vehicles (field ``k`` from ``n·start_k``): one array argument instead of
 twenty-four, as numba's cost per call grows with the number of array arguments (about 35 ns each).
@@ -49,16 +68,44 @@ the components' own states follow at :data:`STEP_WIDTH`."""
 STEP_WIDTH = sum(width for _, width in STEP_FIELDS)
 _S = offsets(STEP_FIELDS)
 (
-    _TIME, _POSITION, _QUATERNION, _VELOCITY, _ANGULAR_VELOCITY, _ROTATION, _BODY_RATES, _FORCES, _TORQUES,
-    _LOADS, _THRUSTS, _BODY_TORQUES, _MEASURED_POSITION, _MEASURED_QUATERNION, _MOTION, _TRUTH, _YAW_SETPOINT,
-    _VELOCITY_INTEGRAL, _RATE_INTEGRAL, _SPEEDS, _ALLOCATIONS, _SENSED_ALLOCATIONS, _ROTOR_WRENCH,
+    _TIME,
+    _POSITION,
+    _QUATERNION,
+    _VELOCITY,
+    _ANGULAR_VELOCITY,
+    _ROTATION,
+    _BODY_RATES,
+    _FORCES,
+    _TORQUES,
+    _LOADS,
+    _THRUSTS,
+    _BODY_TORQUES,
+    _MEASURED_POSITION,
+    _MEASURED_QUATERNION,
+    _MOTION,
+    _TRUTH,
+    _YAW_SETPOINT,
+    _VELOCITY_INTEGRAL,
+    _RATE_INTEGRAL,
+    _SPEEDS,
+    _ALLOCATIONS,
+    _SENSED_ALLOCATIONS,
+    _ROTOR_WRENCH,
     _WIND_VELOCITY,
-) = (_S[name] for name, _ in STEP_FIELDS)  # fmt: skip
+) = (_S[name] for name, _ in STEP_FIELDS)
 
 CONSTANT_FIELDS: tuple[tuple[str, int], ...] = (
-    ("action_type", 1), ("scales", 10), ("autopilot", 23), ("inverse", 16), ("motors", 6), ("sensing", 7),
-    ("dt", 1), ("noise_column", 1), ("delay_line", 2), ("drag_point_count", 1),
-)  # fmt: skip
+    ("action_type", 1),
+    ("scales", 10),
+    ("autopilot", 23),
+    ("inverse", 16),
+    ("motors", 6),
+    ("sensing", 7),
+    ("dt", 1),
+    ("noise_column", 1),
+    ("delay_line", 2),
+    ("drag_point_count", 1),
+)
 """The engine's parameters in the flat constants array, in order (widths): the action type (an index
 into the action types) and its scales, the autopilot's gains (``Autopilot.kernel_parameters``), its
 mixer's inverse, the motors (lag up and down, speed limits, rotor drag, body drag coefficient), the
@@ -71,9 +118,16 @@ drag points; then the drag points (P, 3) and the components' numbers (:func:`com
 CONSTANT_WIDTH = sum(width for _, width in CONSTANT_FIELDS)
 _C = offsets(CONSTANT_FIELDS)
 _SCALES, _AUTOPILOT, _INVERSE, _MOTORS, _SENSING, _DT, _NOISE_COLUMN, _DELAY, _POINT_COUNT = (
-    _C["scales"], _C["autopilot"], _C["inverse"], _C["motors"], _C["sensing"], _C["dt"], _C["noise_column"],
-    _C["delay_line"], _C["drag_point_count"],
-)  # fmt: skip
+    _C["scales"],
+    _C["autopilot"],
+    _C["inverse"],
+    _C["motors"],
+    _C["sensing"],
+    _C["dt"],
+    _C["noise_column"],
+    _C["delay_line"],
+    _C["drag_point_count"],
+)
 
 
 @njit(inline=True)
@@ -241,9 +295,16 @@ def controls(actions, buffer, saturated, constants):
                 command[i] = 0.5 * (a[i] + 1.0) * scales[9]
         elif action_type == WRENCH:
             saturated[n] = _mix(
-                (1.0 + a[0]) * scales[5], a[1] * scales[6], a[2] * scales[7], a[3] * scales[8],
-                inverse, w2_min, w2_max, command, scratch,
-            )  # fmt: skip
+                (1.0 + a[0]) * scales[5],
+                a[1] * scales[6],
+                a[2] * scales[7],
+                a[3] * scales[8],
+                inverse,
+                w2_min,
+                w2_max,
+                command,
+                scratch,
+            )
         else:
             if action_type == VELOCITY:
                 for i in range(3):
@@ -287,9 +348,12 @@ def controls(actions, buffer, saturated, constants):
                 cp, sp = math.cos(0.5 * pitch), math.sin(0.5 * pitch)
                 cy, sy = math.cos(0.5 * yaw_d), math.sin(0.5 * yaw_d)
                 matrix(
-                    cr * cp * cy + sr * sp * sy, sr * cp * cy - cr * sp * sy,
-                    cr * sp * cy + sr * cp * sy, cr * cp * sy - sr * sp * cy, desired,
-                )  # fmt: skip
+                    cr * cp * cy + sr * sp * sy,
+                    sr * cp * cy - cr * sp * sy,
+                    cr * sp * cy + sr * cp * sy,
+                    cr * cp * sy - sr * sp * cy,
+                    desired,
+                )
                 thrust = (1.0 + a[3]) * scales[5]
             # attitude loop: e = R_dᵀR - RᵀR_d
             for k, (i, j) in enumerate(((2, 1), (0, 2), (1, 0))):
@@ -314,9 +378,16 @@ def controls(actions, buffer, saturated, constants):
                 om[0], om[1], om[2], inertia[0] * om[0], inertia[1] * om[1], inertia[2] * om[2]
             )
             saturated[n] = _mix(
-                thrust, torque[0] + c0, torque[1] + c1, torque[2] + c2, inverse, w2_min, w2_max,
-                command, scratch,
-            )  # fmt: skip
+                thrust,
+                torque[0] + c0,
+                torque[1] + c1,
+                torque[2] + c2,
+                inverse,
+                w2_min,
+                w2_max,
+                command,
+                scratch,
+            )
         # -- motors: the lag towards the command, then the true rotors' [c_t, tau] --
         for i in range(4):
             target = min(max(command[i], min_speed), max_speed)

@@ -84,10 +84,15 @@ class ObservationLayout:
         weight = vehicle.mass * GRAVITY
         reach = max(abs(arena.x_min), abs(arena.x_max), arena.y_half_width, arena.z_max)
         bound = {
-            "position": max(100.0, 2.0 * reach), "velocity": 100.0, "attitude": 1.0, "body_rates": 100.0,
-            "force": 100.0 * weight, "torque": 100.0 * weight * vehicle.hull_radius, "last_action": 1.0,
+            "position": max(100.0, 2.0 * reach),
+            "velocity": 100.0,
+            "attitude": 1.0,
+            "body_rates": 100.0,
+            "force": 100.0 * weight,
+            "torque": 100.0 * weight * vehicle.hull_radius,
+            "last_action": 1.0,
             **self.task_bounds,
-        }  # fmt: skip
+        }
         frame = np.concatenate([np.full(n, bound[name]) for name, n in self.fields])
         reading = np.concatenate(  # motor speeds over the top speed, position, attitude, [velocity, rates]
             (

@@ -203,13 +203,20 @@ class World:
         else:  # one rigid body: the hull's box and the tip's sphere (a compound shape)
             frames = [[0.0, 0.0, 0.0], list(tool.offset)]
             hull = p.createCollisionShapeArray(
-                [p.GEOM_BOX, p.GEOM_SPHERE], halfExtents=[half_extents, [0.0] * 3], radii=[0.0, tool.radius],
-                collisionFramePositions=frames, physicsClientId=cid,
-            )  # fmt: skip
+                [p.GEOM_BOX, p.GEOM_SPHERE],
+                halfExtents=[half_extents, [0.0] * 3],
+                radii=[0.0, tool.radius],
+                collisionFramePositions=frames,
+                physicsClientId=cid,
+            )
             visual = p.createVisualShapeArray(
-                [p.GEOM_BOX, p.GEOM_SPHERE], halfExtents=[half_extents, [0.0] * 3], radii=[0.0, tool.radius],
-                visualFramePositions=frames, rgbaColors=[colour, (0.9, 0.5, 0.1, 1.0)], physicsClientId=cid,
-            )  # fmt: skip
+                [p.GEOM_BOX, p.GEOM_SPHERE],
+                halfExtents=[half_extents, [0.0] * 3],
+                radii=[0.0, tool.radius],
+                visualFramePositions=frames,
+                rgbaColors=[colour, (0.9, 0.5, 0.1, 1.0)],
+                physicsClientId=cid,
+            )
         self.bodies = []
         for _ in range(self.count):
             body = p.createMultiBody(v.mass, hull, visual, basePosition=(0.0, 0.0, 1.0), physicsClientId=cid)

@@ -61,15 +61,8 @@ def closed_error(env: object) -> RuntimeError:
 def build_config(
     config_class: type[EnvConfig], config: str | Path | Mapping[str, Any] | None, overrides: dict
 ) -> Any:
-    """The env's config from a YAML path or mapping (its ``env`` section) and keyword overrides; the
-    removed ``backend`` key is refused with what replaced it."""
+    """The env's config from a YAML path or mapping (its ``env`` section) and keyword overrides."""
     values = merged(section(config, "env"), overrides)
-    if "backend" in values:
-        raise ValueError(
-            f"backend={values['backend']!r}: the key is gone, the compiled kernels are the only physics "
-            "(README, 'Changes that need your attention'); to step through them as plain Python, set "
-            "the environment variable NUMBA_DISABLE_JIT=1 (the debugging mode)"
-        )
     return build(config_class, values)
 
 

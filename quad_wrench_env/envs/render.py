@@ -70,8 +70,11 @@ SURFACE = (0.8, 0.76, 0.7, 1.0)
 """The colour of the scene's tables, walls and ceilings."""
 _HIDDEN = (0.0, 0.0, 0.0, 0.0)
 _AXIS = (0.2, 0.45, 0.85, 1.0)
-_NUMBERS = (("axis_error", "axis error {:+.2f} m"), ("standoff_error", "stand-off error {:+.2f} m"),
-            ("tracking_error", "tracking error {:.2f} m"))  # fmt: skip
+_NUMBERS = (
+    ("axis_error", "axis error {:+.2f} m"),
+    ("standoff_error", "stand-off error {:+.2f} m"),
+    ("tracking_error", "tracking error {:.2f} m"),
+)
 """Task numbers shown when ``info`` has them."""
 
 
@@ -347,9 +350,13 @@ class SceneRenderer:
         """The camera's image with the ground, the jets, the arrows and the panels painted on."""
         env, (w, h) = self.env, (self.width, self.height)
         _, _, rgba, buffer, segments = p.getCameraImage(
-            w, h, camera.view_matrix(), camera.projection_matrix(), renderer=p.ER_TINY_RENDERER,
+            w,
+            h,
+            camera.view_matrix(),
+            camera.projection_matrix(),
+            renderer=p.ER_TINY_RENDERER,
             physicsClientId=env.world.client,
-        )  # fmt: skip
+        )
         rgb = np.asarray(rgba, dtype=np.uint8).reshape(h, w, 4)[:, :, :3]
         depth = np.asarray(buffer, dtype=np.float32).reshape(h, w)
         segments = np.asarray(segments).reshape(h, w)
@@ -360,9 +367,14 @@ class SceneRenderer:
         marks = self.marks(info)
         if marks.get("reference") is not None:
             draw_reference(
-                image, camera, marks["reference"], marks.get("path"), position, REFERENCE,
+                image,
+                camera,
+                marks["reference"],
+                marks.get("path"),
+                position,
+                REFERENCE,
                 segments == self._vehicle,
-            )  # fmt: skip
+            )
         draw_arrows(image, camera, [*self.wind_arrows(info), *self.arrows(info)])
         draw_panel(image, self._numbers(info, marks), [])
         scales = f"arrows {self.force_scale:g} m per N" + (

@@ -69,13 +69,16 @@ def info_entries(fleet: Fleet, task: Task, vehicle: int | None = None) -> dict[s
     state = fleet.state
     covariance = fleet.estimator.wrench_covariances()
     entries = {
-        "time": fleet.time, "position": state.position, "velocity": state.velocity,
-        "wrench_true": fleet.wrench_true, "wrench_est": fleet.estimates()[1],
+        "time": fleet.time,
+        "position": state.position,
+        "velocity": state.velocity,
+        "wrench_true": fleet.wrench_true,
+        "wrench_est": fleet.estimates()[1],
         **({} if np.isnan(covariance).all() else {"wrench_cov": covariance}),
         "wind_velocity": fleet.wind_velocity,
         **({"contacts": fleet.world.touches()} if fleet.world.reported_parts else {}),
         **task.info(fleet),
-    }  # fmt: skip
+    }
     statuses = fleet.estimator.statuses()
     if vehicle is None:
         info = {key: value.copy() for key, value in entries.items()}

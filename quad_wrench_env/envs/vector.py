@@ -173,9 +173,14 @@ class QuadWrenchVectorEnv(VectorEnv):
         done = result.terminated | result.truncated
         next_observations = self._restart_ended(done) if np.any(done) else result.observations
         return Transition(
-            next_observations, result.observations, result.rewards, result.terminated, result.truncated,
-            result.reward_terms, entries,
-        )  # fmt: skip
+            next_observations,
+            result.observations,
+            result.rewards,
+            result.terminated,
+            result.truncated,
+            result.reward_terms,
+            entries,
+        )
 
     def close_extras(self, **kwargs: Any) -> None:
         """Release the PyBullet client; safe to call more than once."""

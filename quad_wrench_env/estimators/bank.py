@@ -76,9 +76,13 @@ _UNMEASURED = np.empty((0, 3))
 def _kernel_inputs(thrusts, body_torques, positions, quaternions, velocities, body_rates) -> tuple:
     """A step's inputs as the kernels take them: :data:`_UNMEASURED` for a missing measurement."""
     return (
-        thrusts, body_torques, positions, quaternions,
-        _UNMEASURED if velocities is None else velocities, _UNMEASURED if body_rates is None else body_rates,
-    )  # fmt: skip
+        thrusts,
+        body_torques,
+        positions,
+        quaternions,
+        _UNMEASURED if velocities is None else velocities,
+        _UNMEASURED if body_rates is None else body_rates,
+    )
 
 
 class FilterBank:
@@ -133,9 +137,14 @@ class FilterBank:
 
     def _refuse(self, thrusts, body_torques, positions, quaternions, velocities, body_rates) -> None:
         check_finite_batch(
-            self.name, thrusts=thrusts, body_torques=body_torques, positions=positions,
-            quaternions=quaternions, velocities=velocities, body_rates=body_rates,
-        )  # fmt: skip
+            self.name,
+            thrusts=thrusts,
+            body_torques=body_torques,
+            positions=positions,
+            quaternions=quaternions,
+            velocities=velocities,
+            body_rates=body_rates,
+        )
 
     def estimates(self) -> tuple[np.ndarray, np.ndarray]:
         """:meth:`states` and :meth:`wrenches` (see :class:`EstimatorBank`) from one call of the
@@ -222,9 +231,13 @@ class BankOfOne:
             return None if value is None else np.asarray(value, dtype=float)[None, :]
 
         self.bank.step(
-            np.array((thrust,), dtype=float), row(body_torque), row(position), row(quaternion_wxyz),
-            row(velocity), row(body_rates),
-        )  # fmt: skip
+            np.array((thrust,), dtype=float),
+            row(body_torque),
+            row(position),
+            row(quaternion_wxyz),
+            row(velocity),
+            row(body_rates),
+        )
         return self.estimate
 
     @property

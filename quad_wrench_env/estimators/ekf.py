@@ -83,9 +83,13 @@ class ExtendedFilterBank(FilterBank):
         q_diag[F] = n.force_walk**2
         q_diag[N] = n.torque_walk**2
         initial = (
-            n.initial_position, n.initial_velocity, n.initial_attitude,
-            n.initial_rates, n.initial_force, n.initial_torque,
-        )  # fmt: skip
+            n.initial_position,
+            n.initial_velocity,
+            n.initial_attitude,
+            n.initial_rates,
+            n.initial_force,
+            n.initial_torque,
+        )
         self.P0 = np.diag(np.repeat(initial, 3) ** 2)
         noise_pose = np.repeat((n.position, n.attitude), 3) ** 2
         noise_motion = np.repeat((n.velocity, n.body_rate), 3) ** 2
@@ -125,9 +129,18 @@ class ExtendedFilterBank(FilterBank):
 
     def _kernel(self, thrusts, body_torques, positions, quaternions, velocities, body_rates):
         return ekf_bank_step, (
-            self.x, self.P, self.walks, self.reinitialisations, thrusts, body_torques, positions, quaternions,
-            velocities, body_rates, self.kernel_constants,
-        )  # fmt: skip
+            self.x,
+            self.P,
+            self.walks,
+            self.reinitialisations,
+            thrusts,
+            body_torques,
+            positions,
+            quaternions,
+            velocities,
+            body_rates,
+            self.kernel_constants,
+        )
 
     def quaternions(self) -> np.ndarray:
         """(N, 4) the estimated attitudes, from the ZYX Euler angles."""

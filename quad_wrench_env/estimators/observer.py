@@ -118,9 +118,12 @@ class ObserverBank(FilterBank):
         self.forces = np.zeros((count, 3))
         self.torques_generalised = np.zeros((count, 3))
         self.kernel_constants = observer_constants(
-            dt, self.mass, self.inertia, GRAVITY,
+            dt,
+            self.mass,
+            self.inertia,
+            GRAVITY,
             (self.c_force, self.c_torque, self._force_decay, self._velocity_alpha, self._rate_alpha),
-        )  # fmt: skip
+        )
         """The step kernel's constants (:func:`~quad_wrench_env.kernels.observer.observer_constants`)."""
 
     def reset(self, index: int | np.ndarray, position: np.ndarray, quaternion_wxyz: np.ndarray) -> None:
@@ -134,10 +137,22 @@ class ObserverBank(FilterBank):
 
     def _kernel(self, thrusts, body_torques, positions, quaternions, velocities, body_rates):
         return observer_bank_step, (
-            self.positions, self.eulers, self.velocities, self.euler_rates, self.psi_force,
-            self.psi_torque, self.forces, self.torques_generalised, thrusts, body_torques, positions,
-            quaternions, velocities, body_rates, self.kernel_constants,
-        )  # fmt: skip
+            self.positions,
+            self.eulers,
+            self.velocities,
+            self.euler_rates,
+            self.psi_force,
+            self.psi_torque,
+            self.forces,
+            self.torques_generalised,
+            thrusts,
+            body_torques,
+            positions,
+            quaternions,
+            velocities,
+            body_rates,
+            self.kernel_constants,
+        )
 
     def wrenches(self) -> np.ndarray:
         """(N, 6) estimated ``[f, R T⁻ᵀ τ̂_gen]``, world frame."""
@@ -153,9 +168,13 @@ class ObserverBank(FilterBank):
 
     def _estimates_kernel(self):
         return observer_estimates, (
-            self.positions, self.eulers, self.velocities, self.euler_rates, self.forces,
+            self.positions,
+            self.eulers,
+            self.velocities,
+            self.euler_rates,
+            self.forces,
             self.torques_generalised,
-        )  # fmt: skip
+        )
 
     def wrench_covariances(self) -> np.ndarray:
         """The observer carries no covariance: NaN (module docstring)."""

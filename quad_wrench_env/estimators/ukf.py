@@ -109,9 +109,18 @@ class UnscentedFilterBank(FilterBank):
         # The noise-only points have the mean state: their weight adds to the centre's (module doc).
         centre = self.weight_centre + 2 * NOISE_DIM * self.weight_other
         self.kernel_constants = ukf_constants(
-            dt, self.mass, self.inertia, GRAVITY, self.spread, centre, self.weight_other, q_diagonal,
-            g_diagonal, self.P0, n.walk_adaptation(),
-        )  # fmt: skip
+            dt,
+            self.mass,
+            self.inertia,
+            GRAVITY,
+            self.spread,
+            centre,
+            self.weight_other,
+            q_diagonal,
+            g_diagonal,
+            self.P0,
+            n.walk_adaptation(),
+        )
         """The step kernel's constants (:func:`~quad_wrench_env.kernels.ukf.ukf_constants`)."""
         self.quaternions = np.tile((1.0, 0.0, 0.0, 0.0), (count, 1))
         self.rests = np.zeros((count, STATE_DIM - 3))
@@ -145,9 +154,17 @@ class UnscentedFilterBank(FilterBank):
         """The filter of McKinnon & Schoellig 2016 measures the pose only: ``velocities`` and
         ``body_rates`` are unused."""
         return self._step_kernel, (
-            self.quaternions, self.rests, self.covariances, self.walks, self.reinitialisations,
-            thrusts, body_torques, positions, quaternions, self.kernel_constants,
-        )  # fmt: skip
+            self.quaternions,
+            self.rests,
+            self.covariances,
+            self.walks,
+            self.reinitialisations,
+            thrusts,
+            body_torques,
+            positions,
+            quaternions,
+            self.kernel_constants,
+        )
 
     def wrenches(self) -> np.ndarray:
         """(N, 6) estimated ``[f_e, τ_e]``, world frame."""

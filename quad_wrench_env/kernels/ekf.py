@@ -139,9 +139,18 @@ def ekf_constants(
 
 @njit
 def ekf_bank_step(
-    x, p, walks, reinitialisations, thrusts, body_torques, positions, quaternions, velocities, body_rates,
+    x,
+    p,
+    walks,
+    reinitialisations,
+    thrusts,
+    body_torques,
+    positions,
+    quaternions,
+    velocities,
+    body_rates,
     constants,
-):  # fmt: skip
+):
     """One predict-correct step of every filter, in place, with the constants of
     :func:`ekf_constants` and each filter's walks ``walks`` (N, 2, 3, 3) (force, body torque covariances
     per step: ``Q``'s entries 12-17, :mod:`~quad_wrench_env.kernels.walks`), matched to its step afterwards;

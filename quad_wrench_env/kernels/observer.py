@@ -59,16 +59,33 @@ def observer_constants(dt, mass, inertia, gravity, gains) -> np.ndarray:
 
 @njit
 def observer_bank_step(
-    positions_state, eulers, velocities_state, euler_rates, psi_force, psi_torque, forces,
-    torques_generalised, thrusts, body_torques, positions, quaternions, velocities, body_rates, constants,
-):  # fmt: skip
+    positions_state,
+    eulers,
+    velocities_state,
+    euler_rates,
+    psi_force,
+    psi_torque,
+    forces,
+    torques_generalised,
+    thrusts,
+    body_torques,
+    positions,
+    quaternions,
+    velocities,
+    body_rates,
+    constants,
+):
     """One step of every observer, in place, with the constants of :func:`observer_constants`;
     ``velocities`` and ``body_rates`` are (N, 3) where measured, else (0, 3). Returns False,
     touching nothing, when an input is not finite."""
     dt, mass, inertia, gravity = constants[0], constants[1], constants[2:5], constants[5]
     c_force, c_torque, decay, velocity_alpha, rate_alpha = (
-        constants[6], constants[7], constants[8], constants[9], constants[10],
-    )  # fmt: skip
+        constants[6],
+        constants[7],
+        constants[8],
+        constants[9],
+        constants[10],
+    )
     count = positions.shape[0]
     with_velocity, with_rates = velocities.shape[0] > 0, body_rates.shape[0] > 0
     if not inputs_finite(thrusts, body_torques, positions, quaternions, velocities, body_rates):

@@ -84,9 +84,17 @@ def unpack_ukf_constants(constants):
 
 @njit
 def ukf_bank_step(
-    quaternions, rests, covariances, walks, reinitialisations,
-    thrusts, body_torques, positions, measured_quaternions, constants,
-):  # fmt: skip
+    quaternions,
+    rests,
+    covariances,
+    walks,
+    reinitialisations,
+    thrusts,
+    body_torques,
+    positions,
+    measured_quaternions,
+    constants,
+):
     """One predict-correct step of every filter, in place (see the module docstring), with the
     constants of :func:`ukf_constants` and each filter's walks ``walks`` (N, 2, 3, 3) (force, torque
     covariances per step, :mod:`~quad_wrench_env.kernels.walks`), matched to its step afterwards;
@@ -244,9 +252,11 @@ def ukf_bank_step(
         for i in range(3):
             innovation[0, i] = positions[n, i] - rests[n, 3 + i]
         mw, mx, my, mz = (
-            measured_quaternions[n, 0], measured_quaternions[n, 1],
-            measured_quaternions[n, 2], measured_quaternions[n, 3],
-        )  # fmt: skip
+            measured_quaternions[n, 0],
+            measured_quaternions[n, 1],
+            measured_quaternions[n, 2],
+            measured_quaternions[n, 3],
+        )
         rw, rx, ry, rz = qmul(qw, -qx, -qy, -qz, mw, mx, my, mz)
         innovation[0, 3], innovation[0, 4], innovation[0, 5] = to_mrp(rw, rx, ry, rz)
         forward_solve_rows(s_root, innovation, innovation)  # L⁻¹ ν, in place
@@ -267,8 +277,11 @@ def ukf_bank_step(
         qw, qx, qy, qz = qmul(qw, qx, qy, qz, dw, dx, dy, dz)
         norm = math.sqrt(qw * qw + qx * qx + qy * qy + qz * qz)
         quaternions[n, 0], quaternions[n, 1], quaternions[n, 2], quaternions[n, 3] = (
-            qw / norm, qx / norm, qy / norm, qz / norm,
-        )  # fmt: skip
+            qw / norm,
+            qx / norm,
+            qy / norm,
+            qz / norm,
+        )
         for i in range(15):
             rests[n, i] += delta[3 + i]
         finite = all_finite(rests[n])

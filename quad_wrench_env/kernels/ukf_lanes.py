@@ -64,9 +64,11 @@ def _at(row, column, width):
 def _four(array, entry):
     """The lanes of entries ``entry`` to ``entry + 3`` (a quaternion) of a lane-layout array."""
     return (
-        load(array, entry * WIDTH), load(array, (entry + 1) * WIDTH),
-        load(array, (entry + 2) * WIDTH), load(array, (entry + 3) * WIDTH),
-    )  # fmt: skip
+        load(array, entry * WIDTH),
+        load(array, (entry + 1) * WIDTH),
+        load(array, (entry + 2) * WIDTH),
+        load(array, (entry + 3) * WIDTH),
+    )
 
 
 @njit(inline=True)
@@ -110,9 +112,17 @@ def _exp(v0, v1, v2):
 
 @njit
 def ukf_lanes_step(
-    quaternions, rests, covariances, walks, reinitialisations,
-    thrusts, body_torques, positions, measured_quaternions, constants,
-):  # fmt: skip
+    quaternions,
+    rests,
+    covariances,
+    walks,
+    reinitialisations,
+    thrusts,
+    body_torques,
+    positions,
+    measured_quaternions,
+    constants,
+):
     """One predict-correct step of every filter, in place, with the arguments of
     :func:`~quad_wrench_env.kernels.ukf.ukf_bank_step`; returns False, touching nothing, when an
     input is not finite."""
@@ -235,15 +245,17 @@ def ukf_lanes_step(
                 force = load(e, (15 + i) * WIDTH) / mass
                 shift = (
                     zero,
-                    (dt / inertia[i]) * (
-                        load(rotation0, i * WIDTH) * tau0 + load(rotation0, (3 + i) * WIDTH) * tau1
+                    (dt / inertia[i])
+                    * (
+                        load(rotation0, i * WIDTH) * tau0
+                        + load(rotation0, (3 + i) * WIDTH) * tau1
                         + load(rotation0, (6 + i) * WIDTH) * tau2
                     ),
                     load(e, (6 + i) * WIDTH) + dt * load(e, (9 + i) * WIDTH) + (0.5 * dt * dt) * force,
                     load(e, (9 + i) * WIDTH) + dt * force,
                     load(e, (12 + i) * WIDTH),
                     load(e, (15 + i) * WIDTH),
-                )  # fmt: skip
+                )
                 for block in range(6):
                     store(deviations, _at(3 * block + i, column, n_columns), shift[block])
                     store(weighted, _at(3 * block + i, column, n_columns), (2.0 * w) * shift[block])

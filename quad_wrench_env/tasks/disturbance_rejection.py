@@ -427,15 +427,18 @@ class DisturbanceRejection(TaskDefaults):
         self.jets = [
             Jet(
                 JetConfig(
-                    position=(x, y - sign * jc.jet_distance, jc.jet_height), direction=(0.0, sign, 0.0),
-                    speed=1.0, diameter=jc.jet_diameter, spread=jc.jet_spread,
+                    position=(x, y - sign * jc.jet_distance, jc.jet_height),
+                    direction=(0.0, sign, 0.0),
+                    speed=1.0,
+                    diameter=jc.jet_diameter,
+                    spread=jc.jet_spread,
                     turbulence_intensity=jc.jet_turbulence_intensity,
                     turbulence_length=jc.jet_turbulence_length,
                 ),
                 count,
             )
             for sign in (JET_SIDES[side] for side in jc.jet_sides)
-        ]  # fmt: skip
+        ]
         """One jet per entry of ``jet_crossing.jet_sides``; a vehicle's copy of each is off (speed 0)
         but for the side drawn in a jet crossing."""
         self.turbulence = DrydenGust(DrydenConfig(w20=1.0, altitude=cfg.gusts.position[2]), count)
@@ -497,9 +500,11 @@ class DisturbanceRejection(TaskDefaults):
             peak = rng.uniform(*g.peak)
             self.turbulence.set_weather(index, factor=g.w20)
             self.bump.set_gust(
-                index, (peak * math.cos(heading), peak * math.sin(heading), 0.0), rng.uniform(*g.start),
+                index,
+                (peak * math.cos(heading), peak * math.sin(heading), 0.0),
+                rng.uniform(*g.start),
                 rng.uniform(*g.duration),
-            )  # fmt: skip
+            )
         elif scenario == "figure8":
             fig = cfg.figure8
             speed = wind_speed if wind_speed is not None else float(rng.choice(fig.wind_speeds))
@@ -627,10 +632,9 @@ class DisturbanceRejection(TaskDefaults):
             "jet_crossing": f"jet {speed:.1f} m/s across the path from {side}",
             "table_pass": "ground effect over the table",
             "gusts": f"turbulence, a gust of {gust:.1f} m/s at t = {start:.1f} s",
-            "figure8": f"steady wind {speed:.1f} m/s" + (
-                f" along ({wind[0]:+.2f}, {wind[1]:+.2f})" if speed > 0.0 else ""
-            ),
-        }[name]  # fmt: skip
+            "figure8": f"steady wind {speed:.1f} m/s"
+            + (f" along ({wind[0]:+.2f}, {wind[1]:+.2f})" if speed > 0.0 else ""),
+        }[name]
         times = np.linspace(0.0, self.cfg.episode_seconds, PATH_SAMPLES)
         path, _ = self.reference(times, np.full(times.size, index))
         return {"label": f"scenario {name}: {detail}", "path": path}
@@ -657,12 +661,15 @@ def _glide(t: np.ndarray, length: float, speed: float, ease: float) -> tuple[np.
     rise = np.minimum(t, ease)
     fall = np.clip(t - (total - ease), 0.0, ease)
     distance = speed * (
-        0.5 * rise - ease / (2.0 * math.pi) * np.sin(math.pi * rise / ease)
+        0.5 * rise
+        - ease / (2.0 * math.pi) * np.sin(math.pi * rise / ease)
         + np.clip(t - ease, 0.0, total - 2.0 * ease)
-        + 0.5 * fall + ease / (2.0 * math.pi) * np.sin(math.pi * fall / ease)
-    )  # fmt: skip
+        + 0.5 * fall
+        + ease / (2.0 * math.pi) * np.sin(math.pi * fall / ease)
+    )
     rate = np.where(
-        t < ease, 0.5 * (1.0 - np.cos(math.pi * rise / ease)),
+        t < ease,
+        0.5 * (1.0 - np.cos(math.pi * rise / ease)),
         np.where(t > total - ease, 0.5 * (1.0 + np.cos(math.pi * fall / ease)), 1.0),
-    )  # fmt: skip
+    )
     return distance, speed * np.where(t >= total, 0.0, rate)

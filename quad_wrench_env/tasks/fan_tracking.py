@@ -130,9 +130,10 @@ class FanEpisodes:
                 f"episodes.motions={list(self.motions)!r} must name one or more of {sorted(MOTIONS)}"
             )
         check_numbers(
-            "episodes", self,
+            "episodes",
+            self,
             ("y_range", "min_frequency", "max_frequency", "min_segment_seconds", "max_segment_seconds"),
-        )  # fmt: skip
+        )
         check_numbers("episodes", self, ("max_speed", "max_amplitude"), positive=False)
         if self.min_frequency > self.max_frequency or self.min_segment_seconds > self.max_segment_seconds:
             raise ValueError(
@@ -334,17 +335,23 @@ class FanTracking(TaskDefaults):
 
     def step(self, fleet: Fleet, actions: np.ndarray, ended: np.ndarray) -> TaskStep:
         numbers = self._numbers(fleet, actions, ended)
-        return TaskStep({
-            "tracking": numbers[:, 0], "standoff": numbers[:, 1], "effort": numbers[:, 2],
-            "crash": numbers[:, 3],
-        })  # fmt: skip
+        return TaskStep(
+            {
+                "tracking": numbers[:, 0],
+                "standoff": numbers[:, 1],
+                "effort": numbers[:, 2],
+                "crash": numbers[:, 3],
+            }
+        )
 
     def info(self, fleet: Fleet) -> dict[str, np.ndarray]:
         numbers = self._numbers(fleet, None, None)
         return {
-            "fan_position": numbers[:, 6:9], "jet_axis_y": numbers[:, 5], "axis_error": numbers[:, 4],
+            "fan_position": numbers[:, 6:9],
+            "jet_axis_y": numbers[:, 5],
+            "axis_error": numbers[:, 4],
             "standoff_error": numbers[:, 9],
-        }  # fmt: skip
+        }
 
     @staticmethod
     def metrics(
@@ -382,8 +389,12 @@ def fan_tracking_terms(position, time, actions, ended, motion_tables, fan, weigh
     stand-off weight, effort weight and crash penalty."""
     height = fan[5]
     x_ref, axis_scale, standoff_weight, effort_weight, crash_penalty = (
-        weights[0], weights[1], weights[2], weights[3], weights[4],
-    )  # fmt: skip
+        weights[0],
+        weights[1],
+        weights[2],
+        weights[3],
+        weights[4],
+    )
     for n in range(position.shape[0]):
         _, b = jet_speed(fan, max(position[n, 0], 0.0))
         axis = motion_y(motion_tables[n], time[n] - transit_time(fan, position[n, 0], b))

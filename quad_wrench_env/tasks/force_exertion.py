@@ -30,7 +30,7 @@ Reward per step (``info["reward_terms"]``): ``contact = -min(|f_exerted - f*|, c
 ``f_exerted = -contact_force`` the force the tip exerts on the surface and ``c = contact_cap`` (2
 N); ``alive = +c`` on every step that does not end the episode early, so ``contact + alive`` lies in
 [0, c] and ending an episode early never pays (with ``contact`` alone a crash cost 10 against |f*|
-for every step not touching: the shipped PPO of issue 19 crashed in 5 of 10 held-out episodes);
+for every step not touching, and a policy learned to crash);
 ``effort = -effort_weight·mean(a²)``; ``crash = -crash_penalty`` on an early end; ``approach =
 γ·Φ(s') - Φ(s)`` with ``Φ = -approach_weight·gap`` (the tip's distance to the surface, m):
 potential-based shaping (Ng, Harada & Russell 1999), which leaves the optimal policy unchanged for
@@ -158,9 +158,12 @@ class ForceExertion(TaskDefaults):
         self.vehicle = vehicle
         self.wall = Wall(x=cfg.wall_x, friction=cfg.surface_friction, roughness=cfg.roughness)
         self.ceiling = Ceiling(
-            height=cfg.ceiling_height, center=(1.75, 0.0), size=(2.5, 4.0), friction=cfg.surface_friction,
+            height=cfg.ceiling_height,
+            center=(1.75, 0.0),
+            size=(2.5, 4.0),
+            friction=cfg.surface_friction,
             roughness=cfg.roughness,
-        )  # fmt: skip
+        )
         self.push = ConstantPush(count)
         self.surface = np.zeros(count, dtype=int)
         """Each vehicle's surface (index into :data:`SURFACES`)."""
