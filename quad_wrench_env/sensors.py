@@ -22,7 +22,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from quad_wrench_env.config import check_numbers
-from quad_wrench_env.engine.kernels import quantized_speed
+from quad_wrench_env.kernels import njit
+
+
+@njit(inline=True)
+def quantized_speed(speed, levels, step):
+    """A motor speed as the vehicle reports it: the nearest of ``levels + 1`` steps of ``step`` from 0
+    (McKinnon & Schoellig 2016, Sec. II-A: 8 bits over the motor's range on the AR.Drone)."""
+    return min(max(np.rint(speed / step), 0.0), levels) * step
 
 
 @dataclass

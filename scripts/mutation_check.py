@@ -102,8 +102,8 @@ MUTATIONS = (
         (
             (
                 ENGINE,
-                "thrust, torque[0] + c0, torque[1] + c1, torque[2] + c2, inverse,",
-                "thrust, torque[0], torque[1], torque[2], inverse,",
+                "torque[0] + c0,\n                torque[1] + c1,\n                torque[2] + c2,",
+                "torque[0],\n                torque[1],\n                torque[2],",
             ),
         ),
         ("tests/test_autopilot.py", *REFERENCE),
@@ -126,8 +126,8 @@ MUTATIONS = (
         (
             (
                 ENGINE,
-                "a[1] * scales[6], a[2] * scales[7], a[3] * scales[8],",
-                "a[1] * scales[6], a[2] * scales[7], a[3] * scales[6],",
+                "                a[3] * scales[8],",
+                "                a[3] * scales[6],",
             ),
         ),
         REFERENCE,
@@ -239,8 +239,8 @@ MUTATIONS = (
         (
             (
                 "quad_wrench_env/kernels/ukf_lanes.py",
-                "                if i == j or matched:\n                    for row, block in",
-                "                if i == j:\n                    for row, block in",
+                "for j in range(3):\n                    for row, block in ((12, 1), (15, 0)):",
+                "for j in (i,):\n                    for row, block in ((12, 1), (15, 0)):",
             ),
         ),
         ("tests/test_lanes.py",),
@@ -419,7 +419,7 @@ MUTATIONS = (
         "sensors",
         (
             (
-                ENGINE,
+                "quad_wrench_env/sensors.py",
                 "return min(max(np.rint(speed / step), 0.0), levels) * step",
                 "return min(max(speed / step, 0.0), levels) * step",
             ),
@@ -560,8 +560,8 @@ MUTATIONS = (
             ),
             (
                 "quad_wrench_env/envs/vector.py",
-                "next_observations, result.observations, result.rewards, result.terminated",
-                "result.observations, result.observations, result.rewards, result.terminated",
+                "            next_observations,\n            result.observations,",
+                "            result.observations,\n            result.observations,",
             ),
         ),
         ("tests/test_vector_env.py", "tests/test_reference_task.py", "tests/test_sb3.py"),
@@ -824,7 +824,7 @@ MUTATIONS = (
         "training",
         (
             (
-                "quad_wrench_env/agents/sb3.py",
+                "quad_wrench_env/agents/sb3_policy.py",
                 'return cls(data["mean"], data["var"], float(data["clip"]), float(data["epsilon"]))',
                 'return cls(data["var"], data["mean"], float(data["clip"]), float(data["epsilon"]))',
             ),
@@ -836,7 +836,7 @@ MUTATIONS = (
         "training",
         (
             (
-                "quad_wrench_env/agents/sb3.py",
+                "quad_wrench_env/agents/sb3_policy.py",
                 '    for name in ("best", "final"):',
                 '    for name in ("final", "best"):',
             ),

@@ -1,5 +1,5 @@
 """A learned policy's observation scaling and which model a run folder gives
-(``quad_wrench_env/agents/sb3.py``), without training (issue 33's training-pipeline sites):
+(``quad_wrench_env/agents/sb3_policy.py``), without training:
 ``ObservationScaling`` is what ``VecNormalize.normalize_obs`` does, written here by hand; it survives its
 file unchanged; a run folder loads its kept ``best/`` model behind ``best/``'s scaling (``final/`` only
 without one), and the policy acts on the scaled observation."""
@@ -13,7 +13,7 @@ import yaml
 from stable_baselines3 import PPO
 from stable_baselines3.common.vec_env import VecNormalize
 
-from quad_wrench_env.agents.sb3 import ObservationScaling, SB3Policy, load_policy
+from quad_wrench_env.agents.sb3_policy import ObservationScaling, SB3Policy, load_policy
 from quad_wrench_env.envs.sb3_vec_env import SB3VecEnv
 from tests.conftest import FAN_TRACKING
 

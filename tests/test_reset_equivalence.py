@@ -72,7 +72,7 @@ STATEFUL = {  # every stateful class: the case that flies it
     "agents.ida_pbc.IDAPBCPolicy": "agent: ida_pbc",
     "agents.mpc.MPCPolicy": "agent: mpc (its warm start)",
     "agents.pid.PIDPolicy": "agent: pid (its integral)",
-    "agents.sb3.SB3Policy": "agent: history policy, recurrent policy (its hidden state)",
+    "agents.sb3_policy.SB3Policy": "agent: history policy, recurrent policy (its hidden state)",
     "agents.sb3._Still": "stateless apart from the action shape (training's first evaluation)",
     "autopilot.Autopilot": "env: every case (its integrals and yaw set-point)",
     "engine.fleet.Fleet": "env: every case (the contact force: force exertion)",

@@ -14,7 +14,8 @@ from stable_baselines3 import PPO
 from quad_wrench_cli.train import summary
 from quad_wrench_env.agents import SHIPPED, make_agent, shipped_agents
 from quad_wrench_env.agents.evaluate import evaluate
-from quad_wrench_env.agents.sb3 import SB3Policy, TrainConfig, TrainingConfigError, load_policy, train
+from quad_wrench_env.agents.sb3 import SB3Policy, TrainConfig, TrainingConfigError, train
+from quad_wrench_env.agents.sb3_policy import load_policy
 from quad_wrench_env.config import build, load_yaml
 from quad_wrench_env.envs.sb3_vec_env import SB3VecEnv
 from tests.conftest import FAN_TRACKING

@@ -39,7 +39,7 @@ def make_agent(name: str, **params: Any) -> Policy:
     if (folder / "config.yaml").is_file():
         if params:
             raise ValueError(f"the learned policy {name!r} takes no parameters, got {sorted(params)}")
-        from quad_wrench_env.agents.sb3 import load_policy
+        from quad_wrench_env.agents.sb3_policy import load_policy
 
         return load_policy(folder)
     raise ValueError(

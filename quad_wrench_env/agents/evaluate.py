@@ -103,7 +103,7 @@ def flying_settings(
     policy: Policy, env_kwargs: Mapping[str, Any], env_id: str | None = None
 ) -> dict[str, Any]:
     """``env_kwargs`` with, for a learned policy, the settings that give its actions and
-    observations their meaning (:data:`~quad_wrench_env.agents.sb3.MEANING_KEYS`: action type and
+    observations their meaning (:data:`~quad_wrench_env.agents.sb3_policy.MEANING_KEYS`: action type and
     limits, observed wrench, history, DisturbanceRejection's tracking error) and, with the estimator it
     was trained with, that estimator's settings (e.g. the filters' fixed walks) as its training env had
     them, where ``env_kwargs`` does not set them (a meaning setting given that differs is refused by the
@@ -124,14 +124,14 @@ def evaluate(
 ) -> Evaluation:
     """Run ``policy`` on ``gym.make(env_id, **env_kwargs)`` once per seed and score every episode.
     ``policy`` is an agent, or a stable-baselines3 model (run deterministically on raw observations;
-    wrap a model trained behind ``VecNormalize`` in ``quad_wrench_env.agents.sb3.SB3Policy`` with its
+    wrap a model trained behind ``VecNormalize`` in ``quad_wrench_env.agents.sb3_policy.SB3Policy`` with its
     scaling).
 
     ``options`` go to every ``reset`` (e.g. ``{"offset_y": 0.8, "fan_motion": "static"}``). A
     learned policy flies with the settings its training env had (:func:`flying_settings`).
     """
     if not isinstance(policy, Policy) and hasattr(policy, "predict"):  # a bare SB3 model
-        from quad_wrench_env.agents.sb3 import SB3Policy
+        from quad_wrench_env.agents.sb3_policy import SB3Policy
 
         policy = SB3Policy(policy)
     seeds = [int(s) for s in seeds]

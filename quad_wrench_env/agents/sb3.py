@@ -1,12 +1,10 @@
-"""stable-baselines3 policies: training runs, and trained models as agents of the evaluation harness.
+"""stable-baselines3 training runs.
 
 :func:`train` runs PPO or SAC on any registered env id, batched through ``SB3VecEnv``, from one
 :class:`TrainConfig`, into a run folder that holds what ran (config and commit), checkpoints, the
 best model by the harness's own metric on fixed evaluation seeds, the curve and TensorBoard logs.
-:class:`SB3Policy` wraps a trained model and the observation statistics of the ``VecNormalize`` it
-trained behind, so that ``quad_wrench_env.agents.evaluate.evaluate`` runs it like any classical agent:
-``reset(env)``, ``act(obs)`` on the raw observation, deterministic actions. :func:`load_policy` reads a run
-folder (or a shipped agent, which is a run folder's ``config.yaml`` and ``best/`` kept in the package).
+A run folder flies as an agent through :mod:`quad_wrench_env.agents.sb3_policy` (:class:`SB3Policy`,
+:func:`load_policy`, imported here too).
 """
 
 from __future__ import annotations
@@ -28,126 +26,13 @@ from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.vec_env import VecNormalize
 
 from quad_wrench_env.agents.normalize import CompiledVecNormalize
-from quad_wrench_env.config import build, check_numbers, load_yaml, merged, set_keys
-from quad_wrench_env.registry import bare_env_id
-
-
-@dataclass(frozen=True)
-class ObservationScaling:
-    """What ``VecNormalize.normalize_obs`` does, as plain numbers: ``clip((obs - mean)/sqrt(var + ε))``."""
-
-    mean: np.ndarray
-    var: np.ndarray
-    clip: float
-    epsilon: float
-
-    @classmethod
-    def of(cls, normalize: VecNormalize) -> ObservationScaling:
-        rms = normalize.obs_rms
-        return cls(rms.mean.copy(), rms.var.copy(), float(normalize.clip_obs), float(normalize.epsilon))
-
-    def __call__(self, observation: np.ndarray) -> np.ndarray:
-        scaled = (observation - self.mean) / np.sqrt(self.var + self.epsilon)
-        return np.clip(scaled, -self.clip, self.clip).astype(np.float32)
-
-    def save(self, path: str | Path) -> None:
-        np.savez(path, mean=self.mean, var=self.var, clip=self.clip, epsilon=self.epsilon)
-
-    @classmethod
-    def load(cls, path: str | Path) -> ObservationScaling:
-        with np.load(path) as data:
-            return cls(data["mean"], data["var"], float(data["clip"]), float(data["epsilon"]))
-
-
-MEANING_KEYS = (
-    "action_type",
-    "action_limits",
-    "observe_wrench",
-    "history",
-    "sensor_history",
-    "observe_tracking_error",
-    "preview_seconds",
-    "observe_reference_acceleration",
-    "path_ahead_seconds",
+from quad_wrench_env.agents.sb3_policy import (
+    MEANING_KEYS,
+    ObservationScaling,
+    SB3Policy,
+    algorithm_class,
 )
-"""Env settings that change what an action or an observation means (``history``, ``sensor_history``,
-``preview_seconds``, ``observe_reference_acceleration`` and ``path_ahead_seconds`` its size too;
-``action_limits`` the command an action stands for; the last four and ``observe_tracking_error`` are
-DisturbanceRejection's own and count only where the config has them)."""
-
-
-class SB3Policy:
-    """A trained SB3 model, behind its observation scaling if it had one, as a Policy. A recurrent
-    model (sb3-contrib's ``RecurrentPPO``) carries its hidden state from step to step; :meth:`reset`
-    (each episode's start) clears it."""
-
-    def __init__(
-        self,
-        model: BaseAlgorithm,
-        scaling: ObservationScaling | None = None,
-        trained_on: dict[str, Any] | None = None,
-        trained_env_id: str | None = None,
-    ) -> None:
-        """``trained_on``: the training env's settings (a run's ``env`` section; a key not in it had
-        the task's default); :meth:`reset` refuses an env whose :data:`MEANING_KEYS` differ from them.
-        None: unknown (a bare model), nothing but the observation's shape is checked.
-        ``trained_env_id``: the env id it was trained on (None: unknown)."""
-        self.model = model
-        self.scaling = scaling
-        self.trained_on = None if trained_on is None else dict(trained_on)
-        self.trained_env_id = trained_env_id
-        self._memory: Any = None
-        """A recurrent model's hidden state (None: a new episode; always None for the others)."""
-        self._start = np.ones(1, dtype=bool)
-
-    def env_settings(
-        self, given: Mapping[str, Any] | None = None, env_id: str | None = None
-    ) -> dict[str, Any]:
-        """What the harness flies it with where ``given`` (the env settings asked for) leaves them: the
-        :data:`MEANING_KEYS` its training env set (the others had the task's defaults), and its training
-        env's estimator with that estimator's settings (``estimator_params``, e.g. the filters' fixed
-        walks): it reads estimates made as in training. With another estimator ``given``, that
-        estimator's defaults. With ``env_id`` the env it was trained on (a lone evaluation), every
-        other setting of its training env too: its world (vehicle, scenario settings, curricula)."""
-        trained, given = self.trained_on or {}, given or {}
-        home = self.trained_env_id is not None and env_id is not None
-        home = home and bare_env_id(env_id) == bare_env_id(self.trained_env_id)
-        estimator_keys = ("estimator", "estimator_params")
-        keys = [key for key in (trained if home else MEANING_KEYS) if key not in estimator_keys]
-        if given.get("estimator", trained.get("estimator")) == trained.get("estimator"):
-            keys += estimator_keys
-        return {key: trained[key] for key in keys if key in trained}
-
-    def reset(self, env: gym.Env) -> None:
-        self._memory, self._start = None, np.ones(1, dtype=bool)
-        if self.trained_on is not None:
-            cfg = env.unwrapped.cfg
-            names = {f.name for f in dataclasses.fields(cfg)}
-            keys = [key for key in MEANING_KEYS if key in names]
-            given = {key: self.trained_on[key] for key in keys if key in self.trained_on}
-            trained_cfg = build(type(cfg), given)  # a key not given: the task's default
-            for key in keys:
-                trained, here = getattr(trained_cfg, key), getattr(cfg, key)
-                if trained != here:
-                    raise ValueError(
-                        f"the policy was trained with {key}={trained!r}, the env has "
-                        f"{key}={here!r}; make the env with {key}={given.get(key, trained)!r}"
-                    )
-        expected = self.model.observation_space.shape
-        got = env.observation_space.shape
-        if got != expected:
-            raise ValueError(f"the model was trained on observations of shape {expected}, the env has {got}")
-
-    def act(self, observation: np.ndarray) -> np.ndarray:
-        obs = observation if self.scaling is None else self.scaling(observation)
-        action, self._memory = self.model.predict(
-            obs, state=self._memory, episode_start=self._start, deterministic=True
-        )
-        self._start = np.zeros(1, dtype=bool)
-        return np.asarray(action, dtype=np.float32)
-
-
-# -- training -------------------------------------------------------------------------------------
+from quad_wrench_env.config import build, check_numbers, load_yaml, merged, set_keys
 
 
 @dataclass
@@ -335,7 +220,7 @@ def check_training(config: TrainConfig, folder: str | Path, resume: bool = False
             gym.spec(config.env_id)
         except gym.error.Error as error:
             raise ValueError(f"env_id={config.env_id!r}: {error}") from None
-        algorithm = _algorithm(config.algorithm)
+        algorithm = algorithm_class(config.algorithm)
         parameters = inspect.signature(algorithm.__init__).parameters
         allowed = {name for name in parameters if not name.startswith("_")}
         allowed -= {"self", *RESERVED_HYPERPARAMETERS}
@@ -419,34 +304,6 @@ def _default(algorithm: type[BaseAlgorithm], name: str) -> Any:
     return inspect.signature(algorithm.__init__).parameters[name].default
 
 
-def _algorithm(name: str) -> type[BaseAlgorithm]:
-    from sb3_contrib import RecurrentPPO
-    from stable_baselines3 import PPO, SAC
-
-    return {"ppo": PPO, "sac": SAC, "recurrent_ppo": RecurrentPPO}[name]
-
-
-def load_policy(folder: str | Path) -> SB3Policy:
-    """The agent of a run folder (or a shipped agent's folder): its best model if it kept one, else
-    its last, behind its observation scaling."""
-    folder = Path(folder)
-    config = folder / "config.yaml"
-    if not config.is_file():
-        raise FileNotFoundError(f"{str(folder)!r} is not a training run folder (no config.yaml)")
-    settings = load_yaml(config)
-    for name in ("best", "final"):
-        model = folder / name / "model.zip"
-        if model.is_file():
-            scaling = folder / name / "scaling.npz"
-            return SB3Policy(
-                _algorithm(settings.get("algorithm", "ppo")).load(model, device="cpu"),
-                ObservationScaling.load(scaling) if scaling.is_file() else None,
-                trained_on=settings.get("env", {}),
-                trained_env_id=settings.get("env_id"),
-            )
-    raise FileNotFoundError(f"{str(folder)!r} holds no best/model.zip or final/model.zip")
-
-
 def _commit() -> str:
     """The project's commit (with ``+dirty`` when the tree has changes), or ``unknown``."""
     import subprocess
@@ -503,7 +360,7 @@ def new_model(config: TrainConfig, env: Any, tensorboard_log: str | None = None)
     policy_kwargs = {"net_arch": list(config.net_arch), "activation_fn": activation}
     if config.algorithm != "sac":
         policy_kwargs["log_std_init"] = config.log_std_init
-    algorithm = _algorithm(config.algorithm)
+    algorithm = algorithm_class(config.algorithm)
     hyperparameters = dict(config.hyperparameters)
     if config.learning_rate_end is not None:
         start = hyperparameters.get("learning_rate", _default(algorithm, "learning_rate"))
@@ -539,7 +396,7 @@ def train(config: TrainConfig, folder: str | Path, resume: bool = False, progres
     if resume:
         last = latest_snapshot(folder)
         env = CompiledVecNormalize.load(str(last / "vecnormalize.pkl"), env.venv)
-        model = _algorithm(config.algorithm).load(last / "model.zip", env=env, device="cpu")
+        model = algorithm_class(config.algorithm).load(last / "model.zip", env=env, device="cpu")
         start_steps = model.num_timesteps
     else:
         model = new_model(config, env, tensorboard_log=str(folder / "tensorboard"))

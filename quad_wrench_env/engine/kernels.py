@@ -20,6 +20,7 @@ from numpy.lib.stride_tricks import as_strided
 from quad_wrench_env.kernels import njit
 from quad_wrench_env.kernels.linalg import rows_view
 from quad_wrench_env.kernels.quaternions import exp, matrix, qmul
+from quad_wrench_env.sensors import quantized_speed
 
 VELOCITY, ATTITUDE, WRENCH, MOTORS = 0, 1, 2, 3
 
@@ -536,13 +537,6 @@ def take_normals(noise_buffer, noise_cursor, out):
     for m in range(noise_buffer.shape[0]):
         out[m] = noise_buffer[m, noise_cursor[m]]
         noise_cursor[m] += 1
-
-
-@njit(inline=True)
-def quantized_speed(speed, levels, step):
-    """A motor speed as the vehicle reports it: the nearest of ``levels + 1`` steps of ``step`` from 0
-    (McKinnon & Schoellig 2016, Sec. II-A: 8 bits over the motor's range on the AR.Drone)."""
-    return min(max(np.rint(speed / step), 0.0), levels) * step
 
 
 def delay_line_width(latency: int) -> int:

@@ -34,13 +34,12 @@ pointer at the frame's edge with its distance).
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pybullet as p
 
 from quad_wrench_env.disturbances.base import Outlet, Visible
-from quad_wrench_env.envs.base import QuadWrenchEnv
 from quad_wrench_env.envs.overlay import (
     JET_COLOUR,
     Arrow,
@@ -53,6 +52,9 @@ from quad_wrench_env.envs.overlay import (
 )
 from quad_wrench_env.rotations import to_pybullet
 from quad_wrench_env.vehicle import GRAVITY
+
+if TYPE_CHECKING:
+    from quad_wrench_env.envs.base import QuadWrenchEnv
 
 FRAME_SIZE = (640, 480)
 """Width and height (pixels) of ``rgb_array`` frames."""
