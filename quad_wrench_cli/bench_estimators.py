@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from quad_wrench_env.bench import bare_pybullet_step_seconds, estimator_step_seconds, filter_bank_step_seconds
 from quad_wrench_env.estimators import ESTIMATORS
-from quad_wrench_env.kernels import COMPILED
+from quad_wrench_env.numerics import COMPILED
 
 STEPS, REPEATS = 4000, 5
 """Defaults of ``quad-wrench bench --estimators``' ``--steps`` and ``--repeats``."""

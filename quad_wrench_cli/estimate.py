@@ -22,7 +22,7 @@ import numpy as np
 from quad_wrench_cli.common import add_key_value_argument, save_figure, usage_errors, write_csv
 from quad_wrench_cli.compare_estimators import LABELS, UNITS
 from quad_wrench_env.config import apply_overrides
-from quad_wrench_env.engine.config import EnvConfig
+from quad_wrench_env.engine.env_config import EnvConfig
 from quad_wrench_env.estimators import ESTIMATORS, Estimator, StateEstimate, TruthFed, make_estimator
 from quad_wrench_env.flight_log import FlightLog, read_flight_log
 from quad_wrench_env.rotations import rows_times

@@ -12,7 +12,7 @@ import pybullet as p
 import quad_wrench_env  # noqa: F401  (registers the env ids)
 from quad_wrench_env.estimators import TruthFed, make_estimator
 from quad_wrench_env.estimators.ukf import UnscentedFilterBank
-from quad_wrench_env.kernels.ukf import ukf_bank_step
+from quad_wrench_env.estimators.ukf_kernel import ukf_bank_step
 from quad_wrench_env.rotations import quat_exp, quat_multiply
 from quad_wrench_env.vehicle import GRAVITY, make_vehicle
 

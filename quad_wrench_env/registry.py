@@ -134,8 +134,8 @@ def bare_env_id(env_id: str) -> str:
 
 def env_entry_points(task: type) -> tuple[str, str]:
     """The single and the vector entry point of ``task``'s env id (classes generated on first use by
-    :mod:`quad_wrench_env.envs.registry`)."""
-    module = "quad_wrench_env.envs.registry"
+    :mod:`quad_wrench_env.envs.env_classes`)."""
+    module = "quad_wrench_env.envs.env_classes"
     return f"{module}:{task.__name__}Env", f"{module}:{task.__name__}VectorEnv"
 
 

@@ -3,7 +3,7 @@
 A :class:`ScenePart` is the seam for static bodies. The world (:class:`~quad_wrench_env.engine.world.World`)
 builds its boxes once per vehicle frame of the vector env (each vehicle flies in a copy of the scene,
 as in its own episode). The vehicle's body touching any part ends its episode as a crash (only a
-tool's tip may touch, :class:`~quad_wrench_env.engine.config.ToolConfig`); a horizontal top
+tool's tip may touch, :class:`~quad_wrench_env.engine.env_config.ToolConfig`); a horizontal top
 (:meth:`ScenePart.top`) is a surface the ground effect sees under a rotor. Each part has a friction
 coefficient (Bullet combines two bodies' coefficients as their product). A wall or a ceiling may be
 rough: ``roughness`` > 0 adds ridges across its face over ``rough_length`` m (along y for a wall,

@@ -12,7 +12,7 @@
   *nominal* mixer, while the world uses the true per-rotor coefficients.
 
 Every random draw comes from the vehicle's own Generator (the env's ``np_random``), drawn in blocks
-(:class:`quad_wrench_env.engine.noise.NoiseBlocks`) and handed in.
+(:class:`quad_wrench_env.engine.draws.NoiseBlocks`) and handed in.
 """
 
 from __future__ import annotations
@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from quad_wrench_env.config import check_numbers
-from quad_wrench_env.kernels import njit
+from quad_wrench_env.numerics import njit
 
 
 @njit(inline=True)

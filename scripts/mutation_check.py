@@ -226,7 +226,7 @@ MUTATIONS = (
         "estimator",
         (
             (
-                "quad_wrench_env/kernels/walks.py",
+                "quad_wrench_env/estimators/walks.py",
                 "value = forgetting * walks[block, i, j] + (1.0 - forgetting) * change_i * change_j",
                 "value = (1.0 - forgetting) * walks[block, i, j] + forgetting * change_i * change_j",
             ),
@@ -238,7 +238,7 @@ MUTATIONS = (
         "estimator",
         (
             (
-                "quad_wrench_env/kernels/ukf_lanes.py",
+                "quad_wrench_env/estimators/ukf_lanes_kernel.py",
                 "for j in range(3):\n                    for row, block in ((12, 1), (15, 0)):",
                 "for j in (i,):\n                    for row, block in ((12, 1), (15, 0)):",
             ),
@@ -250,7 +250,7 @@ MUTATIONS = (
         "rotors",
         (
             (
-                "quad_wrench_env/engine/config.py",
+                "quad_wrench_env/engine/env_config.py",
                 "            return CALIBRATED_ROTORS.get(self.vehicle)",
                 "            return None",
             ),
@@ -443,12 +443,12 @@ MUTATIONS = (
         "ukf",
         (
             (
-                "quad_wrench_env/kernels/ukf.py",
+                "quad_wrench_env/estimators/ukf_kernel.py",
                 "            torque[0] -= om1 * j2 - om2 * j1",
                 "            torque[0] += om1 * j2 - om2 * j1",
             ),
             (
-                "quad_wrench_env/kernels/ukf_lanes.py",
+                "quad_wrench_env/estimators/ukf_lanes_kernel.py",
                 "torque = torque + body_torque[i] - gyroscopic[i]",
                 "torque = torque + body_torque[i] + gyroscopic[i]",
             ),
@@ -483,9 +483,21 @@ MUTATIONS = (
         "observer Coriolis term dropped",
         "observer",
         (
-            ("quad_wrench_env/kernels/observer.py", "        inner[0] += om[1] * j2 - om[2] * j1", ""),
-            ("quad_wrench_env/kernels/observer.py", "        inner[1] += om[2] * j0 - om[0] * j2", ""),
-            ("quad_wrench_env/kernels/observer.py", "        inner[2] += om[0] * j1 - om[1] * j0", ""),
+            (
+                "quad_wrench_env/estimators/observer_kernel.py",
+                "        inner[0] += om[1] * j2 - om[2] * j1",
+                "",
+            ),
+            (
+                "quad_wrench_env/estimators/observer_kernel.py",
+                "        inner[1] += om[2] * j0 - om[0] * j2",
+                "",
+            ),
+            (
+                "quad_wrench_env/estimators/observer_kernel.py",
+                "        inner[2] += om[0] * j1 - om[1] * j0",
+                "",
+            ),
         ),
         ("tests/test_ekf_observer.py", "tests/test_reference_estimators.py"),
     ),
@@ -494,7 +506,7 @@ MUTATIONS = (
         "ekf",
         (
             (
-                "quad_wrench_env/kernels/ekf.py",
+                "quad_wrench_env/estimators/ekf_kernel.py",
                 "with_velocity, with_rates = velocities.shape[0] > 0, body_rates.shape[0] > 0",
                 "with_velocity, with_rates = velocities.shape[0] > 0, False",
             ),

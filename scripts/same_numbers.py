@@ -83,7 +83,7 @@ def _fixed_walks(env_id: str, kwargs: dict) -> dict:
 
     import gymnasium as gym
 
-    from quad_wrench_env.engine.config import EnvConfig
+    from quad_wrench_env.envs.base import EnvConfig  # there in every revision
     from quad_wrench_env.estimators import FilterNoise
 
     if EnvConfig.rotor_calibration == "preset":

@@ -14,7 +14,7 @@ import pytest
 from quad_wrench_cli.consistency import fly
 from quad_wrench_env.estimators import ExtendedFilterBank, FilterNoise, UnscentedFilterBank, make_estimator
 from quad_wrench_env.estimators.noise import EKFNoise
-from quad_wrench_env.kernels import COMPILED
+from quad_wrench_env.numerics import COMPILED
 from quad_wrench_env.vehicle import GRAVITY, PRESETS, make_vehicle
 
 FAN_TRACKING = "QuadWrench/FanTracking-v1"

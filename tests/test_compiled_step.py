@@ -28,8 +28,8 @@ from quad_wrench_env.engine.kernels import (
     step_views,
 )
 from quad_wrench_env.estimators import make_estimator_bank
-from quad_wrench_env.kernels import bind, specialised
-from quad_wrench_env.kernels.linalg import weighted_gram
+from quad_wrench_env.numerics import bind, specialised
+from quad_wrench_env.numerics.linalg import weighted_gram
 from quad_wrench_env.rotations import quat_exp
 from quad_wrench_env.vehicle import GRAVITY, make_vehicle
 from tests.conftest import FAN_TRACKING
@@ -270,7 +270,7 @@ def test_the_debugging_mode_runs_the_same_kernels_as_plain_python():
     numba's math: 1e-9 relative on the wrench estimate and the observation, float32)."""
     script = (
         "import json, sys, numpy as np, gymnasium as gym, quad_wrench_env\n"
-        "from quad_wrench_env.kernels import COMPILED\n"
+        "from quad_wrench_env.numerics import COMPILED\n"
         "out = {'compiled': COMPILED}\n"
         "for env_id in quad_wrench_env.ENV_IDS:\n"
         "    env = gym.make_vec(env_id, num_envs=2, vectorization_mode='vector_entry_point',\n"

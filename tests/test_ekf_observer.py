@@ -7,8 +7,8 @@ import math
 import numpy as np
 import pytest
 
+from quad_wrench_env.estimators.ekf_kernel import ekf_transition, ekf_transition_jacobian
 from quad_wrench_env.estimators.observer import NonlinearWrenchObserver, ObserverGains
-from quad_wrench_env.kernels.ekf import ekf_transition, ekf_transition_jacobian
 from quad_wrench_env.vehicle import GRAVITY, make_vehicle
 
 DT = 0.005

@@ -11,9 +11,9 @@ import pytest
 import quad_wrench_env.estimators.ukf as ukf_module
 from quad_wrench_env.estimators.noise import FilterNoise
 from quad_wrench_env.estimators.ukf import UnscentedFilterBank
-from quad_wrench_env.kernels import COMPILED
-from quad_wrench_env.kernels.quaternions import qmul, to_mrp
-from quad_wrench_env.kernels.ukf import ukf_bank_step
+from quad_wrench_env.estimators.ukf_kernel import ukf_bank_step
+from quad_wrench_env.numerics import COMPILED
+from quad_wrench_env.numerics.quaternions import qmul, to_mrp
 from quad_wrench_env.vehicle import GRAVITY, make_vehicle
 
 pytestmark = pytest.mark.skipif(not COMPILED, reason="lanes are compiled code (numba, no NUMBA_DISABLE_JIT)")
@@ -21,8 +21,8 @@ pytestmark = pytest.mark.skipif(not COMPILED, reason="lanes are compiled code (n
 if COMPILED:
     import numba
 
-    from quad_wrench_env.kernels import lanes
-    from quad_wrench_env.kernels.ukf_lanes import LANES_FROM, ukf_lanes_step
+    from quad_wrench_env.estimators.ukf_lanes_kernel import LANES_FROM, ukf_lanes_step
+    from quad_wrench_env.numerics import lanes
 
     @numba.njit
     def _lane_arithmetic(a, b, out):

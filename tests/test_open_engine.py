@@ -15,9 +15,9 @@ import pytest
 
 from quad_wrench_env.disturbances.base import CompiledForm
 from quad_wrench_env.engine.components import Components
-from quad_wrench_env.engine.config import EnvConfig
-from quad_wrench_env.envs.registry import env_classes
-from quad_wrench_env.kernels import njit
+from quad_wrench_env.engine.env_config import EnvConfig
+from quad_wrench_env.envs.env_classes import env_classes
+from quad_wrench_env.numerics import njit
 from quad_wrench_env.tasks.base import TaskDefaults, TaskStep
 from tests.conftest import FAN_TRACKING
 

@@ -18,9 +18,9 @@ import quad_wrench_env.estimators.ekf as ekf_module
 import quad_wrench_env.estimators.observer as observer_module
 import quad_wrench_env.estimators.ukf as ukf_module
 from quad_wrench_env.estimators import EKFNoise, FilterNoise, make_estimator, make_estimator_bank
-from quad_wrench_env.kernels.ekf import ekf_bank_step, ekf_transition
-from quad_wrench_env.kernels.observer import observer_bank_step
-from quad_wrench_env.kernels.ukf import ukf_bank_step
+from quad_wrench_env.estimators.ekf_kernel import ekf_bank_step, ekf_transition
+from quad_wrench_env.estimators.observer_kernel import observer_bank_step
+from quad_wrench_env.estimators.ukf_kernel import ukf_bank_step
 from quad_wrench_env.rotations import cross, quat_exp, quat_multiply, rotation_matrix
 from quad_wrench_env.vehicle import GRAVITY, Mixer, make_vehicle
 from tests.conftest import EstimatorSpy

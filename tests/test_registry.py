@@ -84,8 +84,8 @@ def test_a_task_registered_outside_gets_its_id_entry_points_and_harness(scratch)
     scratch.register("task")(RegistryHold)
     try:
         spec = gym.spec(RegistryHold.env_id)
-        assert spec.entry_point == "quad_wrench_env.envs.registry:RegistryHoldEnv"
-        assert spec.vector_entry_point == "quad_wrench_env.envs.registry:RegistryHoldVectorEnv"
+        assert spec.entry_point == "quad_wrench_env.envs.env_classes:RegistryHoldEnv"
+        assert spec.vector_entry_point == "quad_wrench_env.envs.env_classes:RegistryHoldVectorEnv"
         env = gym.make(RegistryHold.env_id, estimator="oracle")
         assert pickle.loads(pickle.dumps(env.unwrapped)).task_class is RegistryHold
         env.close()

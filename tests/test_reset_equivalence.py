@@ -76,7 +76,7 @@ STATEFUL = {  # every stateful class: the case that flies it
     "agents.sb3._Still": "stateless apart from the action shape (training's first evaluation)",
     "autopilot.Autopilot": "env: every case (its integrals and yaw set-point)",
     "engine.fleet.Fleet": "env: every case (the contact force: force exertion)",
-    "engine.noise.NoiseBlocks": "env: every case",
+    "engine.draws.NoiseBlocks": "env: every case",
     "engine.observation.ObservationHistory": "env: fan tracking, oracle, history",
     "envs.base.QuadWrenchEnv": "env: every case",
     "envs.vector.QuadWrenchVectorEnv": "vector env",

@@ -50,7 +50,7 @@ REFERENCE_STEPS = 200
 ROUNDING = 1e-9
 """Tolerance of the filter against the plain one, in units of the filter's own standard deviations:
 the two compute the same numbers in real arithmetic (the kernel's shortcuts are exact, module
-docstrings of ``estimators/ukf.py`` and ``kernels/ukf.py``) in other orders, so they part by
+docstrings of ``estimators/ukf.py`` and ``estimators/ukf_kernel.py``) in other orders, so they part by
 rounding only: each step's ~1e-16 relative, grown by the conditioning of the gain (``Σ_yy`` against
 the much larger predicted covariance) and carried from step to step (seen: at most 3e-11 σ for the
 means and 3e-12 σ_i σ_j for the covariance over 400 steps). A mistake moves them far more: the

@@ -160,8 +160,8 @@ def _hover_nees_weights(vehicle: str, thrust_noise_true: float, walk_true: float
     error adds the env's own rotor errors (``kf_spread``; the nominal mixer, ``rotor_calibration`` null),
     a bias drawn once per episode. ``λ`` are the
     eigenvalues of ``(P + C)⁻¹ (E + C_env)`` per block; with the truth's noise the filter's they are 1."""
+    from quad_wrench_env.estimators.ekf_kernel import ekf_transition_jacobian
     from quad_wrench_env.estimators.noise import rotor_spread_body
-    from quad_wrench_env.kernels.ekf import ekf_transition_jacobian
 
     env = gym.make(
         FAN_TRACKING, vehicle=vehicle, estimator="ekf", fan={"enabled": False}, rotor_calibration=None

@@ -11,8 +11,8 @@ import numpy as np
 from quad_wrench_env.config import check_numbers
 from quad_wrench_env.disturbances.base import CompiledForm
 from quad_wrench_env.engine.components import Components
-from quad_wrench_env.engine.config import EnvConfig
-from quad_wrench_env.kernels import njit
+from quad_wrench_env.engine.env_config import EnvConfig
+from quad_wrench_env.numerics import njit
 from quad_wrench_env.registry import register
 from quad_wrench_env.tasks.base import TaskDefaults, TaskStep, ended_early
 

@@ -9,7 +9,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from quad_wrench_env.disturbances.base import CompiledForm
-from quad_wrench_env.kernels import njit
+from quad_wrench_env.numerics import njit
 from quad_wrench_env.registry import register
 
 

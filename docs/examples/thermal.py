@@ -9,7 +9,7 @@ import numpy as np
 
 from quad_wrench_env.config import check_numbers
 from quad_wrench_env.disturbances.base import STILL, CompiledForm, Steady
-from quad_wrench_env.kernels import njit
+from quad_wrench_env.numerics import njit
 from quad_wrench_env.registry import register
 
 

@@ -20,7 +20,7 @@ import numpy as np
 from stable_baselines3.common.vec_env import VecNormalize
 from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvStepReturn
 
-from quad_wrench_env.kernels import njit
+from quad_wrench_env.numerics import njit
 
 
 @njit

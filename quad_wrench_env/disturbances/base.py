@@ -43,7 +43,7 @@ from typing import Any, Protocol, runtime_checkable
 import numpy as np
 
 from quad_wrench_env.config import build_named
-from quad_wrench_env.kernels import njit
+from quad_wrench_env.numerics import njit
 from quad_wrench_env.registry import lookup, registered, resolve
 from quad_wrench_env.rotations import cross
 

@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from quad_wrench_env.disturbances.base import CompiledForm
-from quad_wrench_env.kernels import njit
+from quad_wrench_env.numerics import njit
 
 CAP = 1.4
 """Largest thrust ratio in ground effect (``docs/physics.md``, "Ground effect")."""

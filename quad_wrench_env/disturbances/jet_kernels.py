@@ -10,7 +10,7 @@ import math
 
 import numpy as np
 
-from quad_wrench_env.kernels import njit
+from quad_wrench_env.numerics import njit
 
 _SQRT2 = math.sqrt(2.0)
 _CORE_INTEGRAL = _SQRT2 + math.asinh(1.0)

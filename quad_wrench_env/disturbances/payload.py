@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from quad_wrench_env.disturbances.base import BodyState, CompiledForm
-from quad_wrench_env.kernels import njit
+from quad_wrench_env.numerics import njit
 from quad_wrench_env.vehicle import GRAVITY
 
 

@@ -14,7 +14,7 @@ import math
 import numpy as np
 
 from quad_wrench_env.disturbances.base import BodyState, CompiledForm
-from quad_wrench_env.kernels import njit
+from quad_wrench_env.numerics import njit
 from quad_wrench_env.rotations import cross, rows_times
 
 _COUPLE_ARM = 0.1

@@ -11,7 +11,7 @@ the noise blocks are arrays of their own. The fleet calls :meth:`CompiledStep.re
 and :meth:`CompiledStep.bind_estimator` when its estimator bank is replaced.
 
 Every kernel is called in its compiled form on arguments bound once per episode
-(:func:`~quad_wrench_env.kernels.bind`). A fleet of one vehicle (the single env) meets PyBullet with
+(:func:`~quad_wrench_env.numerics.bind`). A fleet of one vehicle (the single env) meets PyBullet with
 tuples instead of arrays: the before-step kernel returns the loads as ``World.step_one`` takes them and
 the after-step kernel takes ``World.read_first``'s tuples, so Python builds no lists or arrays at the
 boundary (about 0.9 µs less per physics step)."""
@@ -31,7 +31,7 @@ from quad_wrench_env.engine.kernels import (
     record_sensor_readings,
 )
 from quad_wrench_env.estimators.bank import FilterBank
-from quad_wrench_env.kernels import bind, specialised
+from quad_wrench_env.numerics import bind, specialised
 
 if TYPE_CHECKING:
     from quad_wrench_env.engine.fleet import Fleet

@@ -9,7 +9,7 @@ from quad_wrench_env.disturbances.base import PointLoad, RotorModifier, WindFiel
 from quad_wrench_env.disturbances.ground_effect import GroundEffect
 from quad_wrench_env.disturbances.payload import Payload
 from quad_wrench_env.disturbances.wrench_profile import WrenchProfile
-from quad_wrench_env.engine.config import EnvConfig
+from quad_wrench_env.engine.env_config import EnvConfig
 from quad_wrench_env.scene import ScenePart, make_scene_part, surface_tops
 from quad_wrench_env.vehicle import VehicleParams
 

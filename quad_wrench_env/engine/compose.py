@@ -8,10 +8,10 @@ compiles it with numba. Generated source, rather than numba's first-class functi
 ``literal_unroll`` over a tuple of kernels, because only a function in a file is cached on disk by
 numba (a step that takes kernels as arguments is compiled again in every process, about 5 s; measured
 with numba 0.68). The file's name is a hash of its source, of the components' kernel modules and of
-the shared helpers (``quad_wrench_env/kernels/*.py``), so a changed component gives a new step, and
+the shared helpers (``quad_wrench_env/numerics/*.py``), so a changed component gives a new step, and
 the same composition reuses the disk cache in every later process. Like every numba disk cache, a
 function the step calls from another file (the engine's kernels) is cached against its own file
-alone: after editing a kernel that others call or inline (``kernels/quaternions.py``, ``linalg.py``,
+alone: after editing a kernel that others call or inline (``numerics/quaternions.py``, ``linalg.py``,
 ``disturbances/jet_kernels.py``), clear the caches (``make clean-cache``).
 
 One physics step, as written for every composition::
@@ -141,8 +141,8 @@ def source(slots: list[Slot], state_start: int, points: int, noise_width: int) -
         "import numpy as np",
         "from quad_wrench_env.engine import kernels as _engine",
         "from quad_wrench_env.engine.kernels import matrices, point_rows, rows",
-        "from quad_wrench_env.kernels import njit",
-        "from quad_wrench_env.kernels.linalg import rows_view",
+        "from quad_wrench_env.numerics import njit",
+        "from quad_wrench_env.numerics.linalg import rows_view",
         *imports,
         "",
         "_NO_TABLE = np.zeros((1, 0))",
@@ -241,7 +241,7 @@ _LOADED: dict[str, ModuleType] = {}
 
 def _fingerprint(text: str, slots: list[Slot]) -> str:
     """Hash of the step's source, of every module whose kernels it calls and of the shared kernel
-    helpers they inline (``quad_wrench_env/kernels/*.py``): numba's disk cache checks only a function's
+    helpers they inline (``quad_wrench_env/numerics/*.py``): numba's disk cache checks only a function's
     own file, so a change to any of these must give the step a new file."""
     digest = hashlib.sha256(text.encode())
     named = {name.rpartition(":")[0] for slot in slots for _, name in slot.form.kernels} - {""}
@@ -252,7 +252,7 @@ def _fingerprint(text: str, slots: list[Slot]) -> str:
         if spec is None or spec.origin is None:
             raise ValueError(f"compiled form module {name!r} cannot be found")
         files.append(Path(spec.origin))
-    helpers = Path(importlib.util.find_spec("quad_wrench_env.kernels").origin).parent  # type: ignore[union-attr, arg-type]
+    helpers = Path(importlib.util.find_spec("quad_wrench_env.numerics").origin).parent  # type: ignore[union-attr, arg-type]
     for path in [*files, *sorted(helpers.glob("*.py"))]:
         digest.update(path.read_bytes())
     return digest.hexdigest()[:20]

@@ -14,7 +14,7 @@ The fleet knows components only through their seams (:mod:`quad_wrench_env.distu
 kernels (:class:`~quad_wrench_env.engine.compiled.CompiledStep`), the one implementation of the
 physics; a component without a compiled form is refused by name. Under numba's
 ``NUMBA_DISABLE_JIT=1`` the same kernels run as plain Python (the debugging mode,
-:mod:`quad_wrench_env.kernels`).
+:mod:`quad_wrench_env.numerics`).
 """
 
 from __future__ import annotations
@@ -30,7 +30,8 @@ from quad_wrench_env.engine.actions import ActionScaling
 from quad_wrench_env.engine.compiled import CompiledStep
 from quad_wrench_env.engine.components import Components
 from quad_wrench_env.engine.compose import scratch_width
-from quad_wrench_env.engine.config import EnvConfig
+from quad_wrench_env.engine.draws import NoiseBlocks
+from quad_wrench_env.engine.env_config import EnvConfig
 from quad_wrench_env.engine.kernels import (
     STEP_FIELDS,
     STEP_WIDTH,
@@ -39,7 +40,6 @@ from quad_wrench_env.engine.kernels import (
     step_views,
     termination_codes,
 )
-from quad_wrench_env.engine.noise import NoiseBlocks
 from quad_wrench_env.engine.observation import ObservationLayout
 from quad_wrench_env.engine.world import RigidBodyState, Tool, World
 from quad_wrench_env.estimators import KALMAN_FILTERS, OracleBank, estimator_settings, make_estimator_bank

@@ -17,9 +17,9 @@ import math
 import numpy as np
 from numpy.lib.stride_tricks import as_strided
 
-from quad_wrench_env.kernels import njit
-from quad_wrench_env.kernels.linalg import rows_view
-from quad_wrench_env.kernels.quaternions import exp, matrix, qmul
+from quad_wrench_env.numerics import njit
+from quad_wrench_env.numerics.linalg import rows_view
+from quad_wrench_env.numerics.quaternions import exp, matrix, qmul
 from quad_wrench_env.sensors import quantized_speed
 
 VELOCITY, ATTITUDE, WRENCH, MOTORS = 0, 1, 2, 3

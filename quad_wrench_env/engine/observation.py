@@ -16,7 +16,7 @@ from quad_wrench_env.engine.kernels import SENSOR_READING_WIDTH
 from quad_wrench_env.vehicle import GRAVITY, VehicleParams
 
 if TYPE_CHECKING:
-    from quad_wrench_env.engine.config import ArenaConfig
+    from quad_wrench_env.engine.env_config import ArenaConfig
 
 ENGINE_BLOCKS: tuple[tuple[str, int], ...] = (
     ("position", 3),

@@ -1,2 +1,2 @@
 """Gymnasium environments of quad-wrench-env: the single env (:mod:`.base`), the vector env
-(:mod:`.vector`) and the classes generated for every task (:mod:`.registry`)."""
+(:mod:`.vector`) and the classes generated for every task (:mod:`.env_classes`)."""

@@ -122,7 +122,7 @@ def make_estimator(name: str, vehicle: VehicleParams, dt: float, **noise: Any) -
     EKF those of :class:`EKFNoise`, for the observer those of :class:`ObserverGains`; the observer
     and the oracle ignore the measurement-noise keys, which the env always passes. The filters run
     their kernels (compiled, or plain Python under ``NUMBA_DISABLE_JIT=1``, see
-    :mod:`quad_wrench_env.kernels`).
+    :mod:`quad_wrench_env.numerics`).
     """
     entry = _entry(name, dt)
     return entry.single(vehicle, dt, entry.settings(noise))

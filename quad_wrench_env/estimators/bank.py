@@ -4,7 +4,7 @@ An :class:`EstimatorBank` holds one estimator per vehicle and steps them all at 
 computation, arrays with a leading dimension N in and out: ``UnscentedFilterBank``,
 ``ExtendedFilterBank``, ``ObserverBank`` and :class:`OracleBank` (a copy of the truth). Each
 single-vehicle estimator (the :class:`~quad_wrench_env.estimators.base.Estimator` protocol) is a bank
-of one, and each filter bank steps by its kernel (:mod:`quad_wrench_env.kernels`), so there is one
+of one, and each filter bank steps by its kernel (:mod:`quad_wrench_env.numerics`), so there is one
 implementation of each algorithm.
 """
 
@@ -16,7 +16,7 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 
 from quad_wrench_env.estimators.base import StateEstimate, WrenchEstimate
-from quad_wrench_env.kernels import bind
+from quad_wrench_env.numerics import bind
 
 
 @runtime_checkable
@@ -87,7 +87,7 @@ def _kernel_inputs(thrusts, body_torques, positions, quaternions, velocities, bo
 
 class FilterBank:
     """What the UKF, EKF and observer banks share: one ``step`` that runs the bank's kernel (compiled,
-    or plain Python under ``NUMBA_DISABLE_JIT=1``, :mod:`quad_wrench_env.kernels`) and refuses
+    or plain Python under ``NUMBA_DISABLE_JIT=1``, :mod:`quad_wrench_env.numerics`) and refuses
     non-finite inputs by name before anything enters a filter. Subclasses implement ``_kernel`` (the
     step kernel and its arguments; the kernel returns False, changing nothing, on a non-finite input)
     and ``_estimates_kernel``."""
@@ -123,7 +123,7 @@ class FilterBank:
         """:meth:`step` on these input arrays, as a call without arguments that reads them afresh
         each time (the caller refills them in place). The kernel, compiled for these arguments'
         types, and its arguments, the bank's state arrays among them, are bound once
-        (:func:`~quad_wrench_env.kernels.bind`; the kernel updates them in place): about 0.5 µs less
+        (:func:`~quad_wrench_env.numerics.bind`; the kernel updates them in place): about 0.5 µs less
         per step than :meth:`step`."""
         inputs = (thrusts, body_torques, positions, quaternions, velocities, body_rates)
         kernel, arguments = self._kernel(*_kernel_inputs(*inputs))

@@ -13,8 +13,8 @@ Dynamics (Sec. II-A with Euler angles, Sec. III-A-d), discretised with forward E
     ω' = ω + T J⁻¹ (η̂_prop + η_ext - ω × J ω)
     f_ext' = f_ext + v_f,   η_ext' = η_ext + v_η          random walks
 
-with the analytic Jacobian :func:`~quad_wrench_env.kernels.ekf.ekf_transition_jacobian` (the tests
-check it against finite differences of :func:`~quad_wrench_env.kernels.ekf.ekf_transition`) and the
+with the analytic Jacobian :func:`~quad_wrench_env.estimators.ekf_kernel.ekf_transition_jacobian` (the tests
+check it against finite differences of :func:`~quad_wrench_env.estimators.ekf_kernel.ekf_transition`) and the
 standard EKF equations (Sec. III-A-e). Measurements (Sec.
 III-A-c): the motion-capture pose as Euler angles (the same data the UKF gets, for a fair
 comparison), plus velocity and body rates when the env's sensors provide them (a state estimator,
@@ -24,7 +24,7 @@ motor-torque noise enter v and ω through ``T/m`` and ``T/J``. The external torq
 the body frame, as in the paper, and reported in the world frame (``R η_ext``), like every estimator.
 
 :class:`ExtendedFilterBank` runs N such filters as one batched computation (every array carries a
-leading filter axis) by its kernel, :mod:`quad_wrench_env.kernels.ekf`, the one implementation of the
+leading filter axis) by its kernel, :mod:`.ekf_kernel`, the one implementation of the
 algebra; :class:`ExtendedWrenchEstimator`, the single-vehicle estimator, is a bank of one.
 """
 
@@ -33,19 +33,19 @@ from __future__ import annotations
 import numpy as np
 
 from quad_wrench_env.estimators.bank import BankOfOne, FilterBank
-from quad_wrench_env.estimators.noise import (
-    EKFNoise,
-    rotor_spread_body,
-    rotor_spread_covariance,
-    walk_matrices,
-)
-from quad_wrench_env.kernels.ekf import (
+from quad_wrench_env.estimators.ekf_kernel import (
     ekf_bank_step,
     ekf_constants,
     ekf_estimates,
     ekf_states,
     ekf_wrench_covariances,
     ekf_wrenches,
+)
+from quad_wrench_env.estimators.noise import (
+    EKFNoise,
+    rotor_spread_body,
+    rotor_spread_covariance,
+    walk_matrices,
 )
 from quad_wrench_env.rotations import euler_zyx_from_quat, quat_from_euler_zyx
 from quad_wrench_env.vehicle import GRAVITY, VehicleParams
@@ -59,7 +59,7 @@ class ExtendedFilterBank(FilterBank):
     """N Euler-angle EKFs with random-walk external force and torque (Hentzen et al. 2019), stepped together.
 
     State arrays: ``x`` (N, 18), ``P`` (N, 18, 18) and ``walks`` (N, 2, 3, 3), the force's and the body
-    torque's random walks (:mod:`~quad_wrench_env.kernels.walks`).
+    torque's random walks (:mod:`~quad_wrench_env.estimators.walks`).
     """
 
     name = "ekf"
@@ -104,7 +104,7 @@ class ExtendedFilterBank(FilterBank):
             self.P0,
             n.walk_adaptation(),
         )
-        """The step kernel's constants (:func:`~quad_wrench_env.kernels.ekf.ekf_constants`)."""
+        """The step kernel's constants (:func:`~quad_wrench_env.estimators.ekf_kernel.ekf_constants`)."""
         self.x = np.zeros((count, STATE_DIM))
         self.P = np.tile(self.P0, (count, 1, 1))
         self.walk_defaults = walk_matrices(q_diag[12:18])

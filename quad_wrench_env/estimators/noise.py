@@ -9,9 +9,9 @@ from typing import TypeVar
 import numpy as np
 
 from quad_wrench_env.config import check_numbers
-from quad_wrench_env.kernels import njit
-from quad_wrench_env.kernels.quaternions import matrix
-from quad_wrench_env.kernels.walks import start_walks
+from quad_wrench_env.estimators.walks import start_walks
+from quad_wrench_env.numerics import njit
+from quad_wrench_env.numerics.quaternions import matrix
 from quad_wrench_env.vehicle import GRAVITY, PRESETS, Mixer, VehicleParams
 
 NoiseT = TypeVar("NoiseT", bound="FilterNoise")
@@ -56,7 +56,7 @@ class FilterNoise:
     *reported* covariance of the wrench (:func:`rotor_spread_covariance`), never the estimate."""
 
     adaptive_walks: bool = False
-    """True: covariance-matched walks (:mod:`~quad_wrench_env.kernels.walks`): each filter's force and
+    """True: covariance-matched walks (:mod:`~quad_wrench_env.estimators.walks`): each filter's force and
     torque walks (3x3 covariances per step) follow the outer product of the change each step makes to its
     own estimate, with forgetting, so that its reported covariance keeps up with the disturbance it meets
     (still air, a manoeuvre, a turbulent jet). False (the default): the fixed walks ``force_walk`` and
@@ -89,7 +89,7 @@ class FilterNoise:
 
     def walk_adaptation(self) -> tuple[float, float, float, float]:
         """``(on, α, floor², ceiling²)`` as the filters' kernels read them
-        (:mod:`~quad_wrench_env.kernels.walks`)."""
+        (:mod:`~quad_wrench_env.estimators.walks`)."""
         on, floor, ceiling = float(self.adaptive_walks), float(self.walk_floor), float(self.walk_ceiling)
         return on, float(self.walk_forgetting), floor**2, ceiling**2
 
@@ -121,7 +121,7 @@ N·m): the thrust model's error and the external force's random walk and initial
 and 5 % of its weight), the motor-torque model's error and the external torque's walk and initial sd
 (0.56 %, 0.04 % and 3.8 % of weight x arm)."""
 WALK_KEYS = ("adaptive_walks", "walk_forgetting", "walk_floor", "walk_ceiling")
-"""The settings of the covariance-matched walks (:func:`~quad_wrench_env.kernels.walks.match_walks`)."""
+"""The settings of the covariance-matched walks (:func:`~quad_wrench_env.estimators.walks.match_walks`)."""
 FORCE_KEYS = frozenset({"thrust", "force_walk", "initial_force"})
 """The settings that are forces (the rest of :data:`REFERENCE_NOISE` are torques)."""
 

@@ -28,7 +28,7 @@ covariance (Yüksel et al. 2014 give none: its error dynamics ``ė = -L e`` are 
 not an invented one.
 
 :class:`ObserverBank` runs N observers as one batched computation (every array carries a leading
-vehicle axis) by its kernel, :mod:`quad_wrench_env.kernels.observer`, the one implementation of the
+vehicle axis) by its kernel, :mod:`quad_wrench_env.estimators.observer_kernel`, the one implementation of the
 algebra; :class:`NonlinearWrenchObserver`, the single-vehicle estimator, is a bank of one.
 """
 
@@ -41,7 +41,7 @@ import numpy as np
 
 from quad_wrench_env.config import check_numbers
 from quad_wrench_env.estimators.bank import BankOfOne, FilterBank
-from quad_wrench_env.kernels.observer import (
+from quad_wrench_env.estimators.observer_kernel import (
     observer_bank_step,
     observer_constants,
     observer_estimates,
@@ -124,7 +124,7 @@ class ObserverBank(FilterBank):
             GRAVITY,
             (self.c_force, self.c_torque, self._force_decay, self._velocity_alpha, self._rate_alpha),
         )
-        """The step kernel's constants (:func:`~quad_wrench_env.kernels.observer.observer_constants`)."""
+        """The step kernel's constants (:func:`.observer_kernel.observer_constants`)."""
 
     def reset(self, index: int | np.ndarray, position: np.ndarray, quaternion_wxyz: np.ndarray) -> None:
         """Start the observers ``index`` at rest with zero wrench (``ŵ = Ψ + c q̇ = 0``)."""

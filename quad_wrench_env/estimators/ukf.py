@@ -46,9 +46,9 @@ pose at rest. Either way it reports ``status = "reinitialised"`` from then on (t
 
 :class:`UnscentedFilterBank` runs N such filters as one batched computation (every array carries
 a leading filter axis) by its kernel, the one implementation of the algebra: filter by filter
-(:mod:`quad_wrench_env.kernels.ukf`) or, compiled and from
-:data:`~quad_wrench_env.kernels.ukf_lanes.LANES_FROM` filters on, eight filters at a time on SIMD
-lanes (:mod:`quad_wrench_env.kernels.ukf_lanes`, the same bits). :class:`UnscentedWrenchEstimator`,
+(:mod:`quad_wrench_env.estimators.ukf_kernel`) or, compiled and from
+:data:`~quad_wrench_env.estimators.ukf_lanes_kernel.LANES_FROM` filters on, eight filters at a time on SIMD
+lanes (:mod:`quad_wrench_env.estimators.ukf_lanes_kernel`, the same bits). :class:`UnscentedWrenchEstimator`,
 the single-vehicle estimator, is a bank of one.
 """
 
@@ -66,8 +66,8 @@ from quad_wrench_env.estimators.noise import (
     rotor_spread_covariance,
     walk_matrices,
 )
-from quad_wrench_env.kernels import COMPILED
-from quad_wrench_env.kernels.ukf import ukf_bank_step, ukf_constants, ukf_estimates
+from quad_wrench_env.estimators.ukf_kernel import ukf_bank_step, ukf_constants, ukf_estimates
+from quad_wrench_env.numerics import COMPILED
 from quad_wrench_env.vehicle import GRAVITY, VehicleParams
 
 STATE_DIM = 18
@@ -81,7 +81,7 @@ class UnscentedFilterBank(FilterBank):
 
     State arrays: ``quaternions`` (N, 4), ``rests`` (N, 15) = (ω, x, ẋ, τ_e, f_e) at their mean,
     ``covariances`` (N, 18, 18) of the error state and ``walks`` (N, 2, 3, 3), the force's and the
-    torque's random walks (:mod:`~quad_wrench_env.kernels.walks`).
+    torque's random walks (:mod:`~quad_wrench_env.estimators.walks`).
     """
 
     def __init__(self, vehicle: VehicleParams, dt: float, noise: FilterNoise | None, count: int) -> None:
@@ -121,7 +121,7 @@ class UnscentedFilterBank(FilterBank):
             self.P0,
             n.walk_adaptation(),
         )
-        """The step kernel's constants (:func:`~quad_wrench_env.kernels.ukf.ukf_constants`)."""
+        """The step kernel's constants (:func:`~quad_wrench_env.estimators.ukf_kernel.ukf_constants`)."""
         self.quaternions = np.tile((1.0, 0.0, 0.0, 0.0), (count, 1))
         self.rests = np.zeros((count, STATE_DIM - 3))
         self.covariances = np.tile(self.P0, (count, 1, 1))
@@ -134,7 +134,7 @@ class UnscentedFilterBank(FilterBank):
         self._step_kernel = ukf_bank_step
         """The step kernel: filter by filter, or on lanes for a bank large enough (module docstring)."""
         if COMPILED:  # the lanes are SIMD values of compiled code: they have no plain-Python form
-            from quad_wrench_env.kernels.ukf_lanes import LANES_FROM, ukf_lanes_step
+            from quad_wrench_env.estimators.ukf_lanes_kernel import LANES_FROM, ukf_lanes_step
 
             if count >= LANES_FROM:
                 self._step_kernel = ukf_lanes_step

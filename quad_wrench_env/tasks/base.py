@@ -7,7 +7,7 @@ from its config; says where each episode starts; answers each control step with 
 :meth:`Task.step`, returning a :class:`TaskStep` (its reward terms and its own terminations); fills its
 observation blocks and ``info`` from the fleet's state (reads, at a reset as after a step); and scores
 an episode's trace for the evaluation harness. The env
-classes and their registration are generated from the task (:mod:`quad_wrench_env.envs.registry`).
+classes and their registration are generated from the task (:mod:`quad_wrench_env.envs.env_classes`).
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING, Any, ClassVar, Protocol
 import numpy as np
 
 from quad_wrench_env.engine.components import Components
-from quad_wrench_env.engine.config import EnvConfig
+from quad_wrench_env.engine.env_config import EnvConfig
 from quad_wrench_env.vehicle import VehicleParams
 
 if TYPE_CHECKING:

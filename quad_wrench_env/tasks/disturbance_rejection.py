@@ -94,7 +94,7 @@ from quad_wrench_env.disturbances.fan import centreline_speed
 from quad_wrench_env.disturbances.jet import Jet, JetConfig
 from quad_wrench_env.disturbances.one_cosine import OneCosineConfig, OneCosineGust
 from quad_wrench_env.engine.components import Components
-from quad_wrench_env.engine.config import EnvConfig
+from quad_wrench_env.engine.env_config import EnvConfig
 from quad_wrench_env.registry import register
 from quad_wrench_env.rotations import quat_from_axis_angle, rotation_matrix
 from quad_wrench_env.scene import Table

@@ -83,9 +83,9 @@ from quad_wrench_env.disturbances.fan import (
 )
 from quad_wrench_env.disturbances.jet_kernels import jet_speed, motion_y, transit_time
 from quad_wrench_env.engine.components import Components
-from quad_wrench_env.engine.config import EnvConfig
+from quad_wrench_env.engine.env_config import EnvConfig
 from quad_wrench_env.estimators.noise import FilterNoise
-from quad_wrench_env.kernels import njit
+from quad_wrench_env.numerics import njit
 from quad_wrench_env.registry import register
 from quad_wrench_env.tasks.base import TaskDefaults, TaskStep
 from quad_wrench_env.vehicle import VehicleParams, make_vehicle

@@ -56,8 +56,8 @@ import numpy as np
 from quad_wrench_env.config import check_numbers
 from quad_wrench_env.disturbances.base import BodyState, CompiledForm
 from quad_wrench_env.engine.components import Components
-from quad_wrench_env.engine.config import EnvConfig, ToolConfig
-from quad_wrench_env.kernels import njit
+from quad_wrench_env.engine.env_config import EnvConfig, ToolConfig
+from quad_wrench_env.numerics import njit
 from quad_wrench_env.registry import register
 from quad_wrench_env.scene import Ceiling, Wall
 from quad_wrench_env.tasks import terms

@@ -7,7 +7,7 @@ do not overlap; a value that is not in memory needs no such promise.
 
 Arithmetic (``+ - * /``, unary ``-``, with a float on either side), ``abs`` and ``math.copysign``
 work on Lanes lane by lane with IEEE rounding, so a function written for floats,
-such as :func:`~quad_wrench_env.kernels.quaternions.qmul`, compiles for Lanes too and gives each lane
+such as :func:`~quad_wrench_env.numerics.quaternions.qmul`, compiles for Lanes too and gives each lane
 exactly the float result. Branches cannot depend on Lanes: :func:`all_less` and the masks below
 turn comparisons into plain booleans and bits.
 
@@ -27,7 +27,7 @@ from numba import types
 from numba.core import cgutils
 from numba.extending import intrinsic, models, overload, register_model
 
-from quad_wrench_env.kernels import njit
+from quad_wrench_env.numerics import njit
 
 WIDTH = 8
 """Lanes per value: eight filters per SIMD value (one AVX-512 register, two AVX ones)."""

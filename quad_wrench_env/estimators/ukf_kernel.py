@@ -11,8 +11,8 @@ by step, to a plain unscented filter with none of them, ``tests/reference_ukf.py
   0-5 go through the model; a pair adds ``2w`` times the centre to the mean and
   ``2w (c₀ c₀ᵀ + δ δᵀ)`` to the covariance (``c₀`` the centre's deviation from the mean). The
   covariance (eq. 27) is then one weighted Gram matrix of 25 deviation columns (the 13 points' and
-  the 12 pairs' ``δ``) (:func:`~quad_wrench_env.kernels.linalg.weighted_gram`), each sum in the
-  order of the columns, as on the SIMD lanes (:mod:`~quad_wrench_env.kernels.ukf_lanes`): a filter
+  the 12 pairs' ``δ``) (:func:`~quad_wrench_env.numerics.linalg.weighted_gram`), each sum in the
+  order of the columns, as on the SIMD lanes (:mod:`~quad_wrench_env.estimators.ukf_lanes_kernel`): a filter
   gives the same bits in a bank of any size.
 * With ``S = L Lᵀ`` (eq. 31) and ``M = P Hᵀ L⁻ᵀ``, the gain is ``K = M L⁻¹`` (29), the update
   ``K ν = M (L⁻¹ ν)`` and ``P - K S Kᵀ = P - M Mᵀ`` (30, 37), symmetric by construction.
@@ -24,8 +24,9 @@ import math
 
 import numpy as np
 
-from quad_wrench_env.kernels import njit
-from quad_wrench_env.kernels.linalg import (
+from quad_wrench_env.estimators.walks import match_walks, start_walks, walk_noise
+from quad_wrench_env.numerics import njit
+from quad_wrench_env.numerics.linalg import (
     all_finite,
     cholesky,
     forward_solve_rows,
@@ -33,8 +34,7 @@ from quad_wrench_env.kernels.linalg import (
     rows_view,
     weighted_gram,
 )
-from quad_wrench_env.kernels.quaternions import exp, from_mrp, matrix, qmul, to_mrp
-from quad_wrench_env.kernels.walks import match_walks, start_walks, walk_noise
+from quad_wrench_env.numerics.quaternions import exp, from_mrp, matrix, qmul, to_mrp
 
 _MEASURED = np.array((6, 7, 8, 0, 1, 2))
 """Error-state indices of the measurement ``(x, δρ)``."""
@@ -50,7 +50,7 @@ def ukf_constants(
     points' included) and every other point's, the diagonals of ``Q`` (12) and ``G`` (6), ``P₀`` (18, 18),
     the walks' variances a filter starts from (force, torque: ``Q``'s entries 9-11 and 3-5) and the
     walks' ``adaptation`` ``(on, α, floor², ceiling²)``
-    (:func:`~quad_wrench_env.kernels.walks.match_walks`)."""
+    (:func:`~quad_wrench_env.estimators.walks.match_walks`)."""
     head = (dt, mass, *inertia, gravity, spread, weight_centre, weight_other)
     walks = np.concatenate((q_diagonal[9:12], q_diagonal[3:6]))  # force, torque
     return np.concatenate((head, q_diagonal, g_diagonal, np.ravel(p0), walks, adaptation)).astype(float)
@@ -97,7 +97,7 @@ def ukf_bank_step(
 ):
     """One predict-correct step of every filter, in place (see the module docstring), with the
     constants of :func:`ukf_constants` and each filter's walks ``walks`` (N, 2, 3, 3) (force, torque
-    covariances per step, :mod:`~quad_wrench_env.kernels.walks`), matched to its step afterwards;
+    covariances per step, :mod:`~quad_wrench_env.estimators.walks`), matched to its step afterwards;
     returns False, touching nothing, when an input is not finite."""
     count = quaternions.shape[0]
     unmeasured = positions[:0]
@@ -220,7 +220,7 @@ def ukf_bank_step(
         for i in range(3):
             rate_gain = dt / inertia[i]
             p[3 + i, 3 + i] += rate_gain * q_diagonal[i] * rate_gain
-            if matched:  # each filter's walks (:mod:`~quad_wrench_env.kernels.walks`): torque, force
+            if matched:  # each filter's walks (:mod:`~quad_wrench_env.estimators.walks`): torque, force
                 for j in range(3):
                     p[12 + i, 12 + j] += walk_noise(walks[n], 1, i, j, walks0, adaptation)
                     p[15 + i, 15 + j] += walk_noise(walks[n], 0, i, j, walks0, adaptation)

@@ -6,7 +6,7 @@ import math
 
 from numpy.lib.stride_tricks import as_strided
 
-from quad_wrench_env.kernels import njit
+from quad_wrench_env.numerics import njit
 
 
 @njit(inline=True)
@@ -43,7 +43,7 @@ def weighted_gram(weighted, columns, out):
     """``out = weighted columnsᵀ`` for (k, m) ``weighted`` and ``columns`` whose product is symmetric
     (``weighted`` is ``columns`` with each column scaled): the lower triangle as dot products along the
     contiguous rows, mirrored, each summed over the columns in order, as the UKF's SIMD lanes sum
-    (:mod:`~quad_wrench_env.kernels.ukf_lanes`): a filter gives the same bits in a bank of any size.
+    (:mod:`~quad_wrench_env.estimators.ukf_lanes_kernel`): a filter gives the same bits in a bank of any size.
     (Sums regrouped onto SIMD lanes were 0.4 µs faster per UKF step, but their bits depended on the
     CPU's vector width and differed from the lanes'.)"""
     m = columns.shape[1]

@@ -8,7 +8,7 @@ with the world: a yawed flight gives the yawed estimate.
 
 from __future__ import annotations
 
-from quad_wrench_env.kernels import njit
+from quad_wrench_env.numerics import njit
 
 
 @njit(inline=True)

@@ -8,9 +8,14 @@ import math
 
 import numpy as np
 
-from quad_wrench_env.kernels import njit
-from quad_wrench_env.kernels.ekf import euler_from_quaternion, euler_matrix, quaternion_from_euler, wrap
-from quad_wrench_env.kernels.linalg import inputs_finite
+from quad_wrench_env.estimators.ekf_kernel import (
+    euler_from_quaternion,
+    euler_matrix,
+    quaternion_from_euler,
+    wrap,
+)
+from quad_wrench_env.numerics import njit
+from quad_wrench_env.numerics.linalg import inputs_finite
 
 
 @njit

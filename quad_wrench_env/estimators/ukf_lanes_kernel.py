@@ -1,7 +1,7 @@
 """The step of a bank of unscented wrench filters, eight filters at a time on SIMD lanes (numba).
 
-The same filter as :func:`~quad_wrench_env.kernels.ukf.ukf_bank_step`, with the same shortcuts
-(see that module's docstring), written on :mod:`~quad_wrench_env.kernels.lanes`: every number of
+The same filter as :func:`~quad_wrench_env.estimators.ukf_kernel.ukf_bank_step`, with the same shortcuts
+(see that module's docstring), written on :mod:`~quad_wrench_env.numerics.lanes`: every number of
 the step is a value of eight lanes, one lane per filter, so each arithmetic step runs on eight
 filters at once. About 3x fewer µs per filter than the filter-by-filter kernel in a bank of 64
 (``python scripts/bench_estimators.py``), but a block costs as much as eight filters, so
@@ -20,8 +20,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from quad_wrench_env.kernels import njit
-from quad_wrench_env.kernels.lanes import (
+from quad_wrench_env.estimators.ukf_kernel import _MEASURED, _NONLINEAR, unpack_ukf_constants, wrench_of_rest
+from quad_wrench_env.estimators.walks import match_walks, start_walks, walk_noise
+from quad_wrench_env.numerics import njit
+from quad_wrench_env.numerics.lanes import (
     WIDTH,
     all_less,
     empty,
@@ -34,8 +36,8 @@ from quad_wrench_env.kernels.lanes import (
     store,
     with_lane,
 )
-from quad_wrench_env.kernels.linalg import inputs_finite
-from quad_wrench_env.kernels.quaternions import (
+from quad_wrench_env.numerics.linalg import inputs_finite
+from quad_wrench_env.numerics.quaternions import (
     exp,
     exp_small,
     from_mrp,
@@ -44,8 +46,6 @@ from quad_wrench_env.kernels.quaternions import (
     rotation_entries,
     to_mrp,
 )
-from quad_wrench_env.kernels.ukf import _MEASURED, _NONLINEAR, unpack_ukf_constants, wrench_of_rest
-from quad_wrench_env.kernels.walks import match_walks, start_walks, walk_noise
 
 LANES_FROM = 3
 """Smallest bank that runs on lanes: a block of eight costs about 7 µs; filter by filter
@@ -74,7 +74,7 @@ def _four(array, entry):
 @njit(inline=True)
 def _cholesky(a, out, n):
     """Lower Cholesky factor of each lane's (n, n) matrix ``a`` into ``out`` (lane layout), with
-    :func:`~quad_wrench_env.kernels.linalg.cholesky`'s operations; bit ``l`` of the result is set
+    :func:`~quad_wrench_env.numerics.linalg.cholesky`'s operations; bit ``l`` of the result is set
     where lane ``l`` is positive definite (the others hold NaNs)."""
     positive = _ALL
     zero = splat(0.0)
@@ -98,7 +98,7 @@ def _cholesky(a, out, n):
 
 @njit(inline=True)
 def _exp(v0, v1, v2):
-    """:func:`~quad_wrench_env.kernels.quaternions.exp` lane by lane: its Taylor series on the lanes
+    """:func:`~quad_wrench_env.numerics.quaternions.exp` lane by lane: its Taylor series on the lanes
     when every lane's half angle is small, its scalar form lane by lane otherwise."""
     h2 = half_angle_squared(v0, v1, v2)
     if all_less(h2, 1e-4):
@@ -124,7 +124,7 @@ def ukf_lanes_step(
     constants,
 ):
     """One predict-correct step of every filter, in place, with the arguments of
-    :func:`~quad_wrench_env.kernels.ukf.ukf_bank_step`; returns False, touching nothing, when an
+    :func:`~quad_wrench_env.estimators.ukf_kernel.ukf_bank_step`; returns False, touching nothing, when an
     input is not finite."""
     count = quaternions.shape[0]
     unmeasured = positions[:0]

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import math
 
-from quad_wrench_env.kernels import njit
+from quad_wrench_env.numerics import njit
 
 
 @njit
@@ -45,7 +45,7 @@ def exp_small(h2, v0, v1, v2):
     """:func:`exp` for a half angle below 0.01 rad (``h2``: its square): cos and sin/x from their
     Taylor series, whose first omitted terms (x⁸/8!, x⁸/9!) are below 1e-20, so the same numbers to
     rounding without the transcendental calls (one filter step takes 37 of these). Plain arithmetic:
-    it runs on SIMD lanes too (:mod:`~quad_wrench_env.kernels.ukf_lanes`)."""
+    it runs on SIMD lanes too (:mod:`~quad_wrench_env.estimators.ukf_lanes_kernel`)."""
     cosine = 1.0 - h2 / 2.0 * (1.0 - h2 / 12.0 * (1.0 - h2 / 30.0))
     scale = 0.5 * (1.0 - h2 / 6.0 * (1.0 - h2 / 20.0 * (1.0 - h2 / 42.0)))
     return cosine, v0 * scale, v1 * scale, v2 * scale
@@ -69,7 +69,7 @@ def exp(v0, v1, v2):
 @njit(inline=True)
 def rotation_entries(w, x, y, z):
     """The nine entries of the body -> world rotation matrix, row by row (``rotations.rotation_matrix``).
-    Plain arithmetic: it runs on SIMD lanes too (:mod:`~quad_wrench_env.kernels.ukf_lanes`)."""
+    Plain arithmetic: it runs on SIMD lanes too (:mod:`~quad_wrench_env.estimators.ukf_lanes_kernel`)."""
     xx, yy, zz = x * x, y * y, z * z
     xy, xz, yz = x * y, x * z, y * z
     wx, wy, wz = w * x, w * y, w * z

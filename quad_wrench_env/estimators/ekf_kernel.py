@@ -8,10 +8,10 @@ import math
 
 import numpy as np
 
-from quad_wrench_env.kernels import njit
-from quad_wrench_env.kernels.linalg import cholesky, cholesky_solve_rows, inputs_finite, rows_view
-from quad_wrench_env.kernels.quaternions import matrix
-from quad_wrench_env.kernels.walks import match_walks, start_walks, walk_noise
+from quad_wrench_env.estimators.walks import match_walks, start_walks, walk_noise
+from quad_wrench_env.numerics import njit
+from quad_wrench_env.numerics.linalg import cholesky, cholesky_solve_rows, inputs_finite, rows_view
+from quad_wrench_env.numerics.quaternions import matrix
 
 
 @njit
@@ -129,7 +129,7 @@ def ekf_constants(
     """:func:`ekf_bank_step`'s constants in one array, in the order it reads them: ``dt``, ``mass``,
     ``inertia`` (3), ``gravity``, the diagonal of ``Q`` (18), the pose measurement variances (6), the
     velocity and body-rate measurement variances (6), ``P₀`` (18, 18), and the walks' ``adaptation``
-    ``(on, α, floor², ceiling²)`` (:func:`~quad_wrench_env.kernels.walks.match_walks`; the walks a
+    ``(on, α, floor², ceiling²)`` (:func:`~quad_wrench_env.estimators.walks.match_walks`; the walks a
     filter starts from are ``Q``'s last six entries)."""
     head = (dt, mass, *inertia, gravity)
     return np.concatenate((head, q_diagonal, noise_pose, noise_motion, np.ravel(p0), adaptation)).astype(
@@ -153,7 +153,7 @@ def ekf_bank_step(
 ):
     """One predict-correct step of every filter, in place, with the constants of
     :func:`ekf_constants` and each filter's walks ``walks`` (N, 2, 3, 3) (force, body torque covariances
-    per step: ``Q``'s entries 12-17, :mod:`~quad_wrench_env.kernels.walks`), matched to its step afterwards;
+    per step: ``Q``'s entries 12-17, :mod:`.walks`), matched to its step afterwards;
     ``velocities`` and ``body_rates`` are (N, 3) where measured, else (0, 3). Returns False, touching
     nothing, when an input is not finite."""
     dt, mass, inertia, gravity = constants[0], constants[1], constants[2:5], constants[5]
@@ -206,9 +206,7 @@ def ekf_bank_step(
                 for m in range(18):
                     t += fp[i, m] * a[j, m]
                 pn[i, j] = t + (q_diagonal[i] if i == j and (i < 12 or not matched) else 0.0)
-        for block in range(
-            2 if matched else 0
-        ):  # each filter's walks (:mod:`~quad_wrench_env.kernels.walks`)
+        for block in range(2 if matched else 0):  # each filter's walks (:mod:`.walks`)
             first = 12 + 3 * block
             for i in range(3):
                 for j in range(3):
