@@ -90,6 +90,12 @@ def quat_from_axis_angle(axis: np.ndarray, angle: float) -> np.ndarray:
     return np.array((math.cos(half), axis[0] * s, axis[1] * s, axis[2] * s))
 
 
+def euler_cos_sin(roll: float, pitch: float, yaw: float) -> tuple[float, float, float, float, float, float]:
+    """``(cos φ, sin φ, cos θ, sin θ, cos ψ, sin ψ)`` of ZYX Euler angles (rad), the factors of
+    ``R = Rz(ψ)·Ry(θ)·Rx(φ)``."""
+    return math.cos(roll), math.sin(roll), math.cos(pitch), math.sin(pitch), math.cos(yaw), math.sin(yaw)
+
+
 def quat_from_euler_zyx(roll, pitch, yaw) -> np.ndarray:
     """Quaternion(s) of ``R = Rz(yaw) Ry(pitch) Rx(roll)`` (intrinsic z-y'-x'', aerospace order);
     scalar angles give (4,), arrays of angles (..., 4)."""

@@ -130,7 +130,7 @@ import numpy as np
 from quad_wrench_env.config import build, check_numbers, config_path, load_yaml
 from quad_wrench_env.engine.actions import ActionScaling
 from quad_wrench_env.registry import register
-from quad_wrench_env.rotations import wrap_angle
+from quad_wrench_env.rotations import euler_cos_sin, wrap_angle
 from quad_wrench_env.vehicle import GRAVITY
 
 MODES = ("auto", "position", "force", "balance")
@@ -273,14 +273,7 @@ def euler_zyx(rotation: np.ndarray) -> np.ndarray:
 
 def rotation_zyx(roll: float, pitch: float, yaw: float) -> np.ndarray:
     """``R_z(ψ) R_y(θ) R_x(φ)``."""
-    cr, sr, cp, sp, cy, sy = (
-        math.cos(roll),
-        math.sin(roll),
-        math.cos(pitch),
-        math.sin(pitch),
-        math.cos(yaw),
-        math.sin(yaw),
-    )
+    cr, sr, cp, sp, cy, sy = euler_cos_sin(roll, pitch, yaw)
     return np.array(
         (
             (cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr),

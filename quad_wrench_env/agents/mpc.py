@@ -55,7 +55,7 @@ from quad_wrench_env.autopilot import AutopilotGains
 from quad_wrench_env.config import build
 from quad_wrench_env.engine.actions import ActionScaling
 from quad_wrench_env.registry import register
-from quad_wrench_env.rotations import wrap_angle
+from quad_wrench_env.rotations import euler_cos_sin, wrap_angle
 from quad_wrench_env.vehicle import GRAVITY, VehicleParams
 
 NX = 8
@@ -167,14 +167,7 @@ class MPCGains:
 
 def thrust_direction(roll: float, pitch: float, yaw: float) -> np.ndarray:
     """``R(φ, θ, ψ)·e_z``, the body z axis in the world frame, for ``R = Rz(ψ)·Ry(θ)·Rx(φ)``."""
-    cr, sr, cp, sp, cy, sy = (
-        math.cos(roll),
-        math.sin(roll),
-        math.cos(pitch),
-        math.sin(pitch),
-        math.cos(yaw),
-        math.sin(yaw),
-    )
+    cr, sr, cp, sp, cy, sy = euler_cos_sin(roll, pitch, yaw)
     return np.array((cy * sp * cr + sy * sr, sy * sp * cr - cy * sr, cp * cr))
 
 
@@ -195,14 +188,7 @@ def linearize(
     attitude of ``state`` and ``thrust`` (N), discretised exactly over ``step`` (s) with the input held
     (the matrix exponential of the augmented system)."""
     roll, pitch = float(state[6]), float(state[7])
-    cr, sr, cp, sp, cy, sy = (
-        math.cos(roll),
-        math.sin(roll),
-        math.cos(pitch),
-        math.sin(pitch),
-        math.cos(yaw),
-        math.sin(yaw),
-    )
+    cr, sr, cp, sp, cy, sy = euler_cos_sin(roll, pitch, yaw)
     d_roll = np.array((-cy * sp * sr + sy * cr, -sy * sp * sr - cy * cr, -cp * sr))
     d_pitch = np.array((cy * cp * cr, sy * cp * cr, -sp * cr))
     a = np.zeros((NX, NX))
