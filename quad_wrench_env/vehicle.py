@@ -243,7 +243,3 @@ class Mixer:
     def wrench(self, rotor_speeds: np.ndarray) -> np.ndarray:
         """``[c_t, tau_x, tau_y, tau_z]`` (N, N·m, body frame) from rotor speeds (rad/s)."""
         return self.allocation @ (rotor_speeds * rotor_speeds)
-
-    def squared_speeds(self, thrust_and_torque: np.ndarray) -> np.ndarray:
-        """Unsaturated ``Omega²`` that produce ``[c_t, tau_x, tau_y, tau_z]``."""
-        return self.inverse @ thrust_and_torque

@@ -21,7 +21,6 @@ from quad_wrench_env.agents.ida_pbc import (
     euler_zyx,
     force_equilibrium,
     load_param_set,
-    rotation_zyx,
     steady_yaw,
 )
 from quad_wrench_env.engine.actions import ActionLimits, ActionScaling
@@ -31,6 +30,16 @@ from tests.conftest import controls_on_a_copy
 E_Z = np.array((0.0, 0.0, 1.0))
 P = np.diag((1.0, -1.0, -1.0))
 """The paper's NED/FRD frames to the project's z-up/FLU ones (π about x), module docstring."""
+
+
+def rotation_zyx(roll: float, pitch: float, yaw: float) -> np.ndarray:
+    """``R_z(ψ) R_y(θ) R_x(φ)`` as the product of the three elementary rotations (the reference the
+    policy's thrust direction is held to)."""
+    c, s = np.cos, np.sin
+    rz = np.array(((c(yaw), -s(yaw), 0.0), (s(yaw), c(yaw), 0.0), (0.0, 0.0, 1.0)))
+    ry = np.array(((c(pitch), 0.0, s(pitch)), (0.0, 1.0, 0.0), (-s(pitch), 0.0, c(pitch))))
+    rx = np.array(((1.0, 0.0, 0.0), (0.0, c(roll), -s(roll)), (0.0, s(roll), c(roll))))
+    return rz @ ry @ rx
 
 
 def _env_kwargs(**overrides):

@@ -41,7 +41,7 @@ def test_mixer_inverse_round_trip_with_per_rotor_coefficients():
     v = make_vehicle("hummingbird")
     mixer = Mixer(v, v.kf * np.array((1.01, 0.98, 1.02, 0.99)))
     speeds = np.array((400.0, 420.0, 380.0, 410.0))
-    np.testing.assert_allclose(np.sqrt(mixer.squared_speeds(mixer.wrench(speeds))), speeds)
+    np.testing.assert_allclose(np.sqrt(mixer.inverse @ mixer.wrench(speeds)), speeds)
 
 
 def test_bad_vehicle_input_names_the_value():

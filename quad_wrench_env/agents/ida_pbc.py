@@ -130,7 +130,7 @@ import numpy as np
 from quad_wrench_env.config import build, check_numbers, config_path, load_yaml
 from quad_wrench_env.engine.actions import ActionScaling
 from quad_wrench_env.registry import register
-from quad_wrench_env.rotations import euler_cos_sin, wrap_angle
+from quad_wrench_env.rotations import wrap_angle
 from quad_wrench_env.vehicle import GRAVITY
 
 MODES = ("auto", "position", "force", "balance")
@@ -267,18 +267,6 @@ def euler_zyx(rotation: np.ndarray) -> np.ndarray:
             math.atan2(rotation[2, 1], rotation[2, 2]),
             -math.asin(max(-1.0, min(1.0, rotation[2, 0]))),
             math.atan2(rotation[1, 0], rotation[0, 0]),
-        )
-    )
-
-
-def rotation_zyx(roll: float, pitch: float, yaw: float) -> np.ndarray:
-    """``R_z(ψ) R_y(θ) R_x(φ)``."""
-    cr, sr, cp, sp, cy, sy = euler_cos_sin(roll, pitch, yaw)
-    return np.array(
-        (
-            (cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr),
-            (sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr),
-            (-sp, cp * sr, cp * cr),
         )
     )
 
