@@ -5,8 +5,9 @@
 Each estimator is fed a hovering vehicle's noisy motion-capture pose (0.5 mm, 2 mrad) and the hover
 thrust; the best of ``--repeats`` timings is reported (the machine's noise only ever adds time).
 Each single estimator is timed on its kernel (the estimators' one implementation, compiled); the
-last rows step banks of 1, 8 and 64 UKFs as one batched computation (what the envs run): banks of 8
-and 64 run on SIMD lanes, and again filter by filter, the lanes' baseline in the same run.
+rows step banks of 1, 8 and 64 UKFs as one batched computation (what the envs run): banks of 8
+and 64 run on SIMD lanes, and again filter by filter, the lanes' baseline in the same run. The last two
+rows step banks of 32 UKFs and 32 learned estimators, side by side (a 32-vehicle vector env's bank).
 """
 
 from __future__ import annotations
@@ -43,3 +44,11 @@ def report(steps: int, repeats: int) -> None:
             )
             label = f"UKF bank of {count}{kind}, per filter"
             print(f"{label:52s} {bank / count * 1e6:9.1f} {bank / count / bare:21.1f}")
+    count = 32
+    for name in ("ukf", "learned"):
+        filter_bank_step_seconds(count, 2, name=name)
+        bank = min(
+            filter_bank_step_seconds(count, max(steps // count, 20), name=name) for _ in range(repeats)
+        )
+        label = f"{name} bank of {count}, per vehicle"
+        print(f"{label:52s} {bank / count * 1e6:9.1f} {bank / count / bare:21.1f}")

@@ -71,7 +71,8 @@ def agents(name: str, params: Mapping[str, Any], env: Any) -> Policy:
     return act
 
 
-def _policy(name: str, flight: Mapping[str, Any], env: Any, seeds: list[int]) -> Policy:
+def flight_policy(name: str, flight: Mapping[str, Any], env: Any, seeds: list[int]) -> Policy:
+    """What flies flight ``name`` on the vector ``env``: its agent per vehicle, or its weave."""
     if ("agent" in flight) == ("weave" in flight):
         raise ValueError(f"flights.{name}: give either 'agent' or 'weave', got keys {sorted(flight)}")
     if "agent" in flight:
@@ -119,7 +120,7 @@ def flown(
     try:
         base = env.unwrapped
         observations, _ = env.reset(seed=seeds, options=flight.get("options"))
-        act = _policy(name, flight, base, seeds)
+        act = flight_policy(name, flight, base, seeds)
         settled = round(settle * base.cfg.policy_hz)
         ended = np.zeros(len(seeds), dtype=bool)
         times, truth, estimate, covariance = [], [], [], []

@@ -23,6 +23,7 @@ from quad_wrench_cli import (
     demo,
     estimate,
     evaluate,
+    fit_estimator,
     listing,
     reproduce_hentzen,
     reproduce_mckinnon,
@@ -42,6 +43,7 @@ COMMANDS: dict[str, ModuleType | Group] = {
     "train": train,
     "evaluate": evaluate,
     "estimate": estimate,
+    "fit-estimator": fit_estimator,
     "compare": (
         "Compare agents, or the wrench estimators, on the same seeds",
         {"agents": compare_agents, "estimators": compare_estimators},

@@ -10,8 +10,7 @@ import numpy as np
 import pybullet as p
 
 import quad_wrench_env  # noqa: F401  (registers the env ids)
-from quad_wrench_env.estimators import TruthFed, make_estimator
-from quad_wrench_env.estimators.ukf import UnscentedFilterBank
+from quad_wrench_env.estimators import TruthFed, make_estimator, make_estimator_bank
 from quad_wrench_env.estimators.ukf_kernel import ukf_bank_step
 from quad_wrench_env.rotations import quat_exp, quat_multiply
 from quad_wrench_env.vehicle import GRAVITY, make_vehicle
@@ -224,12 +223,13 @@ def filter_bank_step_seconds(
     seed: int = 0,
     dt: float = 0.005,
     filter_by_filter: bool = False,
+    name: str = "ukf",
 ) -> float:
-    """Seconds per step of a bank of ``count`` UKFs (all of them) fed hovering vehicles' noisy poses;
-    ``filter_by_filter`` runs the bank on the filter-by-filter kernel even where it would run on SIMD
-    lanes (the baseline of the lanes)."""
+    """Seconds per step of a bank of ``count`` estimators ``name`` (all of them; UKFs by default) fed
+    hovering vehicles' noisy poses; ``filter_by_filter`` runs a UKF bank on the filter-by-filter kernel
+    even where it would run on SIMD lanes (the baseline of the lanes)."""
     vehicle = make_vehicle("ardrone2")
-    bank = UnscentedFilterBank(vehicle, dt, None, count)
+    bank = make_estimator_bank(name, vehicle, dt, count)
     if filter_by_filter:
         bank._step_kernel = ukf_bank_step
     rng = np.random.default_rng(seed)

@@ -48,6 +48,10 @@ ENV_CASES = {  # (env id, env settings)
     "fan tracking, calibrated crazyflie2": (FAN_TRACKING, {"vehicle": "crazyflie2"}),
     "fan tracking, every disturbance": (FAN_TRACKING, EVERYTHING),
     "disturbance rejection": (REJECTION, {"action_type": "attitude"}),
+    "disturbance rejection, learned estimator": (
+        REJECTION,
+        {"action_type": "attitude", "estimator": "learned"},
+    ),
     "force exertion, pressing": (EXERTION, {"action_type": "wrench", "start_gap": 0.0}),
 }
 AGENT_CASES = {  # (agent, its parameters, env id, env settings)
@@ -86,6 +90,7 @@ STATEFUL = {  # every stateful class: the case that flies it
     "estimators.bank.BankOfOne": "single estimators: test_a_single_estimator_restarts_as_new",
     "estimators.base.Estimator": "protocol: test_a_single_estimator_restarts_as_new",
     "estimators.ekf.ExtendedFilterBank": "env: fan tracking, ekf, onboard state estimator",
+    "estimators.learned.LearnedBank": "env: disturbance rejection, learned estimator (its memory and frame)",
     "estimators.observer.ObserverBank": "env: fan tracking, observer, latency",
     "estimators.oracle.OracleEstimator": "single estimators: test_a_single_estimator_restarts_as_new",
     "estimators.ukf.UnscentedFilterBank": "env: fan tracking, ukf (and its matched walks)",
@@ -247,7 +252,7 @@ def test_a_vector_env_after_episodes_and_a_reset_is_a_fresh_one(env_id):
     second.close()
 
 
-@pytest.mark.parametrize("name", ["ukf", "ekf", "observer", "oracle"])
+@pytest.mark.parametrize("name", ["ukf", "ekf", "observer", "oracle", "learned"])
 def test_a_single_estimator_restarts_as_new(name):
     """A single-vehicle estimator fed one flight, reset, and fed another gives a fresh one's estimates."""
     from quad_wrench_env.estimators import make_estimator

@@ -11,6 +11,12 @@ from quad_wrench_env.config import build
 from quad_wrench_env.estimators.bank import EstimatorBank, OracleBank
 from quad_wrench_env.estimators.base import Estimator, StateEstimate, TruthFed, WrenchEstimate
 from quad_wrench_env.estimators.ekf import ExtendedFilterBank, ExtendedWrenchEstimator
+from quad_wrench_env.estimators.learned import (
+    LearnedBank,
+    LearnedModel,
+    LearnedSettings,
+    LearnedWrenchEstimator,
+)
 from quad_wrench_env.estimators.noise import EKFNoise, FilterNoise
 from quad_wrench_env.estimators.observer import NonlinearWrenchObserver, ObserverBank, ObserverGains
 from quad_wrench_env.estimators.oracle import OracleEstimator
@@ -54,6 +60,11 @@ def _observer_gains(settings: dict[str, Any]) -> ObserverGains:
     return build(ObserverGains, gains, prefix="estimator_params.")
 
 
+def _learned_settings(settings: dict[str, Any]) -> LearnedSettings:
+    given = {k: v for k, v in settings.items() if k not in MEASUREMENT_NOISE_KEYS}
+    return build(LearnedSettings, given, prefix="estimator_params.")
+
+
 def _oracle_settings(noise: dict[str, Any]) -> None:
     unknown = sorted(set(noise) - set(MEASUREMENT_NOISE_KEYS))
     if unknown:
@@ -63,6 +74,7 @@ def _oracle_settings(noise: dict[str, Any]) -> None:
 register("estimator", "ukf", EstimatorEntry(_ukf_noise, UnscentedWrenchEstimator, UnscentedFilterBank))
 register("estimator", "ekf", EstimatorEntry(_ekf_noise, ExtendedWrenchEstimator, ExtendedFilterBank))
 register("estimator", "observer", EstimatorEntry(_observer_gains, NonlinearWrenchObserver, ObserverBank))
+register("estimator", "learned", EstimatorEntry(_learned_settings, LearnedWrenchEstimator, LearnedBank))
 register(
     "estimator",
     "oracle",
@@ -152,6 +164,10 @@ __all__ = [
     "ExtendedFilterBank",
     "ExtendedWrenchEstimator",
     "FilterNoise",
+    "LearnedBank",
+    "LearnedModel",
+    "LearnedSettings",
+    "LearnedWrenchEstimator",
     "NonlinearWrenchObserver",
     "ObserverBank",
     "ObserverGains",

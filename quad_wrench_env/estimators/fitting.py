@@ -1,0 +1,241 @@
+"""Fitting the learned wrench estimator (:mod:`quad_wrench_env.estimators.learned`) to recorded flights.
+
+The network is PyTorch's ``GRU`` and a linear head, the kernel's network
+(:mod:`quad_wrench_env.estimators.learned_kernel`); its loss per step (:func:`loss`) is the squared
+error of the six wrench components' means and of the velocity and body rates, plus the Gaussian
+negative log-likelihood of the wrench under the head's log-variances (a heteroscedastic Gaussian, Nix
+& Weigend 1994), all in standardised units. It trains on windows of the fitting flights (half of them from the
+episode's start, where the memory is empty, as after a reset), evaluates every epoch on the held-out
+flights flown whole, and keeps the weights with the lowest held-out loss. The variances are then scaled
+per block (force, torque) so that no held-out flight's mean NEES exceeds its dimension (3): the
+network's variances are calibrated on flights it did not fit.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+import torch
+
+from quad_wrench_env.config import check_numbers
+from quad_wrench_env.estimators.learned_kernel import OUTPUTS
+
+TARGETS = 12
+"""Force (world), external torque (body), velocity (world), body rates: the targets per step."""
+
+
+@dataclass
+class Flights:
+    """Recorded flights, one entry per run: (T, W) frames of features, (T, 12) targets, the flight's
+    name (T frames, :func:`~quad_wrench_env.estimators.learned_kernel.stream_frames`)."""
+
+    features: list[np.ndarray] = field(default_factory=list)
+    targets: list[np.ndarray] = field(default_factory=list)
+    names: list[str] = field(default_factory=list)
+
+    def add(self, features: np.ndarray, targets: np.ndarray, name: str) -> None:
+        self.features.append(features)
+        self.targets.append(targets)
+        self.names.append(name)
+
+    @property
+    def steps(self) -> int:
+        return sum(len(f) for f in self.features)
+
+
+@dataclass
+class TrainingSettings:
+    """How the network is fitted (``training`` in a ``fit-estimator`` config)."""
+
+    hidden: int = 64
+    """Units of the recurrent layer."""
+    epochs: int = 30
+    window_seconds: float = 3.0
+    """Length of the training windows."""
+    batch: int = 32
+    """Windows per gradient step."""
+    learning_rate: float = 3e-3
+    """Adam's, falling by cosine to a tenth over the epochs."""
+    settle_seconds: float = 1.0
+    """Left out of the held-out NEES that scales the variances (the memory fills after a reset)."""
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        check_numbers("training", self, ("window_seconds", "learning_rate"))
+        check_numbers("training", self, ("settle_seconds",), positive=False)
+        for name in ("hidden", "epochs", "batch"):
+            if getattr(self, name) < 1:
+                raise ValueError(f"training.{name}={getattr(self, name)!r} must be an integer >= 1")
+
+
+class Network(torch.nn.Module):
+    """The GRU and its head (:mod:`quad_wrench_env.estimators.learned_kernel`)."""
+
+    def __init__(self, features: int, hidden: int) -> None:
+        super().__init__()
+        self.gru = torch.nn.GRU(features, hidden, batch_first=True)
+        self.head = torch.nn.Linear(hidden, OUTPUTS)
+
+    def forward(self, features: torch.Tensor) -> torch.Tensor:
+        return self.head(self.gru(features)[0])
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        """The weights as the kernel takes them (transposed, float64)."""
+
+        def plain(tensor: torch.Tensor) -> np.ndarray:
+            return tensor.detach().double().numpy().copy()
+
+        return {
+            "weights_in": plain(self.gru.weight_ih_l0).T.copy(),
+            "weights_hidden": plain(self.gru.weight_hh_l0).T.copy(),
+            "bias_in": plain(self.gru.bias_ih_l0),
+            "bias_hidden": plain(self.gru.bias_hh_l0),
+            "head": plain(self.head.weight).T.copy(),
+            "head_bias": plain(self.head.bias),
+        }
+
+
+def loss(outputs: torch.Tensor, targets: torch.Tensor) -> torch.Tensor:
+    """Mean over steps, standardised (module docstring): the squared error of the wrench's and the
+    state's means, and the Gaussian NLL (without its constant) of the variances given the means held
+    fixed, so that the means are fitted for the least squared error, not the least NLL (which
+    discounts the errors where the variance is large; Seitzer et al. 2022)."""
+    mean, log_variance, state = outputs[..., :6], outputs[..., 6:12], outputs[..., 12:]
+    squared = (targets[..., :6] - mean) ** 2
+    nll = 0.5 * (log_variance + squared.detach() * torch.exp(-log_variance))
+    return squared.mean() + nll.mean() + ((targets[..., 6:] - state) ** 2).mean()
+
+
+def _standardise(flights: Flights) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Feature means and sds, and the targets' RMS (their scale; zero-mean wrenches keep a zero)."""
+    features = np.concatenate(flights.features)
+    targets = np.concatenate(flights.targets)
+    scale = np.maximum(features.std(axis=0), 1e-6)
+    return features.mean(axis=0), scale, np.maximum(np.sqrt(np.mean(targets**2, axis=0)), 1e-9)
+
+
+def _windows(flights: Flights, length: int, count: int, rng: np.random.Generator) -> list[tuple[int, int]]:
+    """``count`` (run, start) windows: half from the run's start, half anywhere, runs drawn by length."""
+    lengths = np.array([len(f) for f in flights.features])
+    runs = rng.choice(len(lengths), size=count, p=lengths / lengths.sum())
+    starts = [
+        0 if rng.random() < 0.5 or lengths[r] <= length else int(rng.integers(0, lengths[r] - length))
+        for r in runs
+    ]
+    return list(zip(runs.tolist(), starts, strict=True))
+
+
+def _held_out(
+    network: Network, flights: Flights, tensors: list[tuple[torch.Tensor, torch.Tensor]]
+) -> tuple[float, list[np.ndarray]]:
+    """The mean loss over the held-out runs flown whole, and each run's outputs."""
+    total, steps, outputs = 0.0, 0, []
+    with torch.no_grad():
+        for x, y in tensors:
+            out = network(x[None])[0]
+            total += float(loss(out, y)) * len(y)
+            steps += len(y)
+            outputs.append(out.double().numpy())
+    return total / steps, outputs
+
+
+def calibration(
+    outputs: list[np.ndarray], flights: Flights, settle_steps: int
+) -> tuple[np.ndarray, dict[str, list[float]]]:
+    """Per block (force, torque), the factor on the variances that brings every held-out flight's
+    mean NEES (over its runs and the steps after ``settle_steps``; standardised units, the variances
+    diagonal) to at most 3, and each flight's NEES before it."""
+    per_flight: dict[str, list[list[float]]] = {}
+    for out, targets, name in zip(outputs, flights.targets, flights.names, strict=True):
+        kept = slice(min(settle_steps, len(out) - 1), None)  # a run shorter than that: its last step
+        error = (out[kept, :6] - targets[kept, :6]) ** 2 * np.exp(-out[kept, 6:12])
+        per_flight.setdefault(name, []).append(
+            [error[:, :3].sum(axis=1).mean(), error[:, 3:].sum(axis=1).mean()]
+        )
+    means = {name: np.mean(values, axis=0).tolist() for name, values in per_flight.items()}
+    worst = np.max(np.array(list(means.values())), axis=0)
+    return np.maximum(worst / 3.0, 1e-3), means
+
+
+def fit(
+    training: Flights,
+    held_out: Flights,
+    settings: TrainingSettings,
+    frame_seconds: float,
+    progress: Callable[[int, float, float], None] | None = None,
+) -> tuple[dict[str, np.ndarray], dict[str, object]]:
+    """The network fitted to ``training``, chosen and calibrated on ``held_out`` (module docstring):
+    the model's arrays (:data:`~quad_wrench_env.estimators.learned.WEIGHTS` and
+    :data:`~quad_wrench_env.estimators.learned.SCALES`) and a record of the fit (losses per epoch, the
+    epoch kept, each held-out flight's NEES before the scaling). ``progress(epoch, training loss,
+    held-out loss)`` after each epoch."""
+    if not training.features or not held_out.features:
+        raise ValueError("fitting needs recorded runs to fit and held-out runs to choose on; got none")
+    torch.manual_seed(settings.seed)
+    rng = np.random.default_rng(settings.seed)
+    mean, scale, target_scale = _standardise(training)
+
+    def tensors(flights: Flights) -> list[tuple[torch.Tensor, torch.Tensor]]:
+        return [
+            (
+                torch.as_tensor((f - mean) / scale, dtype=torch.float32),
+                torch.as_tensor(t / target_scale, dtype=torch.float32),
+            )
+            for f, t in zip(flights.features, flights.targets, strict=True)
+        ]
+
+    train_tensors, held_tensors = tensors(training), tensors(held_out)
+    network = Network(mean.size, settings.hidden)
+    optimiser = torch.optim.Adam(network.parameters(), lr=settings.learning_rate)
+    length = max(2, round(settings.window_seconds / frame_seconds))
+    batches = max(1, math.ceil(training.steps / (length * settings.batch)))
+    schedule = torch.optim.lr_scheduler.CosineAnnealingLR(
+        optimiser, settings.epochs * batches, eta_min=0.1 * settings.learning_rate
+    )
+    best, best_loss, history = None, math.inf, []
+    for epoch in range(1, settings.epochs + 1):
+        network.train()
+        total = 0.0
+        for _ in range(batches):
+            picked = _windows(training, length, settings.batch, rng)
+            span = min(length, min(len(train_tensors[r][0]) - s for r, s in picked))
+            x = torch.stack([train_tensors[r][0][s : s + span] for r, s in picked])
+            y = torch.stack([train_tensors[r][1][s : s + span] for r, s in picked])
+            value = loss(network(x), y)
+            optimiser.zero_grad()
+            value.backward()
+            torch.nn.utils.clip_grad_norm_(network.parameters(), 1.0)
+            optimiser.step()
+            schedule.step()
+            total += value.item()
+        network.eval()
+        held, _ = _held_out(network, held_out, held_tensors)
+        history.append({"epoch": epoch, "training_loss": total / batches, "held_out_loss": held})
+        if held < best_loss:
+            best_loss, best = held, {k: v.clone() for k, v in network.state_dict().items()}
+            kept = epoch
+        if progress is not None:
+            progress(epoch, total / batches, held)
+    network.load_state_dict(best)
+    network.eval()
+    _, outputs = _held_out(network, held_out, held_tensors)
+    variance_scale, nees_before = calibration(
+        outputs, held_out, round(settings.settle_seconds / frame_seconds)
+    )
+    arrays = {
+        **network.arrays(),
+        "feature_mean": mean,
+        "feature_scale": scale,
+        "target_scale": target_scale,
+        "variance_scale": variance_scale,
+    }
+    record = {
+        "history": history,
+        "kept_epoch": kept,
+        "held_out_loss": best_loss,
+        "held_out_nees": nees_before,
+    }
+    return arrays, record
