@@ -29,6 +29,7 @@ from quad_wrench_env.agents import make_agent
 from quad_wrench_env.agents.evaluate import run_episode, write_report
 from quad_wrench_env.bench import bare_pybullet_step_seconds, estimator_step_seconds
 from quad_wrench_env.estimators import OracleBank, make_estimator
+from quad_wrench_env.estimators.bank import TruthRecorder
 from quad_wrench_env.vehicle import make_vehicle
 
 LABELS = ("f_x", "f_y", "f_z", "tau_x", "tau_y", "tau_z")
@@ -44,41 +45,19 @@ class Stream:
     truth: list[np.ndarray] = field(default_factory=list)
 
 
-class _Recorder:
+class _Recorder(TruthRecorder):
     """Wraps the env's oracle bank (one vehicle) and records each step's sensor data, the inputs of
     the estimator interface, with the true wrench."""
 
     def __init__(self, inner: OracleBank, stream: Stream) -> None:
-        self.inner, self.stream = inner, stream
-        self.name, self.count = inner.name, inner.count
-
-    def reset(self, index, position, quaternion_wxyz):
-        self.inner.reset(index, position, quaternion_wxyz)
-
-    def observe_truth(self, states, wrenches):
-        self.inner.observe_truth(states, wrenches)
-        self._truth = wrenches[0].copy()
+        super().__init__(inner)
+        self.stream = stream
 
     def step(self, thrusts, body_torques, positions, quaternions, velocities=None, body_rates=None):
         self.stream.inputs.append(
             (float(thrusts[0]), body_torques[0].copy(), positions[0].copy(), quaternions[0].copy())
         )
-        self.stream.truth.append(self._truth)
-
-    def wrenches(self):
-        return self.inner.wrenches()
-
-    def states(self):
-        return self.inner.states()
-
-    def estimates(self):
-        return self.inner.estimates()
-
-    def wrench_covariances(self):
-        return self.inner.wrench_covariances()
-
-    def statuses(self):
-        return self.inner.statuses()
+        self.stream.truth.append(self.truth[1][0])
 
 
 def record(config: dict, seed: int, **env_kwargs: Any) -> Stream:

@@ -36,6 +36,7 @@ from quad_wrench_cli.common import UsageError, add_key_value_argument, usage_err
 from quad_wrench_cli.consistency import flight_policy
 from quad_wrench_env.config import apply_overrides, build, load_yaml
 from quad_wrench_env.estimators import OracleBank
+from quad_wrench_env.estimators.bank import TruthRecorder
 from quad_wrench_env.estimators.learned import FittedFor, LearnedModel
 from quad_wrench_env.estimators.learned_kernel import FRAME_STEPS, stream_features, stream_frames
 from quad_wrench_env.rotations import rotation_matrices
@@ -92,45 +93,26 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-progress", action="store_true", help="no progress bars")
 
 
-class StreamRecorder:
-    """Wraps the env's oracle bank and records, at every physics step, the estimator interface's inputs
-    and the truth for all N vehicles."""
+class StreamRecorder(TruthRecorder):
+    """Records, at every physics step, the estimator interface's inputs and the truth for all N
+    vehicles; :attr:`starts` holds each vehicle's pose at its last reset."""
 
     def __init__(self, inner: OracleBank) -> None:
-        self.inner, self.name, self.count = inner, inner.name, inner.count
+        super().__init__(inner)
         self.starts = np.zeros((inner.count, 7))
         self.inputs: list[tuple[np.ndarray, ...]] = []
-        self.truth: list[tuple[np.ndarray, np.ndarray]] = []
+        self.truths: list[tuple[np.ndarray, np.ndarray]] = []
 
     def reset(self, index, position, quaternion_wxyz):
-        self.inner.reset(index, position, quaternion_wxyz)
+        super().reset(index, position, quaternion_wxyz)
         self.starts[index, :3], self.starts[index, 3:] = position, quaternion_wxyz
-
-    def observe_truth(self, states, wrenches):
-        self.inner.observe_truth(states, wrenches)
-        self._truth = (states.copy(), wrenches.copy())
 
     def step(self, thrusts, body_torques, positions, quaternions, velocities=None, body_rates=None):
         measured = (velocities, body_rates) if velocities is not None else ()
         self.inputs.append(
             tuple(a.copy() for a in (thrusts, body_torques, positions, quaternions, *measured))
         )
-        self.truth.append(self._truth)
-
-    def wrenches(self):
-        return self.inner.wrenches()
-
-    def states(self):
-        return self.inner.states()
-
-    def estimates(self):
-        return self.inner.estimates()
-
-    def wrench_covariances(self):
-        return self.inner.wrench_covariances()
-
-    def statuses(self):
-        return self.inner.statuses()
+        self.truths.append(self.truth)
 
 
 def targets_of(states: np.ndarray, wrenches: np.ndarray) -> np.ndarray:
@@ -175,8 +157,8 @@ def record(
     finally:
         env.close()
     columns = [np.array(c) for c in zip(*recorder.inputs, strict=True)]
-    states = np.array([s for s, _ in recorder.truth])
-    wrenches = np.array([w for _, w in recorder.truth])
+    states = np.array([s for s, _ in recorder.truths])
+    wrenches = np.array([w for _, w in recorder.truths])
     dt, mass = base.fleet.dt, base.fleet.vehicle.mass
     runs = []
     for i in np.flatnonzero(~ended):

@@ -38,7 +38,7 @@ def test_every_kind_holds_the_packages_entries():
         "wind": {"dryden", "jet", "one_cosine"},
         "load": set(),  # the payload and the scheduled wrench have keys of their own
         "scene": {"table", "wall", "ceiling"},
-        "estimator": {"ukf", "ekf", "observer", "oracle"},
+        "estimator": {"ukf", "ekf", "observer", "oracle", "learned"},
         "task": {
             "QuadWrench/FanTracking-v1",
             "QuadWrench/DisturbanceRejection-v0",

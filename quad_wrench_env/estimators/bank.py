@@ -207,6 +207,40 @@ class OracleBank:
         return ["ok"] * self.count
 
 
+class TruthRecorder:
+    """Wraps the env's oracle bank and hands it every call: a subclass records what passes (its
+    ``step`` the estimator interface's inputs, :attr:`truth` the last truth handed over)."""
+
+    def __init__(self, inner: OracleBank) -> None:
+        self.inner, self.name, self.count = inner, inner.name, inner.count
+        self.truth: tuple[np.ndarray, np.ndarray] = (inner.states(), inner.wrenches())
+
+    def reset(self, index: int, position: np.ndarray, quaternion_wxyz: np.ndarray) -> None:
+        self.inner.reset(index, position, quaternion_wxyz)
+
+    def observe_truth(self, states: np.ndarray, wrenches: np.ndarray) -> None:
+        self.inner.observe_truth(states, wrenches)
+        self.truth = (states.copy(), wrenches.copy())
+
+    def step(self, thrusts, body_torques, positions, quaternions, velocities=None, body_rates=None) -> None:
+        raise NotImplementedError
+
+    def wrenches(self) -> np.ndarray:
+        return self.inner.wrenches()
+
+    def states(self) -> np.ndarray:
+        return self.inner.states()
+
+    def estimates(self) -> tuple[np.ndarray, np.ndarray]:
+        return self.inner.estimates()
+
+    def wrench_covariances(self) -> np.ndarray:
+        return self.inner.wrench_covariances()
+
+    def statuses(self) -> list[str]:
+        return self.inner.statuses()
+
+
 class BankOfOne:
     """A single-vehicle estimator (the :class:`~quad_wrench_env.estimators.base.Estimator` protocol)
     run on a bank of one, so that each algorithm has one implementation; subclasses set ``bank``."""
