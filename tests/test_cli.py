@@ -42,6 +42,7 @@ def test_every_command_of_the_issue_is_there():
         "train",
         "evaluate",
         "estimate",
+        "fit-estimator",
         "compare",
         "reproduce",
         "bench",
