@@ -87,7 +87,7 @@ STATEFUL = {  # every stateful class: the case that flies it
     "envs.sb3_vec_env.SB3VecEnv": "vector env, through SB3's interface",
     "estimators.bank.EstimatorBank": "protocol: each bank's case",
     "estimators.bank.OracleBank": "env: fan tracking, oracle, history",
-    "estimators.bank.TruthRecorder": "forwards reset to the oracle bank it records (fit-estimator's test flies it)",
+    "estimators.bank.TruthRecorder": "forwards reset to the oracle bank it wraps (fit-estimator's test)",
     "estimators.bank.BankOfOne": "single estimators: test_a_single_estimator_restarts_as_new",
     "estimators.base.Estimator": "protocol: test_a_single_estimator_restarts_as_new",
     "estimators.ekf.ExtendedFilterBank": "env: fan tracking, ekf, onboard state estimator",
