@@ -44,6 +44,18 @@ REFERENCE = ("tests/test_reference_dynamics.py", "tests/test_reference_task.py")
 
 MUTATIONS = (
     Mutation(
+        "learned estimator: the body torque turned by Rᵀ instead of R",
+        "estimator",
+        (
+            (
+                "quad_wrench_env/estimators/learned_kernel.py",
+                "r[3 * i] * torque[0] + r[3 * i + 1] * torque[1] + r[3 * i + 2] * torque[2]",
+                "r[i] * torque[0] + r[3 + i] * torque[1] + r[6 + i] * torque[2]",
+            ),
+        ),
+        ("tests/test_learned_estimator.py",),
+    ),
+    Mutation(
         "motor spin signs flipped",
         "vehicle",
         (

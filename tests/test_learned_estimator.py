@@ -243,3 +243,30 @@ def test_fit_estimator_makes_a_model_that_flies(tmp_path, capsys):
     _, _, _, _, info = env.step(np.zeros(4, dtype=np.float32))
     assert np.all(np.isfinite(info["wrench_est"])) and np.all(np.linalg.eigvalsh(info["wrench_cov"]) > 0)
     env.close()
+
+
+def test_the_head_is_read_in_the_world_frame_through_the_measured_attitude():
+    """The head's body-frame torque and its variances reach ``wrenches`` and ``wrench_covariances``
+    turned by the measured attitude (``R τ``, ``R Σ Rᵀ``), the force and its variances as they are,
+    each scaled by the model's target scale and variance scale; velocity and rates in ``states``."""
+    bank = make_estimator_bank("learned", make_vehicle("hummingbird"), DT, 2)
+    q = axis_angle_quaternion(np.array((0.6, 0.0, 0.8)), 1.1)
+    bank.reset(1, np.array((1.0, 2.0, 3.0)), q)
+    rng = np.random.default_rng(0)
+    bank.outputs[1] = rng.normal(0.0, 1.0, 18)
+    head, scale = bank.outputs[1], bank.model.arrays["target_scale"]
+    variance_scale = bank.model.arrays["variance_scale"]
+    r = matrix_of(q)
+    states, wrenches = bank.estimates()
+    np.testing.assert_allclose(wrenches[1, :3], head[:3] * scale[:3], rtol=1e-12)
+    np.testing.assert_allclose(wrenches[1, 3:], r @ (head[3:6] * scale[3:6]), rtol=1e-12, atol=1e-15)
+    np.testing.assert_allclose(states[1, :3], (1.0, 2.0, 3.0))
+    np.testing.assert_allclose(states[1, 3:6], head[12:15] * scale[6:9], rtol=1e-12)
+    np.testing.assert_allclose(states[1, 6:10], q)
+    np.testing.assert_allclose(states[1, 10:13], head[15:18] * scale[9:12], rtol=1e-12)
+    covariance = bank.wrench_covariances()[1]
+    force = np.diag(np.exp(head[6:9]) * scale[:3] ** 2 * variance_scale[0])
+    torque = r @ np.diag(np.exp(head[9:12]) * scale[3:6] ** 2 * variance_scale[1]) @ r.T
+    np.testing.assert_allclose(covariance[:3, :3], force, rtol=1e-12)
+    np.testing.assert_allclose(covariance[3:, 3:], torque, rtol=1e-10, atol=1e-30)
+    np.testing.assert_array_equal(covariance[:3, 3:], 0.0)

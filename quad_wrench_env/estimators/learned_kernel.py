@@ -71,29 +71,50 @@ def step_features(previous, thrust, body_torque, position, quaternion, velocity,
 
 
 @njit
+def advance(
+    previous, thrusts, body_torques, positions, quaternions, velocities, body_rates, k, dt, mass, out
+):
+    """The features of row ``k`` of the inputs into ``out`` (:func:`step_features`), then that row's
+    pose into ``previous``; ``velocities`` and ``body_rates`` are (0, 3) when not measured."""
+    measured = velocities.shape[0] > 0
+    empty = np.empty(0)
+    step_features(
+        previous,
+        thrusts[k],
+        body_torques[k],
+        positions[k],
+        quaternions[k],
+        velocities[k] if measured else empty,
+        body_rates[k] if measured else empty,
+        dt,
+        mass,
+        out,
+    )
+    previous[:3] = positions[k]
+    previous[3:] = quaternions[k]
+
+
+@njit
 def stream_features(thrusts, body_torques, positions, quaternions, velocities, body_rates, start, dt, mass):
     """(T, F) features of one vehicle's recorded stream of T steps (the estimator interface's inputs,
     ``velocities``/``body_rates`` (T, 3) or (0, 3)), its pose at the reset ``start`` = ``[p, q]``."""
-    steps = thrusts.shape[0]
     measured = velocities.shape[0] > 0
-    out = np.zeros((steps, FEATURES + (MEASURED_FEATURES if measured else 0)))
+    out = np.zeros((thrusts.shape[0], FEATURES + (MEASURED_FEATURES if measured else 0)))
     previous = start.copy()
-    empty = np.empty(0)
-    for k in range(steps):
-        step_features(
+    for k in range(thrusts.shape[0]):
+        advance(
             previous,
-            thrusts[k],
-            body_torques[k],
-            positions[k],
-            quaternions[k],
-            velocities[k] if measured else empty,
-            body_rates[k] if measured else empty,
+            thrusts,
+            body_torques,
+            positions,
+            quaternions,
+            velocities,
+            body_rates,
+            k,
             dt,
             mass,
             out[k],
         )
-        previous[:3] = positions[k]
-        previous[3:] = quaternions[k]
     return out
 
 
@@ -160,26 +181,24 @@ def learned_bank_step(
     if not inputs_finite(thrusts, body_torques, positions, quaternions, velocities, body_rates):
         return False
     dt, mass = constants[0], constants[1]
-    measured = velocities.shape[0] > 0
     width = feature_mean.shape[0] // FRAME_STEPS
     standardised = np.empty(feature_mean.shape[0])
-    empty = np.empty(0)
     for n in range(thrusts.shape[0]):
         start = filled[n] * width
-        step_features(
+        frame = frames[n, start : start + width]
+        advance(
             previous[n],
-            thrusts[n],
-            body_torques[n],
-            positions[n],
-            quaternions[n],
-            velocities[n] if measured else empty,
-            body_rates[n] if measured else empty,
+            thrusts,
+            body_torques,
+            positions,
+            quaternions,
+            velocities,
+            body_rates,
+            n,
             dt,
             mass,
-            frames[n, start : start + width],
+            frame,
         )
-        previous[n, :3] = positions[n]
-        previous[n, 3:] = quaternions[n]
         filled[n] += 1
         if filled[n] == FRAME_STEPS:
             filled[n] = 0
