@@ -31,8 +31,9 @@ from tqdm import tqdm
 
 from quad_wrench_cli.consistency import FILTERS, Flown, filter_settings, flown, with_settings
 from quad_wrench_env.bench import estimator_step_seconds
+from quad_wrench_env.disturbances.wrench_profile import in_weights
 from quad_wrench_env.estimators.consistency import average_nees_band, nees
-from quad_wrench_env.vehicle import GRAVITY, make_vehicle
+from quad_wrench_env.vehicle import make_vehicle
 
 STEP_FLIGHT = "step"
 """The flight whose external wrench steps at ``step.at``: its latency and rise time."""
@@ -40,10 +41,8 @@ STEP_FLIGHT = "step"
 
 def step_wrench(vehicle: str, step: Mapping[str, float], seconds: float) -> list[list[float]]:
     """The ``external_wrench`` segment of the step flight for ``vehicle``: from ``step.at`` to the end."""
-    v = make_vehicle(vehicle)
-    weight = v.mass * GRAVITY
-    force, torque = step["force"] * weight, step["torque"] * weight * v.arm
-    return [[step["at"], seconds + 1.0, force, 0.0, 0.0, 0.0, 0.0, torque]]
+    segment = [step["at"], seconds + 1.0, step["force"], 0.0, 0.0, 0.0, 0.0, step["torque"]]
+    return in_weights([segment], make_vehicle(vehicle))
 
 
 def response(time: np.ndarray, estimate: np.ndarray, start: float, size: float) -> tuple[float, float]:
@@ -114,7 +113,7 @@ def benchmark_table(config: Mapping[str, Any], out: Path) -> list[str]:
             )
             if name == STEP_FLIGHT and metrics["runs"]:
                 mean = f.estimate[:, ~f.ended].mean(axis=1)
-                size = step_wrench(vehicle, step, 0.0)[0]
+                size = flight["env"]["external_wrench"][0]
                 force = response(f.time, mean[:, 0], step["at"], size[2])
                 torque = response(f.time, mean[:, 5], step["at"], size[7])
                 cost = min(

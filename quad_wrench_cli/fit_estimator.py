@@ -35,15 +35,18 @@ from tqdm import tqdm
 from quad_wrench_cli.common import UsageError, add_key_value_argument, usage_errors, write_csv
 from quad_wrench_cli.consistency import flight_policy
 from quad_wrench_env.config import apply_overrides, build, load_yaml
+from quad_wrench_env.disturbances.wrench_profile import in_weights, validate_segments
 from quad_wrench_env.estimators import OracleBank
 from quad_wrench_env.estimators.bank import TruthRecorder
 from quad_wrench_env.estimators.learned import FittedFor, LearnedModel
-from quad_wrench_env.estimators.learned_kernel import FRAME_STEPS, stream_features, stream_frames
+from quad_wrench_env.estimators.learned_kernel import FRAME_STEPS, stream_frames, tracker_gains
 from quad_wrench_env.rotations import rotation_matrices
 from quad_wrench_env.vehicle import PRESETS
 
-FLIGHT_KEYS = frozenset({"agent", "agent_params", "weave", "env_id", "env", "options"})
-"""What a flight may give (``compare estimators``' flights)."""
+FLIGHT_KEYS = frozenset({"agent", "agent_params", "weave", "env_id", "env", "options", "pushes"})
+"""What a flight may give: ``compare estimators``' flights, and ``pushes``, external wrench segments
+``[start, end, f_x, f_y, f_z, τ_x, τ_y, τ_z]`` with the forces in weights and the torques in weight
+times arm (the same push on every preset; world frame)."""
 
 
 @dataclass
@@ -76,6 +79,11 @@ class FitConfig:
                     f"flights.{name}={flight!r}: unknown keys {extra}; allowed: {sorted(FLIGHT_KEYS)}, with "
                     "one of agent and weave"
                 )
+            if "pushes" in flight:
+                try:
+                    validate_segments(flight["pushes"])
+                except ValueError as error:
+                    raise ValueError(f"flights.{name}.pushes: {error}") from None
         for name in ("runs", "held_out_runs"):
             if getattr(self, name) < 1:
                 raise ValueError(f"{name}={getattr(self, name)!r} must be an integer >= 1")
@@ -127,9 +135,11 @@ def record(
     config: FitConfig, name: str, flight: Mapping[str, Any], vehicle: str, seeds: list[int]
 ) -> tuple[list[tuple[np.ndarray, np.ndarray]], FittedFor]:
     """Fly ``flight`` with one vector env of len(``seeds``) vehicles: each run that went to the end as
-    (its (T, FRAME_STEPS·F) frames, (T, 12) targets at each frame's last step), and what its features
+    (its (T, frame width) frames, (T, 12) targets at each frame's last step), and what its features
     are for."""
     env_settings = {**config.env, **flight.get("env", {})}
+    if "pushes" in flight:
+        env_settings["external_wrench"] = in_weights(flight["pushes"], PRESETS[vehicle])
     env = gym.make_vec(
         flight.get("env_id", config.env_id),
         num_envs=len(seeds),
@@ -160,12 +170,13 @@ def record(
     states = np.array([s for s, _ in recorder.truths])
     wrenches = np.array([w for _, w in recorder.truths])
     dt, mass = base.fleet.dt, base.fleet.vehicle.mass
+    gains = tracker_gains(dt)
     runs = []
     for i in np.flatnonzero(~ended):
         measured = [c[:, i] for c in columns[4:]] or [np.empty((0, 3))] * 2
-        features = stream_features(*(c[:, i] for c in columns[:4]), *measured, starts[i], dt, mass)
+        frames = stream_frames(*(c[:, i] for c in columns[:4]), *measured, starts[i], dt, mass, gains)
         targets = targets_of(states[:, i], wrenches[:, i])[FRAME_STEPS - 1 :: FRAME_STEPS]
-        runs.append((stream_frames(features), targets[: len(features) // FRAME_STEPS]))
+        runs.append((frames, targets[: len(frames)]))
     return runs, FittedFor(vehicle, dt, len(columns) > 4)
 
 

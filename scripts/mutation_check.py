@@ -56,6 +56,30 @@ MUTATIONS = (
         ("tests/test_learned_estimator.py",),
     ),
     Mutation(
+        "learned estimator: the window forces' tent one step late",
+        "estimator",
+        (
+            (
+                "quad_wrench_env/estimators/learned_kernel.py",
+                "tent += (size - abs(back - (size - 1)))",
+                "tent += (size - abs(back - size))",
+            ),
+        ),
+        ("tests/test_learned_estimator.py",),
+    ),
+    Mutation(
+        "learned estimator: the trackers' velocity corrected with the position's gain",
+        "estimator",
+        (
+            (
+                "quad_wrench_env/estimators/learned_kernel.py",
+                "state[1] = velocity + gains[j, 1] * innovation",
+                "state[1] = velocity + gains[j, 0] * innovation",
+            ),
+        ),
+        ("tests/test_learned_estimator.py",),
+    ),
+    Mutation(
         "motor spin signs flipped",
         "vehicle",
         (

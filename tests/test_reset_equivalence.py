@@ -91,7 +91,9 @@ STATEFUL = {  # every stateful class: the case that flies it
     "estimators.bank.BankOfOne": "single estimators: test_a_single_estimator_restarts_as_new",
     "estimators.base.Estimator": "protocol: test_a_single_estimator_restarts_as_new",
     "estimators.ekf.ExtendedFilterBank": "env: fan tracking, ekf, onboard state estimator",
-    "estimators.learned.LearnedBank": "env: disturbance rejection, learned estimator (its memory and frame)",
+    "estimators.learned.LearnedBank": (
+        "env: disturbance rejection, learned estimator (its memory, frame, trail and trackers)"
+    ),
     "estimators.observer.ObserverBank": "env: fan tracking, observer, latency",
     "estimators.oracle.OracleEstimator": "single estimators: test_a_single_estimator_restarts_as_new",
     "estimators.ukf.UnscentedFilterBank": "env: fan tracking, ukf (and its matched walks)",

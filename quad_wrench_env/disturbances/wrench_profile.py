@@ -16,6 +16,7 @@ import numpy as np
 from quad_wrench_env.disturbances.base import BodyState, CompiledForm
 from quad_wrench_env.numerics import njit
 from quad_wrench_env.rotations import cross, rows_times
+from quad_wrench_env.vehicle import GRAVITY, VehicleParams
 
 _COUPLE_ARM = 0.1
 """m: half the distance between the two forces of a torque couple."""
@@ -38,6 +39,16 @@ def validate_segments(segments: list) -> np.ndarray:
             )
         rows.append(values)
     return np.array(rows, dtype=float).reshape(-1, 8)
+
+
+def in_weights(segments: list, vehicle: VehicleParams) -> list[list[float]]:
+    """``segments`` whose forces are in weights (``m g``) and torques in weight times arm, in N and N·m
+    for ``vehicle`` (a schedule that means the same push on every preset)."""
+    rows = validate_segments(segments)
+    weight = vehicle.mass * GRAVITY
+    rows[:, 2:8] *= weight
+    rows[:, 5:8] *= vehicle.arm
+    return rows.tolist()
 
 
 class WrenchProfile:

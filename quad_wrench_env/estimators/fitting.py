@@ -21,7 +21,7 @@ import numpy as np
 import torch
 
 from quad_wrench_env.config import check_numbers
-from quad_wrench_env.estimators.learned_kernel import OUTPUTS
+from quad_wrench_env.estimators.learned_kernel import FORCES, OUTPUTS
 
 TARGETS = 12
 """Force (world), external torque (body), velocity (world), body rates: the targets per step."""
@@ -61,26 +61,34 @@ class TrainingSettings:
     """Adam's, falling by cosine to a tenth over the epochs."""
     settle_seconds: float = 1.0
     """Left out of the held-out NEES that scales the variances (the memory fills after a reset)."""
+    balance_floor: float = 0.1
+    """Each flight's windows weigh ``1 / max(s, balance_floor)²`` in the loss, ``s`` the flight's RMS
+    force in standardised units: a flight of small forces (hover) counts for its relative error as
+    one of large forces does, not for its share of the squared newtons; 0 turns the balance off
+    (:func:`flight_weights`)."""
     seed: int = 0
 
     def __post_init__(self) -> None:
         check_numbers("training", self, ("window_seconds", "learning_rate"))
-        check_numbers("training", self, ("settle_seconds",), positive=False)
+        check_numbers("training", self, ("settle_seconds", "balance_floor"), positive=False)
         for name in ("hidden", "epochs", "batch"):
             if getattr(self, name) < 1:
                 raise ValueError(f"training.{name}={getattr(self, name)!r} must be an integer >= 1")
 
 
 class Network(torch.nn.Module):
-    """The GRU and its head (:mod:`quad_wrench_env.estimators.learned_kernel`)."""
+    """The GRU, its head and the skip connection from the window and tracker forces, the frame's last
+    features, to the force (:mod:`quad_wrench_env.estimators.learned_kernel`)."""
 
     def __init__(self, features: int, hidden: int) -> None:
         super().__init__()
         self.gru = torch.nn.GRU(features, hidden, batch_first=True)
         self.head = torch.nn.Linear(hidden, OUTPUTS)
+        self.skip = torch.nn.Linear(FORCES, 3, bias=False)
 
     def forward(self, features: torch.Tensor) -> torch.Tensor:
-        return self.head(self.gru(features)[0])
+        skip = torch.nn.functional.pad(self.skip(features[..., -FORCES:]), (0, OUTPUTS - 3))
+        return self.head(self.gru(features)[0]) + skip
 
     def arrays(self) -> dict[str, np.ndarray]:
         """The weights as the kernel takes them (transposed, float64)."""
@@ -95,26 +103,47 @@ class Network(torch.nn.Module):
             "bias_hidden": plain(self.gru.bias_hh_l0),
             "head": plain(self.head.weight).T.copy(),
             "head_bias": plain(self.head.bias),
+            "skip": plain(self.skip.weight).T.copy(),
         }
 
 
-def loss(outputs: torch.Tensor, targets: torch.Tensor) -> torch.Tensor:
+def loss(outputs: torch.Tensor, targets: torch.Tensor, weights: torch.Tensor | None = None) -> torch.Tensor:
     """Mean over steps, standardised (module docstring): the squared error of the wrench's and the
     state's means, and the Gaussian NLL (without its constant) of the variances given the means held
     fixed, so that the means are fitted for the least squared error, not the least NLL (which
-    discounts the errors where the variance is large; Seitzer et al. 2022)."""
+    discounts the errors where the variance is large; Seitzer et al. 2022). ``weights`` (one per
+    window of a batch): the windows' shares of the mean."""
     mean, log_variance, state = outputs[..., :6], outputs[..., 6:12], outputs[..., 12:]
     squared = (targets[..., :6] - mean) ** 2
     nll = 0.5 * (log_variance + squared.detach() * torch.exp(-log_variance))
-    return squared.mean() + nll.mean() + ((targets[..., 6:] - state) ** 2).mean()
+    per_step = squared.mean(-1) + nll.mean(-1) + ((targets[..., 6:] - state) ** 2).mean(-1)
+    if weights is None:
+        return per_step.mean()
+    return (per_step.mean(-1) * weights).sum() / weights.sum()
 
 
 def _standardise(flights: Flights) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Feature means and sds, and the targets' RMS (their scale; zero-mean wrenches keep a zero)."""
+    """Feature means and sds, and the targets' scale: per block of three (force, torque, velocity,
+    body rates) one RMS over its components (zero-mean wrenches keep a zero), so that the loss weighs
+    an error of one newton alike along every axis, as the vector's RMSE does."""
     features = np.concatenate(flights.features)
     targets = np.concatenate(flights.targets)
     scale = np.maximum(features.std(axis=0), 1e-6)
-    return features.mean(axis=0), scale, np.maximum(np.sqrt(np.mean(targets**2, axis=0)), 1e-9)
+    blocks = np.sqrt(np.mean(targets.reshape(len(targets), -1, 3) ** 2, axis=(0, 2)))
+    return features.mean(axis=0), scale, np.maximum(np.repeat(blocks, 3), 1e-9)
+
+
+def flight_weights(flights: Flights, target_scale: np.ndarray, floor: float) -> dict[str, float]:
+    """Per flight name, its loss weight (``TrainingSettings.balance_floor``): ``1 / max(s, floor)²``
+    with ``s`` the RMS of its force targets over ``target_scale`` (all 1 where ``floor`` is 0)."""
+    squares: dict[str, list[np.ndarray]] = {}
+    for targets, name in zip(flights.targets, flights.names, strict=True):
+        squares.setdefault(name, []).append(((targets[:, :3] / target_scale[:3]) ** 2).sum(axis=1))
+    if floor == 0.0:
+        return dict.fromkeys(squares, 1.0)
+    return {
+        name: 1.0 / max(math.sqrt(np.concatenate(v).mean() / 3.0), floor) ** 2 for name, v in squares.items()
+    }
 
 
 def _windows(flights: Flights, length: int, count: int, rng: np.random.Generator) -> list[tuple[int, int]]:
@@ -129,15 +158,19 @@ def _windows(flights: Flights, length: int, count: int, rng: np.random.Generator
 
 
 def _held_out(
-    network: Network, flights: Flights, tensors: list[tuple[torch.Tensor, torch.Tensor]]
+    network: Network,
+    flights: Flights,
+    tensors: list[tuple[torch.Tensor, torch.Tensor]],
+    weights: dict[str, float],
 ) -> tuple[float, list[np.ndarray]]:
-    """The mean loss over the held-out runs flown whole, and each run's outputs."""
-    total, steps, outputs = 0.0, 0, []
+    """The mean loss over the held-out runs flown whole, each weighted as its flight, and each run's
+    outputs."""
+    total, steps, outputs = 0.0, 0.0, []
     with torch.no_grad():
-        for x, y in tensors:
+        for (x, y), name in zip(tensors, flights.names, strict=True):
             out = network(x[None])[0]
-            total += float(loss(out, y)) * len(y)
-            steps += len(y)
+            total += float(loss(out, y)) * len(y) * weights[name]
+            steps += len(y) * weights[name]
             outputs.append(out.double().numpy())
     return total / steps, outputs
 
@@ -188,6 +221,7 @@ def fit(
         ]
 
     train_tensors, held_tensors = tensors(training), tensors(held_out)
+    weights = flight_weights(training, target_scale, settings.balance_floor)
     network = Network(mean.size, settings.hidden)
     optimiser = torch.optim.Adam(network.parameters(), lr=settings.learning_rate)
     length = max(2, round(settings.window_seconds / frame_seconds))
@@ -204,7 +238,8 @@ def fit(
             span = min(length, min(len(train_tensors[r][0]) - s for r, s in picked))
             x = torch.stack([train_tensors[r][0][s : s + span] for r, s in picked])
             y = torch.stack([train_tensors[r][1][s : s + span] for r, s in picked])
-            value = loss(network(x), y)
+            shares = torch.tensor([weights[training.names[r]] for r, _ in picked])
+            value = loss(network(x), y, shares)
             optimiser.zero_grad()
             value.backward()
             torch.nn.utils.clip_grad_norm_(network.parameters(), 1.0)
@@ -212,7 +247,7 @@ def fit(
             schedule.step()
             total += value.item()
         network.eval()
-        held, _ = _held_out(network, held_out, held_tensors)
+        held, _ = _held_out(network, held_out, held_tensors, weights)
         history.append({"epoch": epoch, "training_loss": total / batches, "held_out_loss": held})
         if held < best_loss:
             best_loss, best = held, {k: v.clone() for k, v in network.state_dict().items()}
@@ -221,7 +256,7 @@ def fit(
             progress(epoch, total / batches, held)
     network.load_state_dict(best)
     network.eval()
-    _, outputs = _held_out(network, held_out, held_tensors)
+    _, outputs = _held_out(network, held_out, held_tensors, weights)
     variance_scale, nees_before = calibration(
         outputs, held_out, round(settings.settle_seconds / frame_seconds)
     )
@@ -233,6 +268,7 @@ def fit(
         "variance_scale": variance_scale,
     }
     record = {
+        "flight_weights": weights,
         "history": history,
         "kept_epoch": kept,
         "held_out_loss": best_loss,

@@ -2,15 +2,16 @@
 
 It reads what the UKF reads, at the same rate: every physics step's thrust and motor torque (the
 nominal mixer of the quantised motor speeds), the measured pose and, where an onboard state estimator
-measures them, the velocity and body rates. A gated recurrent unit over frames of per-step
-features of these (:mod:`quad_wrench_env.estimators.learned_kernel`; a frame per four physics steps)
-gives the world-frame force, the body-frame external torque (turned into the world frame by the
-measured attitude), the velocity and the body rates, and a heteroscedastic Gaussian's variance for
-each wrench component (Nix & Weigend 1994; Kendall & Gal 2017), so that ``info["wrench_cov"]`` and the
-NEES checks apply as to the filters. The pose reported
-is the one measured. Fitted by ``quad-wrench fit-estimator`` (:mod:`quad_wrench_env.estimators.fitting`)
-on flights with the true wrench as its target, one model per vehicle preset; the shipped ones are
-loaded by name (``docs/estimators.md``, "The learned estimator").
+measures them, the velocity and body rates. A gated recurrent unit over frames of per-step features
+of these and of the force that moved the vehicle beyond its thrust and weight over baselines of up to
+1.3 s (:mod:`quad_wrench_env.estimators.learned_kernel`; a frame per four physics steps) gives the
+world-frame force, the body-frame external torque (turned into the world frame by the measured
+attitude), the velocity and the body rates, and a heteroscedastic Gaussian's variance for each wrench
+component (Nix & Weigend 1994; Kendall & Gal 2017), so that ``info["wrench_cov"]`` and the NEES checks
+apply as to the filters. The pose reported is the one measured. Fitted by ``quad-wrench
+fit-estimator`` (:mod:`quad_wrench_env.estimators.fitting`) on flights with the true wrench as its
+target, one model per vehicle preset; the shipped ones are loaded by name (``docs/estimators.md``,
+"The learned estimator").
 
 A model refuses, by name, a vehicle, a time step or a sensor set (the onboard state estimator's
 velocity and body rates, or not) other than those it was fitted on: its features would mean something
@@ -29,20 +30,23 @@ import numpy as np
 
 from quad_wrench_env.estimators.bank import BankOfOne, FilterBank
 from quad_wrench_env.estimators.learned_kernel import (
-    FEATURES,
-    FRAME_STEPS,
-    MEASURED_FEATURES,
+    FORCES,
     OUTPUTS,
+    TRACKER_WALKS,
+    TRAIL,
+    frame_width,
     learned_bank_step,
     learned_covariances,
     learned_estimates,
+    tracker_gains,
 )
 from quad_wrench_env.vehicle import VehicleParams
 
 MODELS = resources.files("quad_wrench_env.estimators") / "models"
 """Where the shipped models live: ``<preset>.npz`` each, beside the ``<preset>.yaml`` that made it."""
-WEIGHTS = ("weights_in", "weights_hidden", "bias_in", "bias_hidden", "head", "head_bias")
-"""The network's arrays, as :func:`~quad_wrench_env.estimators.learned_kernel.gru_step` takes them."""
+WEIGHTS = ("weights_in", "weights_hidden", "bias_in", "bias_hidden", "head", "head_bias", "skip")
+"""The network's arrays, as :func:`~quad_wrench_env.estimators.learned_kernel.learned_bank_step` takes
+them."""
 SCALES = ("feature_mean", "feature_scale", "target_scale", "variance_scale")
 """The standardisation of the features and targets and the held-out calibration of the variances."""
 
@@ -70,7 +74,7 @@ class LearnedModel:
         missing = sorted(set(WEIGHTS + SCALES) - set(self.arrays))
         if missing:
             raise ValueError(f"a learned estimator's model lacks the arrays {missing}")
-        width = FRAME_STEPS * (FEATURES + (MEASURED_FEATURES if self.fitted_for.measured_motion else 0))
+        width = frame_width(self.fitted_for.measured_motion)
         hidden = self.arrays["weights_hidden"].shape[0]
         shapes = {
             "weights_in": (width, 3 * hidden),
@@ -79,6 +83,7 @@ class LearnedModel:
             "bias_hidden": (3 * hidden,),
             "head": (hidden, OUTPUTS),
             "head_bias": (OUTPUTS,),
+            "skip": (FORCES, 3),
             "feature_mean": (width,),
             "feature_scale": (width,),
             "target_scale": (12,),
@@ -169,11 +174,14 @@ class LearnedBank(FilterBank):
         self.constants = np.array((dt, vehicle.mass))
         self.previous = np.zeros((count, 7))
         self.previous[:, 3] = 1.0
+        self.trail = np.zeros((count, TRAIL, 6))
+        self.trackers = np.zeros((count, len(TRACKER_WALKS), 3, 3))
+        self.gains = tracker_gains(dt)
+        self.seen = np.zeros(count, dtype=np.int64)
         self.frames = np.zeros((count, arrays["feature_mean"].size))
-        self.filled = np.zeros(count, dtype=np.int64)
         self.hidden = np.zeros((count, self.model.hidden_size))
         self.outputs = np.zeros((count, OUTPUTS))
-        self._prior = self._weights[-1][6:12]
+        self._prior = arrays["head_bias"][6:12]
         self.outputs[:, 6:12] = self._prior
 
     def reset(self, index: int, position: np.ndarray, quaternion_wxyz: np.ndarray) -> None:
@@ -181,8 +189,12 @@ class LearnedBank(FilterBank):
         rates, the head's variances of an empty memory."""
         self.previous[index, :3] = position
         self.previous[index, 3:] = quaternion_wxyz
+        self.trail[index, :, :3] = np.asarray(position)[..., None, :]
+        self.trail[index, :, 3:] = 0.0
+        self.trackers[index] = 0.0  # at the position, at rest (start_trackers, for one or many)
+        self.trackers[index, :, :, 0] = np.asarray(position)[..., None, :]
+        self.seen[index] = 0
         self.frames[index] = 0.0
-        self.filled[index] = 0
         self.hidden[index] = 0.0
         self.outputs[index] = 0.0
         self.outputs[index, 6:12] = self._prior
@@ -191,8 +203,11 @@ class LearnedBank(FilterBank):
         self.model.check(measured_motion=velocities.shape[0] > 0)
         return learned_bank_step, (
             self.previous,
+            self.trail,
+            self.trackers,
+            self.gains,
+            self.seen,
             self.frames,
-            self.filled,
             self.hidden,
             self.outputs,
             thrusts,

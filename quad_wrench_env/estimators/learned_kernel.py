@@ -13,15 +13,41 @@ measures them), from the estimator interface's inputs and the pose measured one 
     21-23  v_meas                            the measured velocity (m/s, world)
     24-26  ω_meas                            the measured body rates (rad/s)
 
+Features of a frame's last step, over the last ``2L`` steps for each window ``L`` of :data:`WINDOWS`,
+the force that moved the vehicle beyond its thrust and weight (N, world):
+
+    m (Δ²p / (L T)² - Σ_j w_j a_j / L² + g e_z),   Δ²p = p_t - 2 p_{t-L} + p_{t-2L},
+
+with ``a_j`` the thrust's acceleration of step ``j`` (features 3-5) and ``w`` the tent of weights 1..L..1
+over the steps ``t-2L+2 .. t``: under the symplectic Euler step (``v' = v + a T``, ``p' = p + v' T``)
+the second difference of the positions is exactly ``T²`` times that tent's sum of the accelerations,
+so the feature is the external force averaged over the tent (the physics of paper 000's momentum
+balance, m v̇ = R e_z c_t + m g + f, over a baseline long enough that the motion capture's noise,
+divided by ``(L T)²``, is small). Before ``2L`` steps since the reset, the reset's position and the
+first step's thrust stand in for the steps not seen (exact for a vehicle at rest at its trim).
+
+And the **tracker forces**, ``m b̂`` of one steady-state Kalman filter per process noise of
+:data:`TRACKER_WALKS`, per axis, on the same balance (an α-β-γ tracker, Kalata 1984): the state
+``(p, v, b)`` with ``b`` the external acceleration, predicted by the symplectic Euler step under the
+thrust's acceleration, gravity and ``b`` (a random walk of that size per step), corrected by the
+measured position with the gains of the discrete Riccati equation for motion-capture noise
+:data:`TRACKER_NOISE` (:func:`tracker_gains`). The windows are finite tents, the trackers the optimal
+exponential memories of a random-walk force: between them the network chooses the trade-off of lag
+and noise that each disturbance needs. Each starts at the reset's position, at rest, its ``b`` the
+first step's trim (as the windows).
+
 The unit steps once per frame of :data:`FRAME_STEPS` physics steps (one policy step of the envs), on
-the frame's features side by side, oldest first, standardised: fewer, longer steps than one per
-physics step, which a recurrent unit learns more easily; the estimate is updated at each frame's
-last step and held between. The recurrent unit is PyTorch's ``GRU`` (Cho et al. 2014): with ``x``
-the standardised frame,
+the frame's per-step features side by side, oldest first, then its window and tracker forces,
+standardised: fewer, longer steps than one per physics step, which a recurrent unit learns more
+easily; the estimate is updated at each frame's last step and held between. The recurrent unit is
+PyTorch's ``GRU`` (Cho et al. 2014): with ``x`` the standardised frame,
 ``r = σ(W_ir x + b_ir + W_hr h + b_hr)``, ``z = σ(W_iz x + b_iz + W_hz h + b_hz)``,
 ``n = tanh(W_in x + b_in + r (W_hn h + b_hn))``, ``h' = (1 - z) n + z h``; a linear head reads ``h'``
-(:data:`OUTPUTS`). The weights are stored transposed, so that each product runs over its outputs on
-SIMD lanes while every sum keeps its order: a vehicle gets the same bits in a bank of any size.
+(:data:`OUTPUTS`), plus, on the force, a linear map of the frame's standardised window and tracker
+forces ``x_f`` (a skip connection, ``S x_f``: they pass straight to the force, which a head on the
+bounded ``h'`` reads only coarsely; the per-step features, whose finite differences are noisy, reach
+the outputs only through the unit). The weights are stored transposed, so that each product runs over its
+outputs on SIMD lanes while every sum keeps its order: a vehicle gets the same bits in a bank of any size.
 """
 
 from __future__ import annotations
@@ -29,16 +55,61 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from scipy.linalg import solve_discrete_are
 
 from quad_wrench_env.numerics import njit
 from quad_wrench_env.numerics.linalg import inputs_finite
 from quad_wrench_env.numerics.quaternions import qmul, rotation_entries
+from quad_wrench_env.vehicle import GRAVITY
 
 FEATURES, MEASURED_FEATURES = 21, 6
 """Features per physics step from the pose and the motor speeds, and those the onboard state estimator
 adds."""
 FRAME_STEPS = 4
 """Physics steps per step of the recurrent unit (module docstring)."""
+WINDOWS = (8, 12, 16, 24, 32, 48, 64, 96, 128)
+"""Half-baselines ``L`` (physics steps) of the window forces (module docstring)."""
+TRAIL = 2 * max(WINDOWS) + 1
+"""Steps of position and thrust acceleration each estimator keeps for its window forces."""
+TRACKER_WALKS = (0.0005, 0.002, 0.008, 0.03, 0.1)
+"""Random walks (m/s² per step) of the trackers' external accelerations: at 200 Hz, 63 % of a step in
+0.42, 0.26, 0.16, 0.10 and 0.065 s."""
+TRACKER_NOISE = 5e-4
+"""Position noise (m) the trackers' gains assume: the motion capture's default (``sensors``)."""
+FORCES = 3 * (len(WINDOWS) + len(TRACKER_WALKS))
+"""The window and tracker forces at the end of a frame, which the skip connection reads."""
+
+
+def frame_width(measured_motion: bool) -> int:
+    """Features of one frame: its steps' (27 each with a state estimator's velocity and body rates, else
+    21), the window forces and the tracker forces."""
+    return FRAME_STEPS * (FEATURES + (MEASURED_FEATURES if measured_motion else 0)) + FORCES
+
+
+def tracker_gains(dt: float) -> np.ndarray:
+    """(len(TRACKER_WALKS), 3) steady-state Kalman gains of the trackers (module docstring) at step
+    ``dt``: for ``x = (p, v, b)``, ``F = [[1, T, T²], [0, 1, T], [0, 0, 1]]``, ``H = (1, 0, 0)``, the
+    walk on ``b`` and the noise :data:`TRACKER_NOISE`, ``K = P Hᵀ / (H P Hᵀ + r²)`` with ``P`` the
+    prior covariance of the discrete algebraic Riccati equation."""
+    f = np.array(((1.0, dt, dt * dt), (0.0, 1.0, dt), (0.0, 0.0, 1.0)))
+    h = np.array(((1.0, 0.0, 0.0),))
+    r = np.array(((TRACKER_NOISE**2,),))
+    gains = []
+    for walk in TRACKER_WALKS:
+        p = solve_discrete_are(f.T, h.T, np.diag((0.0, 0.0, walk**2)), r)
+        gains.append((p @ h.T / (h @ p @ h.T + r))[:, 0])
+    return np.array(gains)
+
+
+@njit
+def start_trackers(trackers, position):
+    """Trackers (len(TRACKER_WALKS), 3 axes, 3) at a reset: at ``position``, at rest; ``b`` is set at
+    the first step (module docstring)."""
+    trackers[:] = 0.0
+    for j in range(trackers.shape[0]):
+        trackers[j, :, 0] = position
+
+
 OUTPUTS = 18
 """The head's outputs, standardised: force (world, 0-2), external torque in the body frame (3-5), the
 log-variances of those six (6-11), velocity (world, 12-14) and body rates (15-17)."""
@@ -95,15 +166,119 @@ def advance(
 
 
 @njit
-def stream_features(thrusts, body_torques, positions, quaternions, velocities, body_rates, start, dt, mass):
-    """(T, F) features of one vehicle's recorded stream of T steps (the estimator interface's inputs,
-    ``velocities``/``body_rates`` (T, 3) or (0, 3)), its pose at the reset ``start`` = ``[p, q]``."""
+def window_forces(trail, seen, dt, mass, out):
+    """The window forces (module docstring) into ``out`` (3·len(WINDOWS),) from one estimator's
+    ``trail`` (TRAIL, 6) of ``[p, a]`` per step, a ring whose newest row is step ``seen - 1``."""
+    for w in range(len(WINDOWS)):
+        size = WINDOWS[w]
+        newest = (seen - 1) % TRAIL
+        middle = (seen - 1 - size) % TRAIL
+        oldest = (seen - 1 - 2 * size) % TRAIL
+        for i in range(3):
+            tent = 0.0
+            for back in range(2 * size - 1):  # steps t .. t-2L+2, weights 1 .. L .. 1
+                tent += (size - abs(back - (size - 1))) * trail[(seen - 1 - back) % TRAIL, 3 + i]
+            second = trail[newest, i] - 2.0 * trail[middle, i] + trail[oldest, i]
+            out[3 * w + i] = mass * (second / (size * dt) ** 2 - tent / size**2)
+        out[3 * w + 2] += mass * GRAVITY
+
+
+@njit
+def track(trackers, gains, position, acceleration, first, dt):
+    """The trackers (module docstring) one step on, in place: predicted under the thrust's
+    ``acceleration`` (m/s², world) and gravity, corrected by the measured ``position``; on the ``first``
+    step since the reset their ``b`` takes the trim first (a vehicle at rest)."""
+    for j in range(trackers.shape[0]):
+        for i in range(3):
+            drive = acceleration[i] - (GRAVITY if i == 2 else 0.0)
+            state = trackers[j, i]
+            if first:
+                state[2] = -drive
+            total = drive + state[2]
+            velocity = state[1] + dt * total
+            predicted = state[0] + dt * velocity
+            innovation = position[i] - predicted
+            state[0] = predicted + gains[j, 0] * innovation
+            state[1] = velocity + gains[j, 1] * innovation
+            state[2] += gains[j, 2] * innovation
+
+
+@njit
+def take_step(
+    previous,
+    trail,
+    trackers,
+    gains,
+    seen,
+    n,
+    frame,
+    thrusts,
+    body_torques,
+    positions,
+    quaternions,
+    velocities,
+    body_rates,
+    k,
+    dt,
+    mass,
+):
+    """Row ``k`` of the inputs into estimator ``n``'s ``frame`` and memory (``previous`` pose, ``trail``,
+    ``trackers``, ``seen[n]`` steps since its reset; the trail starts filled with the reset's position,
+    the trackers as :func:`start_trackers` leaves them); True when it completed the frame, whose window
+    and tracker forces are then written."""
+    width = (frame.shape[0] - FORCES) // FRAME_STEPS
+    start = (seen[n] % FRAME_STEPS) * width
+    step = frame[start : start + width]
+    advance(
+        previous, thrusts, body_torques, positions, quaternions, velocities, body_rates, k, dt, mass, step
+    )
+    row = seen[n] % TRAIL
+    trail[row, :3] = positions[k]
+    if seen[n] == 0:
+        for j in range(TRAIL):
+            trail[j, 3:] = step[3:6]
+    trail[row, 3:] = step[3:6]
+    track(trackers, gains, positions[k], step[3:6], seen[n] == 0, dt)
+    seen[n] += 1
+    if seen[n] % FRAME_STEPS != 0:
+        return False
+    forces = frame[FRAME_STEPS * width :]
+    window_forces(trail, seen[n], dt, mass, forces)
+    first = 3 * len(WINDOWS)
+    for j in range(trackers.shape[0]):
+        for i in range(3):
+            forces[first + 3 * j + i] = mass * trackers[j, i, 2]
+    return True
+
+
+@njit
+def stream_frames(
+    thrusts, body_torques, positions, quaternions, velocities, body_rates, start, dt, mass, gains
+):
+    """(T // FRAME_STEPS, frame width) frames of one vehicle's recorded stream of T steps (the estimator
+    interface's inputs, ``velocities``/``body_rates`` (T, 3) or (0, 3)) as its estimator fills them
+    from its reset at the pose ``start`` = ``[p, q]`` (a last partial frame is dropped); ``gains``
+    :func:`tracker_gains`."""
     measured = velocities.shape[0] > 0
-    out = np.zeros((thrusts.shape[0], FEATURES + (MEASURED_FEATURES if measured else 0)))
+    per_step = FEATURES + (MEASURED_FEATURES if measured else 0)
+    out = np.zeros((thrusts.shape[0] // FRAME_STEPS, FRAME_STEPS * per_step + FORCES))
     previous = start.copy()
-    for k in range(thrusts.shape[0]):
-        advance(
+    trail = np.zeros((TRAIL, 6))
+    for j in range(TRAIL):
+        trail[j, :3] = start[:3]
+    trackers = np.zeros((gains.shape[0], 3, 3))
+    start_trackers(trackers, start[:3])
+    seen = np.zeros(1, dtype=np.int64)
+    frame = np.zeros(out.shape[1])
+    for k in range(out.shape[0] * FRAME_STEPS):
+        if take_step(
             previous,
+            trail,
+            trackers,
+            gains,
+            seen,
+            0,
+            frame,
             thrusts,
             body_torques,
             positions,
@@ -113,8 +288,8 @@ def stream_features(thrusts, body_torques, positions, quaternions, velocities, b
             k,
             dt,
             mass,
-            out[k],
-        )
+        ):
+            out[k // FRAME_STEPS] = frame
     return out
 
 
@@ -124,10 +299,13 @@ def _sigmoid(value):
 
 
 @njit
-def gru_step(features, hidden, outputs, weights_in, weights_hidden, bias_in, bias_hidden, head, head_bias):
-    """One step of the unit and its head for one vehicle (module docstring): ``features`` (F,)
-    standardised, ``hidden`` (H,) updated in place, ``outputs`` (18,) written; the weights transposed,
-    ``weights_in`` (F, 3H), ``weights_hidden`` (H, 3H), ``head`` (H, 18)."""
+def gru_step(
+    features, hidden, outputs, weights_in, weights_hidden, bias_in, bias_hidden, head, head_bias, skip
+):
+    """One step of the unit, its head and the skip connection for one vehicle (module docstring):
+    ``features`` (F,) standardised, ``hidden`` (H,) updated in place, ``outputs`` (18,) written; the
+    weights transposed, ``weights_in`` (F, 3H), ``weights_hidden`` (H, 3H), ``head`` (H, 18), ``skip``
+    (S, 3) from the last S features (the window and tracker forces) to the force."""
     size = hidden.shape[0]
     gates_in = bias_in.copy()
     for j in range(features.shape[0]):
@@ -149,13 +327,21 @@ def gru_step(features, hidden, outputs, weights_in, weights_hidden, bias_in, bia
         hj = hidden[j]
         for k in range(outputs.shape[0]):
             outputs[k] += head[j, k] * hj
+    first = features.shape[0] - skip.shape[0]
+    for j in range(skip.shape[0]):
+        xj = features[first + j]
+        for k in range(skip.shape[1]):
+            outputs[k] += skip[j, k] * xj
 
 
 @njit
 def learned_bank_step(
     previous,
+    trail,
+    trackers,
+    gains,
+    seen,
     frames,
-    filled,
     hidden,
     outputs,
     thrusts,
@@ -170,24 +356,30 @@ def learned_bank_step(
     bias_hidden,
     head,
     head_bias,
+    skip,
     feature_mean,
     feature_scale,
     constants,
 ):
     """One physics step of every estimator, in place: ``previous`` (N, 7) the last measured poses,
-    ``frames`` (N, FRAME_STEPS·F) the frame being filled and ``filled`` (N,) its steps so far, ``hidden``
-    (N, H), ``outputs`` (N, 18) (updated when a frame is full); ``constants`` = ``[dt, mass]``. Returns
-    False, touching nothing, when an input is not finite."""
+    ``trail`` (N, TRAIL, 6), ``trackers`` (N, len(TRACKER_WALKS), 3, 3) and ``seen`` (N,) as
+    :func:`take_step` keeps them, ``gains`` :func:`tracker_gains`, ``frames`` (N, frame
+    width) the frame being filled, ``hidden`` (N, H), ``outputs`` (N, 18) (updated when a frame is
+    full); ``constants`` = ``[dt, mass]``. Returns False, touching nothing, when an input is not
+    finite."""
     if not inputs_finite(thrusts, body_torques, positions, quaternions, velocities, body_rates):
         return False
     dt, mass = constants[0], constants[1]
-    width = feature_mean.shape[0] // FRAME_STEPS
     standardised = np.empty(feature_mean.shape[0])
     for n in range(thrusts.shape[0]):
-        start = filled[n] * width
-        frame = frames[n, start : start + width]
-        advance(
+        if take_step(
             previous[n],
+            trail[n],
+            trackers[n],
+            gains,
+            seen,
+            n,
+            frames[n],
             thrusts,
             body_torques,
             positions,
@@ -197,11 +389,7 @@ def learned_bank_step(
             n,
             dt,
             mass,
-            frame,
-        )
-        filled[n] += 1
-        if filled[n] == FRAME_STEPS:
-            filled[n] = 0
+        ):
             for j in range(standardised.shape[0]):
                 standardised[j] = (frames[n, j] - feature_mean[j]) / feature_scale[j]
             gru_step(
@@ -214,15 +402,9 @@ def learned_bank_step(
                 bias_hidden,
                 head,
                 head_bias,
+                skip,
             )
     return True
-
-
-def stream_frames(features: np.ndarray) -> np.ndarray:
-    """(T // FRAME_STEPS, FRAME_STEPS·F) frames of a stream's (T, F) features (as the bank fills them from
-    a reset; a last partial frame is dropped)."""
-    count = features.shape[0] // FRAME_STEPS
-    return features[: count * FRAME_STEPS].reshape(count, FRAME_STEPS * features.shape[1])
 
 
 @njit
