@@ -3,13 +3,14 @@
     quad-wrench fit-estimator configs/fit_estimator.yaml [--set training.epochs=5] [--run-dir runs/NAME]
 
 For each vehicle preset of the config, every flight of its ``flights`` (an agent or an open-loop weave
-on any env id, with reset options and env settings, as ``compare estimators``' benchmark flies them) is
-flown by ``runs`` vehicles of one vector env and again by ``held_out_runs`` on seeds after those; each
-vehicle's actions get an Ornstein-Uhlenbeck perturbation of its own size (uniform up to
-``action_noise`` of the action's range) so that the controllers vary. At every physics step the env's
-estimator interface is recorded (thrust, motor torque, measured pose, measured velocity and body rates
-with an onboard state estimator) with the truth: the external wrench and the true velocity and body
-rates (:mod:`quad_wrench_env.estimators.fitting` fits on them). A run that ends early is left out.
+on any env id, with reset options and env settings, as ``compare estimators``' benchmark flies them,
+and optional steady ``pushes`` sized by the preset's weight, :data:`FLIGHT_KEYS`) is flown by ``runs``
+vehicles of one vector env and again by ``held_out_runs`` on seeds after those; each vehicle's actions
+get an Ornstein-Uhlenbeck perturbation of its own size (uniform up to ``action_noise`` of the action's
+range) so that the controllers vary. At every physics step the env's estimator interface is recorded
+(thrust, motor torque, measured pose, measured velocity and body rates with an onboard state estimator)
+with the truth: the external wrench and the true velocity and body rates
+(:mod:`quad_wrench_env.estimators.fitting` fits on them). A run that ends early is left out.
 
 The run folder holds ``config.yaml``, and per vehicle ``<vehicle>.npz`` (the model, loadable with
 ``estimator_params={"model": PATH}``; its provenance: the config, the commit, the losses) and
