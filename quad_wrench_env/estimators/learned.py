@@ -38,6 +38,7 @@ from quad_wrench_env.estimators.learned_kernel import (
     learned_bank_step,
     learned_covariances,
     learned_estimates,
+    restart_memory,
     tracker_gains,
 )
 from quad_wrench_env.vehicle import VehicleParams
@@ -184,15 +185,14 @@ class LearnedBank(FilterBank):
         self._prior = arrays["head_bias"][6:12]
         self.outputs[:, 6:12] = self._prior
 
-    def reset(self, index: int, position: np.ndarray, quaternion_wxyz: np.ndarray) -> None:
-        """Restart estimator ``index`` at the measured pose: an empty memory, zero wrench, velocity and
-        rates, the head's variances of an empty memory."""
+    def reset(self, index: int | slice, position: np.ndarray, quaternion_wxyz: np.ndarray) -> None:
+        """Restart estimator ``index`` (or a slice of them) at the measured pose: an empty memory, zero
+        wrench, velocity and rates, the head's variances of an empty memory."""
         self.previous[index, :3] = position
         self.previous[index, 3:] = quaternion_wxyz
-        self.trail[index, :, :3] = np.asarray(position)[..., None, :]
-        self.trail[index, :, 3:] = 0.0
-        self.trackers[index] = 0.0  # at the position, at rest (start_trackers, for one or many)
-        self.trackers[index, :, :, 0] = np.asarray(position)[..., None, :]
+        rows = np.atleast_1d(np.arange(self.count)[index])
+        for n, start in zip(rows, np.broadcast_to(position, (rows.size, 3)), strict=True):
+            restart_memory(self.trail[n], self.trackers[n], np.array(start, dtype=float))
         self.seen[index] = 0
         self.frames[index] = 0.0
         self.hidden[index] = 0.0

@@ -80,6 +80,7 @@ FORCES = 3 * (len(WINDOWS) + len(TRACKER_WALKS))
 """The window and tracker forces at the end of a frame, which the skip connection reads."""
 
 
+@njit
 def frame_width(measured_motion: bool) -> int:
     """Features of one frame: its steps' (27 each with a state estimator's velocity and body rates, else
     21), the window forces and the tracker forces."""
@@ -102,10 +103,14 @@ def tracker_gains(dt: float) -> np.ndarray:
 
 
 @njit
-def start_trackers(trackers, position):
-    """Trackers (len(TRACKER_WALKS), 3 axes, 3) at a reset: at ``position``, at rest; ``b`` is set at
-    the first step (module docstring)."""
+def restart_memory(trail, trackers, position):
+    """One estimator's ``trail`` (TRAIL, 6) and ``trackers`` (len(TRACKER_WALKS), 3 axes, 3) at a reset
+    at ``position``: every step of the trail there, the trackers there at rest; the thrust's
+    acceleration and the trackers' ``b`` are set at the first step (module docstring)."""
+    trail[:] = 0.0
     trackers[:] = 0.0
+    for j in range(trail.shape[0]):
+        trail[j, :3] = position
     for j in range(trackers.shape[0]):
         trackers[j, :, 0] = position
 
@@ -224,7 +229,7 @@ def take_step(
 ):
     """Row ``k`` of the inputs into estimator ``n``'s ``frame`` and memory (``previous`` pose, ``trail``,
     ``trackers``, ``seen[n]`` steps since its reset; the trail starts filled with the reset's position,
-    the trackers as :func:`start_trackers` leaves them); True when it completed the frame, whose window
+    the trackers as :func:`restart_memory` leaves them); True when it completed the frame, whose window
     and tracker forces are then written."""
     width = (frame.shape[0] - FORCES) // FRAME_STEPS
     start = (seen[n] % FRAME_STEPS) * width
@@ -259,15 +264,11 @@ def stream_frames(
     interface's inputs, ``velocities``/``body_rates`` (T, 3) or (0, 3)) as its estimator fills them
     from its reset at the pose ``start`` = ``[p, q]`` (a last partial frame is dropped); ``gains``
     :func:`tracker_gains`."""
-    measured = velocities.shape[0] > 0
-    per_step = FEATURES + (MEASURED_FEATURES if measured else 0)
-    out = np.zeros((thrusts.shape[0] // FRAME_STEPS, FRAME_STEPS * per_step + FORCES))
+    out = np.zeros((thrusts.shape[0] // FRAME_STEPS, frame_width(velocities.shape[0] > 0)))
     previous = start.copy()
-    trail = np.zeros((TRAIL, 6))
-    for j in range(TRAIL):
-        trail[j, :3] = start[:3]
-    trackers = np.zeros((gains.shape[0], 3, 3))
-    start_trackers(trackers, start[:3])
+    trail = np.empty((TRAIL, 6))
+    trackers = np.empty((gains.shape[0], 3, 3))
+    restart_memory(trail, trackers, start[:3])
     seen = np.zeros(1, dtype=np.int64)
     frame = np.zeros(out.shape[1])
     for k in range(out.shape[0] * FRAME_STEPS):
