@@ -18,6 +18,7 @@ from quad_wrench_env.estimators.learned_kernel import (
     FEATURES,
     FORCES,
     FRAME_STEPS,
+    SOURCES,
     TRACKER_NOISE,
     TRACKER_WALKS,
     WINDOWS,
@@ -257,21 +258,33 @@ def test_the_bank_fills_the_frames_the_fitting_fits_on():
 
 
 def test_the_kernels_network_is_pytorchs_gru():
-    """The kernel's recurrent unit, head and skip connection, step by step, against ``torch.nn.GRU``
-    and ``Linear`` in float64 on the same random weights and inputs (PyTorch's equations, not ours)."""
+    """The kernel's recurrent unit, head, skip connection and mixture, step by step, against
+    ``torch.nn.GRU`` and ``Linear`` in float64 on the same random weights and inputs (PyTorch's
+    equations, not ours), the mixture written here from its definition: per axis, the softmax of that
+    axis's logits weighing the window and tracker forces in newtons."""
     torch.manual_seed(3)
     width = frame_width(False)
-    network = Network(width, 16).double()
+    rng = np.random.default_rng(3)
+    mean, scale, target_scale = (
+        rng.normal(size=width),
+        rng.uniform(0.5, 2.0, width),
+        rng.uniform(0.5, 2.0, 12),
+    )
+    network = Network(mean, scale, target_scale, 16).double()
     with torch.no_grad():
         for parameter in network.parameters():
             parameter.normal_(0.0, 0.4)
     inputs = torch.randn(1, 40, width, dtype=torch.float64)
-    expected = network(inputs)[0].detach().numpy()
+    hiddens = network.gru(inputs)[0][0].detach().numpy()
     arrays = network.arrays()
     hidden, out = np.zeros(16), np.zeros(18)
     for k in range(40):
+        x = inputs[0, k].numpy()
+        forces = x[-FORCES:] * scale[-FORCES:] + mean[-FORCES:]
         gru_step(
-            inputs[0, k].numpy(),
+            x,
+            forces,
+            target_scale,
             hidden,
             out,
             arrays["weights_in"],
@@ -282,7 +295,16 @@ def test_the_kernels_network_is_pytorchs_gru():
             arrays["head_bias"],
             arrays["skip"],
         )
-        np.testing.assert_allclose(out, expected[k], rtol=0, atol=1e-12)
+        read = hiddens[k] @ arrays["head"] + arrays["head_bias"]
+        expected = read[:18].copy()
+        expected[:3] += x[-FORCES:] @ arrays["skip"]
+        for axis in range(3):
+            logits = read[18 + axis * SOURCES : 18 + (axis + 1) * SOURCES]
+            weights = np.exp(logits) / np.exp(logits).sum()
+            expected[axis] += weights @ forces[axis::3] / target_scale[axis]
+        np.testing.assert_allclose(out, expected, rtol=0, atol=1e-12)
+        fitted = network(inputs[:, : k + 1])[0, k].detach().numpy()  # its scales kept in float32
+        np.testing.assert_allclose(out, fitted, rtol=0, atol=1e-6)
 
 
 def test_every_preset_has_a_shipped_model_that_knows_where_it_came_from():

@@ -21,7 +21,7 @@ import numpy as np
 import torch
 
 from quad_wrench_env.config import check_numbers
-from quad_wrench_env.estimators.learned_kernel import FORCES, OUTPUTS
+from quad_wrench_env.estimators.learned_kernel import FORCES, LOGITS, OUTPUTS, SOURCES
 
 TARGETS = 12
 """Force (world), external torque (body), velocity (world), body rates: the targets per step."""
@@ -77,18 +77,32 @@ class TrainingSettings:
 
 
 class Network(torch.nn.Module):
-    """The GRU, its head and the skip connection from the window and tracker forces, the frame's last
-    features, to the force (:mod:`quad_wrench_env.estimators.learned_kernel`)."""
+    """The GRU, its head, the skip connection from the window and tracker forces (the frame's last
+    features) to the force and their mixture (:mod:`quad_wrench_env.estimators.learned_kernel`);
+    ``feature_mean``, ``feature_scale`` and ``target_scale`` the standardisation (:func:`_standardise`),
+    which the mixture undoes to weigh forces in newtons."""
 
-    def __init__(self, features: int, hidden: int) -> None:
+    def __init__(
+        self, feature_mean: np.ndarray, feature_scale: np.ndarray, target_scale: np.ndarray, hidden: int
+    ) -> None:
         super().__init__()
-        self.gru = torch.nn.GRU(features, hidden, batch_first=True)
-        self.head = torch.nn.Linear(hidden, OUTPUTS)
+        self.gru = torch.nn.GRU(feature_mean.size, hidden, batch_first=True)
+        self.head = torch.nn.Linear(hidden, OUTPUTS + LOGITS)
         self.skip = torch.nn.Linear(FORCES, 3, bias=False)
+        for name, value in (
+            ("force_mean", feature_mean[-FORCES:]),
+            ("force_scale", feature_scale[-FORCES:]),
+            ("target_force_scale", target_scale[:3]),
+        ):
+            self.register_buffer(name, torch.as_tensor(value, dtype=torch.float32), persistent=False)
 
     def forward(self, features: torch.Tensor) -> torch.Tensor:
-        skip = torch.nn.functional.pad(self.skip(features[..., -FORCES:]), (0, OUTPUTS - 3))
-        return self.head(self.gru(features)[0]) + skip
+        read = self.head(self.gru(features)[0])
+        x_f = features[..., -FORCES:]
+        forces = (x_f * self.force_scale + self.force_mean).unflatten(-1, (SOURCES, 3))
+        weights = torch.softmax(read[..., OUTPUTS:].unflatten(-1, (3, SOURCES)), dim=-1)
+        mixed = torch.einsum("...is,...si->...i", weights, forces) / self.target_force_scale
+        return read[..., :OUTPUTS] + torch.nn.functional.pad(self.skip(x_f) + mixed, (0, OUTPUTS - 3))
 
     def arrays(self) -> dict[str, np.ndarray]:
         """The weights as the kernel takes them (transposed, float64)."""
@@ -222,7 +236,7 @@ def fit(
 
     train_tensors, held_tensors = tensors(training), tensors(held_out)
     weights = flight_weights(training, target_scale, settings.balance_floor)
-    network = Network(mean.size, settings.hidden)
+    network = Network(mean, scale, target_scale, settings.hidden)
     optimiser = torch.optim.Adam(network.parameters(), lr=settings.learning_rate)
     length = max(2, round(settings.window_seconds / frame_seconds))
     batches = max(1, math.ceil(training.steps / (length * settings.batch)))

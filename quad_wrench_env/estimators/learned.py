@@ -31,6 +31,7 @@ import numpy as np
 from quad_wrench_env.estimators.bank import BankOfOne, FilterBank
 from quad_wrench_env.estimators.learned_kernel import (
     FORCES,
+    LOGITS,
     OUTPUTS,
     TRACKER_WALKS,
     TRAIL,
@@ -82,8 +83,8 @@ class LearnedModel:
             "weights_hidden": (hidden, 3 * hidden),
             "bias_in": (3 * hidden,),
             "bias_hidden": (3 * hidden,),
-            "head": (hidden, OUTPUTS),
-            "head_bias": (OUTPUTS,),
+            "head": (hidden, OUTPUTS + LOGITS),
+            "head_bias": (OUTPUTS + LOGITS,),
             "skip": (FORCES, 3),
             "feature_mean": (width,),
             "feature_scale": (width,),
@@ -170,7 +171,7 @@ class LearnedBank(FilterBank):
         self.count = count
         arrays = self.model.arrays
         self._weights = tuple(arrays[name] for name in WEIGHTS)
-        self._scales = (arrays["feature_mean"], arrays["feature_scale"])
+        self._scales = (arrays["feature_mean"], arrays["feature_scale"], arrays["target_scale"])
         self._target_scale, self._variance_scale = arrays["target_scale"], arrays["variance_scale"]
         self.constants = np.array((dt, vehicle.mass))
         self.previous = np.zeros((count, 7))

@@ -43,11 +43,17 @@ easily; the estimate is updated at each frame's last step and held between. The 
 PyTorch's ``GRU`` (Cho et al. 2014): with ``x`` the standardised frame,
 ``r = σ(W_ir x + b_ir + W_hr h + b_hr)``, ``z = σ(W_iz x + b_iz + W_hz h + b_hz)``,
 ``n = tanh(W_in x + b_in + r (W_hn h + b_hn))``, ``h' = (1 - z) n + z h``; a linear head reads ``h'``
-(:data:`OUTPUTS`), plus, on the force, a linear map of the frame's standardised window and tracker
-forces ``x_f`` (a skip connection, ``S x_f``: they pass straight to the force, which a head on the
-bounded ``h'`` reads only coarsely; the per-step features, whose finite differences are noisy, reach
-the outputs only through the unit). The weights are stored transposed, so that each product runs over its
-outputs on SIMD lanes while every sum keeps its order: a vehicle gets the same bits in a bank of any size.
+(:data:`OUTPUTS`), and two terms add to the force. A linear map of the frame's standardised window and
+tracker forces ``x_f`` (a skip connection, ``S x_f``: they pass straight to the force, which a head on
+the bounded ``h'`` reads only coarsely). And a mixture of them chosen by the unit: per axis ``i``,
+``Σ_j softmax(ℓ_i)_j F_ji`` with ``F_j`` the ``j``-th window or tracker force (N) and ``ℓ_i`` the head's
+:data:`LOGITS` for that axis. A fixed map must settle one trade-off of lag and noise for every
+flight; the mixture lets the unit pick, from what it has seen, the long average in hover and the
+quick tracker in a gust, as a bank of filters with one model per disturbance does (the interacting
+multiple model filter, Blom & Bar-Shalom 1988). The per-step features, whose finite differences are
+noisy, reach the outputs only through the unit. The weights are stored transposed, so that each
+product runs over its outputs on SIMD lanes while every sum keeps its order: a vehicle gets the same
+bits in a bank of any size.
 """
 
 from __future__ import annotations
@@ -76,8 +82,10 @@ TRACKER_WALKS = (0.0005, 0.002, 0.008, 0.03, 0.1)
 0.42, 0.26, 0.16, 0.10 and 0.065 s."""
 TRACKER_NOISE = 5e-4
 """Position noise (m) the trackers' gains assume: the motion capture's default (``sensors``)."""
-FORCES = 3 * (len(WINDOWS) + len(TRACKER_WALKS))
-"""The window and tracker forces at the end of a frame, which the skip connection reads."""
+SOURCES = len(WINDOWS) + len(TRACKER_WALKS)
+"""The window and tracker forces: each a force vector at the end of a frame."""
+FORCES = 3 * SOURCES
+"""Their components, the frame's last features, which the skip connection and the mixture read."""
 
 
 @njit
@@ -116,8 +124,11 @@ def restart_memory(trail, trackers, position):
 
 
 OUTPUTS = 18
-"""The head's outputs, standardised: force (world, 0-2), external torque in the body frame (3-5), the
+"""The estimates, standardised: force (world, 0-2), external torque in the body frame (3-5), the
 log-variances of those six (6-11), velocity (world, 12-14) and body rates (15-17)."""
+LOGITS = 3 * SOURCES
+"""The head's further outputs: per axis of the force, one logit per window and tracker force, the
+mixture's weights (module docstring)."""
 
 
 @njit
@@ -301,12 +312,25 @@ def _sigmoid(value):
 
 @njit
 def gru_step(
-    features, hidden, outputs, weights_in, weights_hidden, bias_in, bias_hidden, head, head_bias, skip
+    features,
+    forces,
+    force_scale,
+    hidden,
+    outputs,
+    weights_in,
+    weights_hidden,
+    bias_in,
+    bias_hidden,
+    head,
+    head_bias,
+    skip,
 ):
-    """One step of the unit, its head and the skip connection for one vehicle (module docstring):
-    ``features`` (F,) standardised, ``hidden`` (H,) updated in place, ``outputs`` (18,) written; the
-    weights transposed, ``weights_in`` (F, 3H), ``weights_hidden`` (H, 3H), ``head`` (H, 18), ``skip``
-    (S, 3) from the last S features (the window and tracker forces) to the force."""
+    """One step of the unit, its head, the skip connection and the mixture for one vehicle (module
+    docstring): ``features`` (F,) standardised, ``forces`` (FORCES,) the frame's window and tracker
+    forces in newtons, ``force_scale`` the targets' standardisation (its first three, the force's),
+    ``hidden`` (H,) updated in place, ``outputs`` (18,) written; the weights transposed, ``weights_in``
+    (F, 3H), ``weights_hidden`` (H, 3H), ``head`` (H, 18 + LOGITS), ``skip`` (S, 3) from the last S
+    features to the force."""
     size = hidden.shape[0]
     gates_in = bias_in.copy()
     for j in range(features.shape[0]):
@@ -323,16 +347,26 @@ def gru_step(
         update = _sigmoid(gates_in[size + k] + gates_hidden[size + k])
         candidate = math.tanh(gates_in[2 * size + k] + reset * gates_hidden[2 * size + k])
         hidden[k] = (1.0 - update) * candidate + update * hidden[k]
-    outputs[:] = head_bias
+    read = head_bias.copy()
     for j in range(size):
         hj = hidden[j]
-        for k in range(outputs.shape[0]):
-            outputs[k] += head[j, k] * hj
+        for k in range(read.shape[0]):
+            read[k] += head[j, k] * hj
+    outputs[:] = read[:OUTPUTS]
     first = features.shape[0] - skip.shape[0]
     for j in range(skip.shape[0]):
         xj = features[first + j]
         for k in range(skip.shape[1]):
             outputs[k] += skip[j, k] * xj
+    for i in range(3):
+        logits = read[OUTPUTS + i * SOURCES : OUTPUTS + (i + 1) * SOURCES]
+        top = logits.max()
+        total, mixed = 0.0, 0.0
+        for j in range(SOURCES):
+            weight = math.exp(logits[j] - top)
+            total += weight
+            mixed += weight * forces[3 * j + i]
+        outputs[i] += mixed / total / force_scale[i]
 
 
 @njit
@@ -360,14 +394,15 @@ def learned_bank_step(
     skip,
     feature_mean,
     feature_scale,
+    target_scale,
     constants,
 ):
     """One physics step of every estimator, in place: ``previous`` (N, 7) the last measured poses,
     ``trail`` (N, TRAIL, 6), ``trackers`` (N, len(TRACKER_WALKS), 3, 3) and ``seen`` (N,) as
     :func:`take_step` keeps them, ``gains`` :func:`tracker_gains`, ``frames`` (N, frame
     width) the frame being filled, ``hidden`` (N, H), ``outputs`` (N, 18) (updated when a frame is
-    full); ``constants`` = ``[dt, mass]``. Returns False, touching nothing, when an input is not
-    finite."""
+    full); ``target_scale`` the targets' standardisation (the mixture's force in the outputs' units);
+    ``constants`` = ``[dt, mass]``. Returns False, touching nothing, when an input is not finite."""
     if not inputs_finite(thrusts, body_torques, positions, quaternions, velocities, body_rates):
         return False
     dt, mass = constants[0], constants[1]
@@ -395,6 +430,8 @@ def learned_bank_step(
                 standardised[j] = (frames[n, j] - feature_mean[j]) / feature_scale[j]
             gru_step(
                 standardised,
+                frames[n, frames.shape[1] - FORCES :],
+                target_scale,
                 hidden[n],
                 outputs[n],
                 weights_in,
