@@ -25,6 +25,7 @@ import yaml
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.vec_env import VecNormalize
 
+from quad_wrench_env.agents.distill import DaggerRecurrentPPO, DistillationSettings, Teacher
 from quad_wrench_env.agents.normalize import CompiledVecNormalize
 from quad_wrench_env.agents.sb3_policy import (
     MEANING_KEYS,
@@ -96,11 +97,24 @@ class TrainConfig:
     log_std_init: float = 0.0
     """PPO's initial log standard deviation of its Gaussian actions (SB3's default 0: σ = 1, half
     the [-1, 1] action range). Lower it where a random action of that size ends every episode."""
+    privileged_critic: bool = False
+    """An asymmetric actor-critic (PPO only): the env appends the truth (``env.privileged``, set by
+    this), the critic reads it and the actor never does (:mod:`quad_wrench_env.agents.privileged`)."""
     normalize_observations: bool = True
     normalize_rewards: bool = True
     clip_observations: float = 10.0
     checkpoint_every_steps: int = 500_000
     evaluation: EvaluationConfig = field(default_factory=EvaluationConfig)
+    init_from: str | None = None
+    """A run folder or a shipped policy whose kept model starts this run: its network's weights and its
+    observation statistics (this run's hyperparameters and optimiser). Its observations and actions
+    must mean what this run's do (the estimator may differ: a policy flown on another estimator's
+    output, rapid motor adaptation's deployment). With ``total_steps: 0`` the run keeps it as it is."""
+    teacher: str | None = None
+    """``algorithm: dagger``: the policy the student imitates (a run folder or a shipped policy,
+    :class:`~quad_wrench_env.agents.distill.Teacher`)."""
+    distillation: DistillationSettings = field(default_factory=DistillationSettings)
+    """``algorithm: dagger``: how the student imitates (:mod:`quad_wrench_env.agents.distill`)."""
     threads: int = 1
     """Torch threads: 1 leaves the other core of a 2-core machine to a second run."""
     env_processes: int = 1
@@ -122,8 +136,10 @@ class TrainConfig:
             raise ValueError(f"activation={self.activation!r}; allowed: {sorted(ACTIVATIONS)}")
         for name in ("num_envs", "total_steps", "checkpoint_every_steps", "threads", "env_processes"):
             value = getattr(self, name)
+            if name == "total_steps" and value == 0 and self.init_from is not None:
+                continue  # the starting model kept as it is
             if not (_is_int(value) and value >= 1):
-                raise ValueError(f"{name}={value!r} must be an integer >= 1")
+                raise ValueError(f"{name}={value!r} must be an integer >= 1 (0 only with init_from)")
         if self.env_processes > self.num_envs:
             raise ValueError(
                 f"env_processes={self.env_processes} must be at most num_envs={self.num_envs} "
@@ -157,19 +173,52 @@ class TrainConfig:
             raise ValueError(f"log_std_init={self.log_std_init!r} must be a finite number")
         if self.log_std_init != 0.0 and self.algorithm == "sac":
             raise ValueError(f"log_std_init={self.log_std_init!r} is PPO's; {self.algorithm} learns its own")
-        for name in ("normalize_observations", "normalize_rewards"):
+        for name in ("normalize_observations", "normalize_rewards", "privileged_critic"):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"{name}={getattr(self, name)!r} must be true or false")
+        if (self.algorithm == "dagger") != (self.teacher is not None):
+            raise ValueError(
+                f"algorithm={self.algorithm!r} with teacher={self.teacher!r}: distillation needs a teacher "
+                "and a teacher needs distillation; allowed: algorithm dagger with a teacher, or neither"
+            )
+        if self.privileged_critic:
+            if self.algorithm != "ppo":
+                raise ValueError(
+                    f"privileged_critic=true with algorithm={self.algorithm!r}: only ppo's critic is built "
+                    "apart from its actor here; allowed: algorithm ppo"
+                )
+            if self.env.get("privileged", True) is not True:
+                raise ValueError(
+                    f"privileged_critic=true needs env.privileged true, not {self.env['privileged']!r}"
+                )
+            self.env = {**self.env, "privileged": True}
+        elif self.algorithm == "dagger":
+            if self.env.get("privileged", True) is not True:
+                raise ValueError(
+                    f"algorithm dagger needs env.privileged true, not {self.env['privileged']!r}"
+                )
+            self.env = {**self.env, "privileged": True}  # the teacher's frame; the student never reads it
+        elif self.env.get("privileged", False):
+            raise ValueError(
+                "env.privileged=true without privileged_critic: the actor would read the truth; allowed: "
+                "privileged_critic: true (the critic alone reads it)"
+            )
 
 
 RUN_KEYS = (*MEANING_KEYS, "policy_hz", "physics_hz")
 """Env settings every vehicle of a run shares (:attr:`TrainConfig.env_groups` refuses them): what an
 observation or an action means, and the control and physics periods."""
 
-ALGORITHMS = ("ppo", "sac", "recurrent_ppo")
-"""The learners: stable-baselines3's PPO and SAC, and sb3-contrib's ``RecurrentPPO`` (an LSTM policy:
-memory of its own, reset at each episode start)."""
-POLICY_CLASSES = {"ppo": "MlpPolicy", "sac": "MlpPolicy", "recurrent_ppo": "MlpLstmPolicy"}
+ALGORITHMS = ("ppo", "sac", "recurrent_ppo", "dagger")
+"""The learners: stable-baselines3's PPO and SAC, sb3-contrib's ``RecurrentPPO`` (an LSTM policy:
+memory of its own, reset at each episode start), and a ``RecurrentPPO`` student distilled from a
+``teacher`` (:mod:`quad_wrench_env.agents.distill`)."""
+POLICY_CLASSES = {
+    "ppo": "MlpPolicy",
+    "sac": "MlpPolicy",
+    "recurrent_ppo": "MlpLstmPolicy",
+    "dagger": "MlpLstmPolicy",
+}
 ACTIVATIONS = ("tanh", "relu")
 
 
@@ -196,13 +245,17 @@ class _Still:
         return np.zeros(self.shape, dtype=np.float32)
 
 
-def check_training(config: TrainConfig, folder: str | Path, resume: bool = False) -> None:
+def check_training(
+    config: TrainConfig, folder: str | Path, resume: bool = False, sources: bool = True
+) -> None:
     """Refuses, before anything runs or is written, what would otherwise fail in the run, by
     :class:`TrainingConfigError` naming the value and what is allowed: a run folder that is not empty
     (or, to resume, holds nothing to resume from), an env id that is not registered, env settings the
     task refuses, hyperparameters the algorithm does not take or refuses (the algorithm is built once
     on the run's env), and evaluation settings or a metric the harness does not have (one evaluation
-    episode of 0.1 s with the evaluation's env settings lists the metrics)."""
+    episode of 0.1 s with the evaluation's env settings lists the metrics), and with ``sources`` an
+    ``init_from`` or ``teacher`` that cannot start or teach this run (False where a study trains them
+    first)."""
     from stable_baselines3.common.vec_env import VecMonitor
 
     import quad_wrench_env  # noqa: F401  (registers the env ids)
@@ -239,6 +292,10 @@ def check_training(config: TrainConfig, folder: str | Path, resume: bool = False
             raise ValueError(f"hyperparameters={config.hyperparameters!r}: {error}") from None
         finally:
             venv.close()
+        if sources and config.teacher is not None:
+            Teacher(config.teacher, config.env_id, config.env)
+        if sources and config.init_from is not None:
+            starting_policy(config)
         e = config.evaluation
         for settings in evaluation_envs(config):  # every group's env settings, as the task takes them
             metrics = evaluate(
@@ -352,6 +409,53 @@ def training_env(config: TrainConfig) -> tuple[Any, VecNormalize]:
     return adapter, env
 
 
+def obs_layout(env: Any) -> dict[str, slice]:
+    """The observation layout of the task env under the SB3 wrappers ``env``."""
+    while not hasattr(env, "obs_layout"):
+        env = env.venv
+    return env.obs_layout
+
+
+def starting_policy(config: TrainConfig) -> SB3Policy:
+    """The policy ``init_from`` names, checked to read and act as this run does (its observation's and
+    action's meaning, :data:`MEANING_KEYS`; the estimator may differ) and to be of this run's learner."""
+    from quad_wrench_env.agents import make_agent
+
+    policy = make_agent(config.init_from)
+    if not isinstance(policy, SB3Policy):
+        raise ValueError(f"init_from={config.init_from!r}: not a trained policy (run folder or shipped)")
+    wanted = algorithm_class(config.algorithm)
+    if type(policy.model) is not wanted:
+        raise ValueError(
+            f"init_from={config.init_from!r} is a {type(policy.model).__name__}; this run's algorithm "
+            f"{config.algorithm!r} needs a {wanted.__name__}"
+        )
+    env = gym.make(config.env_id, **config.env)
+    try:
+        policy.reset(env)
+    except ValueError as error:
+        raise ValueError(f"init_from={config.init_from!r}: {error}") from None
+    finally:
+        env.close()
+    return policy
+
+
+def start_from(model: BaseAlgorithm, env: VecNormalize, policy: SB3Policy) -> None:
+    """``model`` and the observation statistics of ``env`` from ``policy``'s (:attr:`TrainConfig.init_from`):
+    the network's weights, and the means and variances as if from its training's samples."""
+    model.policy.load_state_dict(policy.model.policy.state_dict())
+    if policy.scaling is not None and env.norm_obs:
+        env.obs_rms.mean = policy.scaling.mean.astype(np.float64).copy()
+        env.obs_rms.var = policy.scaling.var.astype(np.float64).copy()
+        env.obs_rms.count = float(max(policy.model.num_timesteps, 1))
+
+
+def learner_class(name: str) -> type[BaseAlgorithm]:
+    """The class that trains an ``algorithm`` (a distilled student's learner; the others fly as they
+    learn, :func:`~quad_wrench_env.agents.sb3_policy.algorithm_class`)."""
+    return DaggerRecurrentPPO if name == "dagger" else algorithm_class(name)
+
+
 def new_model(config: TrainConfig, env: Any, tensorboard_log: str | None = None) -> BaseAlgorithm:
     """The config's untrained SB3 model on ``env`` (CPU, its network, seed and hyperparameters)."""
     import torch
@@ -360,13 +464,25 @@ def new_model(config: TrainConfig, env: Any, tensorboard_log: str | None = None)
     policy_kwargs = {"net_arch": list(config.net_arch), "activation_fn": activation}
     if config.algorithm != "sac":
         policy_kwargs["log_std_init"] = config.log_std_init
-    algorithm = algorithm_class(config.algorithm)
+    algorithm = learner_class(config.algorithm)
+    policy: str | type = POLICY_CLASSES[config.algorithm]
+    if config.privileged_critic:
+        from quad_wrench_env.agents.privileged import PrivilegedCriticPolicy
+
+        hidden = obs_layout(env)["privileged"]
+        policy, policy_kwargs["privileged"] = PrivilegedCriticPolicy, (hidden.start, hidden.stop)
+    elif config.algorithm == "dagger":
+        from quad_wrench_env.agents.privileged import WithoutColumns
+
+        hidden = obs_layout(env)["privileged"]
+        policy_kwargs["features_extractor_class"] = WithoutColumns
+        policy_kwargs["features_extractor_kwargs"] = {"hidden": (hidden.start, hidden.stop)}
     hyperparameters = dict(config.hyperparameters)
     if config.learning_rate_end is not None:
         start = hyperparameters.get("learning_rate", _default(algorithm, "learning_rate"))
         hyperparameters["learning_rate"] = LinearRate(float(start), float(config.learning_rate_end))
     return algorithm(
-        POLICY_CLASSES[config.algorithm],
+        policy,
         env,
         seed=config.seed,
         device="cpu",
@@ -396,11 +512,17 @@ def train(config: TrainConfig, folder: str | Path, resume: bool = False, progres
     if resume:
         last = latest_snapshot(folder)
         env = CompiledVecNormalize.load(str(last / "vecnormalize.pkl"), env.venv)
-        model = algorithm_class(config.algorithm).load(last / "model.zip", env=env, device="cpu")
+        model = learner_class(config.algorithm).load(last / "model.zip", env=env, device="cpu")
         start_steps = model.num_timesteps
     else:
         model = new_model(config, env, tensorboard_log=str(folder / "tensorboard"))
+        if config.init_from is not None:
+            start_from(model, env, starting_policy(config))
         folder.mkdir(parents=True, exist_ok=True)
+    if config.algorithm == "dagger":
+        model.start_distillation(
+            Teacher(config.teacher, config.env_id, config.env), config.distillation, obs_layout(env)
+        )
     (folder / "config.yaml").write_text(yaml.safe_dump(dataclasses.asdict(config), sort_keys=False))
     (folder / "commit.txt").write_text(_commit() + "\n")
     e = config.evaluation
@@ -438,8 +560,8 @@ def train(config: TrainConfig, folder: str | Path, resume: bool = False, progres
             worst = math.inf if e.lower_is_better else -math.inf
             self.best = (min if e.lower_is_better else max)(scored, default=worst)
             """The best metric so far, the resumed run's earlier evaluations included."""
-            self.trained = resume
-            """Whether the model has been updated: an untrained policy is never kept as the best."""
+            self.trained = resume or config.init_from is not None
+            """Whether the model has been trained: an untrained policy is never kept as the best."""
             self.next_eval = start_steps
             self.next_checkpoint = start_steps + config.checkpoint_every_steps
             self.sums: dict[str, float] = {}
@@ -496,6 +618,8 @@ def train(config: TrainConfig, folder: str | Path, resume: bool = False, progres
     # it runs to the next whole rollout past total_steps: ask for that many, and the bar ends at 100 %.
     rollout = config.num_envs * getattr(model, "n_steps", 1)
     steps = math.ceil(max(config.total_steps - start_steps, 1) / rollout) * rollout
+    if config.total_steps == 0:  # init_from's model kept as it is, its observation statistics too
+        steps, env.training = 0, False
     model.learn(steps, callback=loop, progress_bar=progress, reset_num_timesteps=not resume)
     loop.evaluate()
     save("final")

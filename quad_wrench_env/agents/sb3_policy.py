@@ -57,13 +57,15 @@ MEANING_KEYS = (
     "observe_wrench",
     "history",
     "sensor_history",
+    "privileged",
     "observe_tracking_error",
     "preview_seconds",
     "observe_reference_acceleration",
     "path_ahead_seconds",
 )
 """Env settings that change what an action or an observation means (``history``, ``sensor_history``,
-``preview_seconds``, ``observe_reference_acceleration`` and ``path_ahead_seconds`` its size too;
+``privileged``, ``preview_seconds``, ``observe_reference_acceleration`` and ``path_ahead_seconds`` its
+size too;
 ``action_limits`` the command an action stands for; the last four and ``observe_tracking_error`` are
 DisturbanceRejection's own and count only where the config has them)."""
 
@@ -144,7 +146,8 @@ def algorithm_class(name: str) -> type[BaseAlgorithm]:
     from sb3_contrib import RecurrentPPO
     from stable_baselines3 import PPO, SAC
 
-    return {"ppo": PPO, "sac": SAC, "recurrent_ppo": RecurrentPPO}[name]
+    classes = {"ppo": PPO, "sac": SAC, "recurrent_ppo": RecurrentPPO}
+    return classes["recurrent_ppo" if name == "dagger" else name]  # a distilled student flies as one
 
 
 def load_policy(folder: str | Path) -> SB3Policy:

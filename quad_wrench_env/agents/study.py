@@ -49,7 +49,9 @@ class StudyConfig:
     """Dotted overrides of ``base`` for every arm (e.g. ``{total_steps: 1500000}``: the same budget of
     env steps for each run, fair where runs share a loaded machine, unlike ``max_minutes``)."""
     arms: dict[str, dict[str, Any]] = field(default_factory=dict)
-    """Arm label -> dotted overrides of ``base`` (``{}``: the base as it is), after ``common``."""
+    """Arm label -> dotted overrides of ``base`` (``{}``: the base as it is), after ``common``. An
+    ``init_from`` or ``teacher`` of ``"@<arm>"`` names that arm's run of the same training seed (trained
+    first): e.g. the oracle arm's policy fine-tuned on another estimator, or distilled into a student."""
     seeds: list[int] = field(default_factory=lambda: [0, 1, 2])
     """Training seeds of every arm (the config's ``seed``: vehicle i of a run starts from seed + i)."""
     comparison: str | dict[str, Any] = field(default_factory=dict)
@@ -73,6 +75,13 @@ class StudyConfig:
         ):
             raise ValueError(f"seeds={seeds!r} must be a non-empty list of distinct integers >= 0")
         check_numbers("study", self, ("cpus_per_run",))
+        for label in self.arms:
+            for key, source in self.sources(label).items():
+                if source not in self.arms or self.sources(source):
+                    raise ValueError(
+                        f"arms[{label!r}].{key}='@{source}': allowed: an arm of this study that starts "
+                        f"from no other arm, one of {[a for a in self.arms if not self.sources(a)]}"
+                    )
         slugs = [slug(label) for label in self.arms]
         if len(set(slugs)) != len(slugs):
             raise ValueError(f"arms {list(self.arms)}: two labels give the same folder name {slugs}")
@@ -100,9 +109,22 @@ class StudyConfig:
                 "score on seeds never used in training"
             )
 
-    def run_config(self, label: str, seed: int) -> TrainConfig:
-        """The training config of arm ``label`` with training seed ``seed``."""
-        return train_config(self.base_values(), {**self.common, **self.arms[label], "seed": seed})
+    def sources(self, label: str) -> dict[str, str]:
+        """The arms that arm ``label``'s ``init_from`` and ``teacher`` name (``"@<arm>"``), by key."""
+        overrides = {**self.common, **self.arms[label]}
+        return {
+            key: overrides[key][1:]
+            for key in SOURCE_KEYS
+            if isinstance(overrides.get(key), str) and overrides[key].startswith("@")
+        }
+
+    def run_config(self, label: str, seed: int, folder: Path | None = None) -> TrainConfig:
+        """The training config of arm ``label`` with training seed ``seed``; an arm it starts from or
+        learns from is that arm's run folder of the same seed under the study's ``folder``."""
+        overrides = {**self.common, **self.arms[label], "seed": seed}
+        for key, source in self.sources(label).items():
+            overrides[key] = str(run_folder(folder or Path("."), source, seed))
+        return train_config(self.base_values(), overrides)
 
     def flying_env(self, label: str, seed: int) -> dict[str, Any]:
         """The env settings a run of arm ``label`` brings to the comparison: its training env's
@@ -125,6 +147,9 @@ class StudyConfig:
     def _vehicles(self) -> int:
         return max(self.run_config(label, self.seeds[0]).num_envs for label in self.arms)
 
+
+SOURCE_KEYS = ("init_from", "teacher")
+"""Training keys that may name another arm's run (``"@<arm>"``)."""
 
 ESTIMATOR_KEYS = ("estimator", "estimator_params", "fan_walks")
 """The training env's settings a study's run brings to the comparison whatever its arm: the estimator
@@ -178,30 +203,35 @@ def _train_run(values: dict[str, Any], folder: str, resume: bool) -> str:
 
 
 def train_all(config: StudyConfig, folder: Path, address: str | None = None) -> list[str]:
-    """Every run not finished yet, on Ray; returns a line per run trained."""
+    """Every run not finished yet, on Ray, the arms that start from no other arm first; returns a line
+    per run trained."""
     import ray
 
-    pending = [
-        (label, seed, run_folder(folder, label, seed))
-        for label in config.arms
-        for seed in config.seeds
-        if status(run_folder(folder, label, seed)) != "done"
-    ]
-    if not pending:
-        return []
-    with ray_session(address):
-        task = ray.remote(num_cpus=config.cpus_per_run)(_train_run)
-        jobs = {}
-        for label, seed, run in pending:
-            values = dataclasses.asdict(config.run_config(label, seed))
-            jobs[task.remote(values, str(run), status(run) == "resume")] = (label, seed)
-        lines = []
-        while jobs:
-            done, _ = ray.wait(list(jobs))
-            label, seed = jobs.pop(done[0])
-            ray.get(done[0])
-            lines.append(f"trained {label}, seed {seed}")
-        return lines
+    lines: list[str] = []
+    for wave in (
+        [label for label in config.arms if not config.sources(label)],
+        [label for label in config.arms if config.sources(label)],
+    ):
+        pending = [
+            (label, seed, run_folder(folder, label, seed))
+            for label in wave
+            for seed in config.seeds
+            if status(run_folder(folder, label, seed)) != "done"
+        ]
+        if not pending:
+            continue
+        with ray_session(address):
+            task = ray.remote(num_cpus=config.cpus_per_run)(_train_run)
+            jobs = {}
+            for label, seed, run in pending:
+                values = dataclasses.asdict(config.run_config(label, seed, folder))
+                jobs[task.remote(values, str(run), status(run) == "resume")] = (label, seed)
+            while jobs:
+                done, _ = ray.wait(list(jobs))
+                label, seed = jobs.pop(done[0])
+                ray.get(done[0])
+                lines.append(f"trained {label}, seed {seed}")
+    return lines
 
 
 def _compare_one(comparison: dict[str, Any], label: str) -> dict[tuple[str, str], Evaluation]:
@@ -296,7 +326,8 @@ def study(config: StudyConfig, folder: str | Path, address: str | None = None) -
     folder = Path(folder).resolve()
     for label in config.arms:  # env settings and hyperparameters, before any run starts
         try:
-            check_training(config.run_config(label, config.seeds[0]), folder / "runs" / "not-a-run")
+            run = config.run_config(label, config.seeds[0], folder)
+            check_training(run, folder / "runs" / "not-a-run", sources=not config.sources(label))
         except TrainingConfigError as error:
             raise TrainingConfigError(f"arms[{label!r}]: {error}") from None
     (folder / "runs").mkdir(parents=True, exist_ok=True)

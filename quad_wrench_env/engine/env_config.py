@@ -119,6 +119,10 @@ class EnvConfig:
     per step the motor speeds as reported over the top speed, the measured position and attitude (the
     ``attitude`` block's form), and the measured velocity and body rates with ``sensors.state_estimator``;
     zeros before the episode's first physics step. 0: none."""
+    privileged: bool = False
+    """Appends the truth (``privileged``: the true position, velocity, attitude, body rates, force and
+    torque in the form of the engine's blocks, ``docs/tasks.md``) for a privileged critic or a teacher;
+    a policy trained with it masks the block from its actor (``docs/training.md``)."""
     crash_height: float = 0.1
     flip_tilt_deg: float = 90.0
 
@@ -159,6 +163,8 @@ class EnvConfig:
                 f"sensor_history={self.sensor_history!r} must be an integer >= 0 (physics steps of sensor "
                 "readings observed)"
             )
+        if not isinstance(self.privileged, bool):
+            raise ValueError(f"privileged={self.privileged!r} must be true or false")
         if not (0.0 < self.flip_tilt_deg <= 180.0):
             raise ValueError(f"flip_tilt_deg={self.flip_tilt_deg!r} must be in (0, 180]")
 

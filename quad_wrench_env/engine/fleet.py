@@ -328,11 +328,15 @@ class Fleet:
         force, torque = resultant(offsets, forces)
         return np.concatenate((force, torque), axis=1)
 
+    def true_states(self) -> np.ndarray:
+        """(N, 13) the true states as the estimators give theirs: position, velocity, quaternion (w, x,
+        y, z), body rates."""
+        s = self.state
+        return np.concatenate((s.position, s.velocity, s.quaternion, s.body_rates), axis=1)
+
     def _feed_truth(self) -> None:
         if self.truth_fed:
-            s = self.state
-            truth = np.concatenate((s.position, s.velocity, s.quaternion, s.body_rates), axis=1)
-            self.estimator.observe_truth(truth, self.wrench_true)
+            self.estimator.observe_truth(self.true_states(), self.wrench_true)
 
     # -- what the envs read ------------------------------------------------------------------------
     def estimates(self) -> tuple[np.ndarray, np.ndarray]:
@@ -345,12 +349,18 @@ class Fleet:
     def observations(self, last_actions: np.ndarray) -> np.ndarray:
         """(N, width) float32 observations laid out as :attr:`layout` with the engine's blocks filled:
         the estimators' states (the attitude as two columns of the rotation matrix) and wrenches
-        (zeros unless ``observe_wrench``), and the last actions; the task's blocks are zeros (the
-        env fills them)."""
+        (zeros unless ``observe_wrench``), the last actions, and with ``layout.privileged`` the true
+        state and wrench in the same form; the task's blocks are zeros (the env fills them)."""
         layout = self.layout
         out = np.zeros((self.count, layout.size), dtype=np.float32)
         states, wrenches = self.estimates()
         assemble_observations(states, wrenches, last_actions, self._observe_wrench, layout.kernel_starts, out)
+        if layout.privileged:
+            truth, still = np.zeros((self.count, layout.frame), dtype=np.float32), np.zeros_like(last_actions)
+            starts = layout.kernel_starts
+            assemble_observations(self.true_states(), self.wrench_true, still, 1.0, starts, truth)
+            privileged = layout.slices["privileged"]
+            out[:, privileged] = truth[:, : privileged.stop - privileged.start]
         return out
 
     def terminations(self) -> np.ndarray:

@@ -30,6 +30,8 @@ ENGINE_BLOCKS: tuple[tuple[str, int], ...] = (
 """The engine's observation blocks in order: the estimator's state and wrench, and the previous action.
 The attitude is the first two columns of the rotation matrix (body x and y axes in the world frame), a
 representation without the jumps of a quaternion kept to one hemisphere."""
+PRIVILEGED_BLOCKS = ENGINE_BLOCKS[:6]
+"""What the ``privileged`` block holds, from the truth: the engine's blocks before the last action."""
 
 
 class ObservationLayout:
@@ -38,7 +40,9 @@ class ObservationLayout:
     ``history_K`` each one frame, ``history_1`` the last); then, with ``sensor_history`` S > 0, the
     estimators' sensor readings of the S last physics steps (``sensors``, and ``sensors_1`` the newest ...
     ``sensors_S``, each ``sensor_width`` numbers:
-    :func:`~quad_wrench_env.engine.kernels.record_sensor_readings`)."""
+    :func:`~quad_wrench_env.engine.kernels.record_sensor_readings`); then, with ``privileged``, the
+    true state and wrench in the form of the engine's first blocks (``privileged``,
+    :data:`PRIVILEGED_BLOCKS`: for a critic or a teacher, never an actor)."""
 
     def __init__(
         self,
@@ -46,6 +50,7 @@ class ObservationLayout:
         history: int = 0,
         sensor_history: int = 0,
         sensor_width: int = 0,
+        privileged: bool = False,
     ) -> None:
         names = [name for name, _ in ENGINE_BLOCKS]
         clashes = sorted({name for name, _, _ in task_blocks} & {*names, "wrench"})
@@ -73,6 +78,11 @@ class ObservationLayout:
         if sensor_history:
             self.slices["sensors"] = slice(self.size, self.size + sensor_history * sensor_width)
         self.size += sensor_history * sensor_width
+        self.privileged = privileged
+        if privileged:
+            width = sum(w for _, w in PRIVILEGED_BLOCKS)
+            self.slices["privileged"] = slice(self.size, self.size + width)
+            self.size += width
         self.slices["wrench"] = slice(self.slices["force"].start, self.slices["torque"].stop)
         self.kernel_starts = np.array([self.slices[name].start for name in names], dtype=np.int64)
         self.task_columns = slice(self.slices[ENGINE_BLOCKS[-1][0]].stop, self.frame)
@@ -103,7 +113,8 @@ class ObservationLayout:
             )
         )
         readings = np.tile(reading, self.sensor_history) if self.sensor_history else np.zeros(0)
-        high = np.concatenate((np.tile(frame, self.history + 1), readings)).astype(np.float32)
+        truth = frame[: self.slices[PRIVILEGED_BLOCKS[-1][0]].stop] if self.privileged else np.zeros(0)
+        high = np.concatenate((np.tile(frame, self.history + 1), readings, truth)).astype(np.float32)
         return spaces.Box(-high, high, dtype=np.float32)
 
 

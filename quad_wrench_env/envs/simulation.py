@@ -54,7 +54,9 @@ def build_fleet(task_class: type[Task], cfg: Any, count: int, gui: bool = False)
     task = task_class(cfg, vehicle, count)
     components = assemble(cfg, vehicle, count, task.components())
     width = SENSOR_READING_WIDTH + (MOTION_READING_WIDTH if cfg.sensors.state_estimator else 0)
-    layout = ObservationLayout(task.observation_blocks, cfg.history, cfg.sensor_history, width)
+    layout = ObservationLayout(
+        task.observation_blocks, cfg.history, cfg.sensor_history, width, privileged=cfg.privileged
+    )
     return task, Fleet(cfg, vehicle, count, components, layout, gui=gui)
 
 
