@@ -70,9 +70,7 @@ class Teacher:
         from quad_wrench_env.agents.sb3_policy import MEANING_KEYS, SB3Policy
 
         policy = make_agent(source)
-        if not isinstance(policy, SB3Policy) or policy.model.policy.__class__.__name__.startswith(
-            "Recurrent"
-        ):
+        if not isinstance(policy, SB3Policy) or isinstance(policy.model, RecurrentPPO):
             raise ValueError(
                 f"teacher={source!r} must be a trained feed-forward policy (a run folder or name)"
             )

@@ -181,23 +181,16 @@ class TrainConfig:
                 f"algorithm={self.algorithm!r} with teacher={self.teacher!r}: distillation needs a teacher "
                 "and a teacher needs distillation; allowed: algorithm dagger with a teacher, or neither"
             )
-        if self.privileged_critic:
-            if self.algorithm != "ppo":
-                raise ValueError(
-                    f"privileged_critic=true with algorithm={self.algorithm!r}: only ppo's critic is built "
-                    "apart from its actor here; allowed: algorithm ppo"
-                )
+        if self.privileged_critic and self.algorithm != "ppo":
+            raise ValueError(
+                f"privileged_critic=true with algorithm={self.algorithm!r}: only ppo's critic is built "
+                "apart from its actor here; allowed: algorithm ppo"
+            )
+        if self.privileged_critic or self.algorithm == "dagger":  # the critic's or the teacher's truth
             if self.env.get("privileged", True) is not True:
-                raise ValueError(
-                    f"privileged_critic=true needs env.privileged true, not {self.env['privileged']!r}"
-                )
+                reader = "privileged_critic=true" if self.privileged_critic else "algorithm dagger"
+                raise ValueError(f"{reader} needs env.privileged true, not {self.env['privileged']!r}")
             self.env = {**self.env, "privileged": True}
-        elif self.algorithm == "dagger":
-            if self.env.get("privileged", True) is not True:
-                raise ValueError(
-                    f"algorithm dagger needs env.privileged true, not {self.env['privileged']!r}"
-                )
-            self.env = {**self.env, "privileged": True}  # the teacher's frame; the student never reads it
         elif self.env.get("privileged", False):
             raise ValueError(
                 "env.privileged=true without privileged_critic: the actor would read the truth; allowed: "
