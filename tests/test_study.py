@@ -12,7 +12,7 @@ from quad_wrench_env.agents import make_agent
 from quad_wrench_env.agents.evaluate import evaluate
 from quad_wrench_env.agents.sb3 import TrainingConfigError
 from quad_wrench_env.agents.study import StudyConfig, evaluate_all, status, study, train_all
-from quad_wrench_env.config import build
+from quad_wrench_env.config import build, load_yaml
 from tests.conftest import FAN_TRACKING
 
 pytest.importorskip("ray")
@@ -148,3 +148,83 @@ def test_an_arm_whose_env_the_task_refuses_stops_the_study_before_any_run(tmp_pa
     with pytest.raises(TrainingConfigError, match=r"arms\['bad'\]: unknown estimator 'kalman'"):
         study(config, tmp_path)
     assert not (tmp_path / "runs").exists()
+
+
+def test_a_learning_rate_sweep_trains_the_first_seed_at_each_rate_and_the_others_at_the_best(tmp_path):
+    """The first seed at every rate, the later seeds at the rate whose kept model scored best on the
+    run's own selection seeds (the return here: higher is better), the winner the first seed's run."""
+    config = _config(arms={"ukf": {}}, learning_rates=[1e-3, 3e-4])
+    lines = train_all(config, tmp_path)
+    assert sorted(lines) == [
+        "trained ukf, seed 0, learning rate 0.0003",
+        "trained ukf, seed 0, learning rate 0.001",
+        "trained ukf, seed 1",
+    ]
+    runs = tmp_path / "runs"
+    assert sorted(p.name for p in runs.iterdir()) == ["ukf-lr0.0003-seed0", "ukf-lr0.001-seed0", "ukf-seed1"]
+    scores = {
+        rate: load_yaml(runs / f"ukf-lr{rate:g}-seed0" / "best" / "evaluation.yaml")["value"]
+        for rate in (1e-3, 3e-4)
+    }
+    best = max(scores, key=scores.get)
+    assert config.chosen_rate(tmp_path, "ukf") == best
+    assert load_yaml(runs / "ukf-seed1" / "config.yaml")["hyperparameters"]["learning_rate"] == best
+    assert config.run_path(tmp_path, "ukf", 0) == runs / f"ukf-lr{best:g}-seed0"
+    assert train_all(config, tmp_path) == []
+
+
+def _finished_run(path, value) -> None:
+    (path / "final").mkdir(parents=True)
+    (path / "final" / "model.zip").write_bytes(b"")
+    (path / "best").mkdir()
+    (path / "best" / "evaluation.yaml").write_text(f"value: {value}\n")
+
+
+def test_the_sweep_chooses_by_the_selection_metrics_direction_never_a_nan_and_waits_for_every_rate(tmp_path):
+    lower = {
+        "evaluation": {**BASE["evaluation"], "metric": "mean_abs_error_after_5s", "lower_is_better": True}
+    }
+    config = _config(base={**BASE, **lower}, arms={"ukf": {}}, learning_rates=[1e-3, 3e-4, 1e-4])
+    _finished_run(config.sweep_folder(tmp_path, "ukf", 1e-3), 0.5)
+    _finished_run(config.sweep_folder(tmp_path, "ukf", 3e-4), ".nan")
+    assert config.chosen_rate(tmp_path, "ukf") is None  # 1e-4 not done yet
+    assert config.job(tmp_path, "ukf", 1, None) is None  # the second seed waits on it
+    with pytest.raises(FileNotFoundError, match="its learning-rate sweep .* is not done"):
+        config.run_path(tmp_path, "ukf", 0)
+    _finished_run(config.sweep_folder(tmp_path, "ukf", 1e-4), 0.7)
+    assert config.chosen_rate(tmp_path, "ukf") == 1e-3
+    path, run = config.job(tmp_path, "ukf", 1, None)
+    assert path == tmp_path / "runs" / "ukf-seed1" and run.hyperparameters["learning_rate"] == 1e-3
+
+
+def test_an_arm_that_starts_from_a_swept_arm_starts_from_its_chosen_run_and_is_not_swept_at_zero_steps(
+    tmp_path,
+):
+    arms = {"oracle": {"env.estimator": "oracle"}, "as shipped": {"init_from": "@oracle", "total_steps": 0}}
+    config = _config(arms=arms, learning_rates=[1e-3, 3e-4])
+    assert config.swept("oracle") and not config.swept("as shipped")
+    sweep = [("oracle", 0, 1e-3), ("oracle", 0, 3e-4)]
+    assert config.runs() == [*sweep, ("oracle", 1, None), ("as shipped", 0, None), ("as shipped", 1, None)]
+    assert config.job(tmp_path, "as shipped", 0, None) is None  # the oracle's sweep is not done
+    _finished_run(config.sweep_folder(tmp_path, "oracle", 1e-3), 10.0)
+    _finished_run(config.sweep_folder(tmp_path, "oracle", 3e-4), 20.0)  # the return: higher is better
+    run = config.job(tmp_path, "as shipped", 0, None)[1]
+    assert run.init_from == str(tmp_path / "runs" / "oracle-lr0.0003-seed0")
+    assert config.job(tmp_path, "as shipped", 1, None) is None  # the oracle's seed 1 is not trained
+
+
+@pytest.mark.parametrize(
+    ("changes", "message"),
+    [
+        ({"learning_rates": [1e-3, 1e-3]}, r"learning_rates=\[0.001, 0.001\] must be a list of distinct"),
+        ({"learning_rates": [0.0]}, "numbers > 0"),
+        ({"learning_rates": "1e-3"}, "must be a list"),
+        (
+            {"learning_rates": [1e-3], "arms": {"a": {"hyperparameters.learning_rate": 1e-4}}},
+            r"arms\['a'\] sets hyperparameters.learning_rate beside learning_rates=\[0.001\]",
+        ),
+    ],
+)
+def test_a_bad_sweep_is_refused_by_name(changes, message):
+    with pytest.raises(ValueError, match=message):
+        _config(**changes)

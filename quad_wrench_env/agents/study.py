@@ -60,6 +60,11 @@ class StudyConfig:
     to the study file) or a mapping. Each run flies in the config's env with its :meth:`flying_env`."""
     cpus_per_run: float = 1.0
     """CPUs Ray reserves for each run (a run steps its env and its network in one process)."""
+    learning_rates: list[float] = field(default_factory=list)
+    """The learning-rate sweep, the same for every arm (empty: none). An arm that trains (``total_steps``
+    above 0) is first trained with the first training seed at each rate (``<arm>-lr<rate>-seed<k>``);
+    the rate whose kept model scores best on the run's own selection seeds (``best/evaluation.yaml``,
+    never the comparison's) is the arm's: that run is its first seed's, and its other seeds train at it."""
 
     def __post_init__(self) -> None:
         if not isinstance(self.common, dict):
@@ -75,6 +80,13 @@ class StudyConfig:
         ):
             raise ValueError(f"seeds={seeds!r} must be a non-empty list of distinct integers >= 0")
         check_numbers("study", self, ("cpus_per_run",))
+        rates = self.learning_rates
+        if not (
+            isinstance(rates, list)
+            and all(isinstance(r, float | int) and not isinstance(r, bool) and r > 0 for r in rates)
+            and len(set(rates)) == len(rates)
+        ):
+            raise ValueError(f"learning_rates={rates!r} must be a list of distinct numbers > 0")
         for label in self.arms:
             for key, source in self.sources(label).items():
                 if source not in self.arms or self.sources(source):
@@ -82,6 +94,11 @@ class StudyConfig:
                         f"arms[{label!r}].{key}='@{source}': allowed: an arm of this study that starts "
                         f"from no other arm, one of {[a for a in self.arms if not self.sources(a)]}"
                     )
+            if rates and LEARNING_RATE in {**self.common, **self.arms[label]}:
+                raise ValueError(
+                    f"arms[{label!r}] sets {LEARNING_RATE} beside learning_rates={rates}: "
+                    "the sweep sets every arm's rate; drop one of the two"
+                )
         slugs = [slug(label) for label in self.arms]
         if len(set(slugs)) != len(slugs):
             raise ValueError(f"arms {list(self.arms)}: two labels give the same folder name {slugs}")
@@ -118,13 +135,82 @@ class StudyConfig:
             if isinstance(overrides.get(key), str) and overrides[key].startswith("@")
         }
 
-    def run_config(self, label: str, seed: int, folder: Path | None = None) -> TrainConfig:
-        """The training config of arm ``label`` with training seed ``seed``; an arm it starts from or
-        learns from is that arm's run folder of the same seed under the study's ``folder``."""
+    def run_config(
+        self, label: str, seed: int, folder: Path | None = None, rate: float | None = None
+    ) -> TrainConfig:
+        """The training config of arm ``label`` with training seed ``seed`` (and learning rate ``rate``
+        where given); an arm it starts from or learns from is that arm's run of the same seed under the
+        study's ``folder`` (:meth:`run_path`)."""
         overrides = {**self.common, **self.arms[label], "seed": seed}
+        if rate is not None:
+            overrides[LEARNING_RATE] = rate
         for key, source in self.sources(label).items():
-            overrides[key] = str(run_folder(folder or Path("."), source, seed))
+            path = self.run_path(folder, source, seed) if folder else run_folder(Path("."), source, seed)
+            overrides[key] = str(path)
         return train_config(self.base_values(), overrides)
+
+    def swept(self, label: str) -> bool:
+        """Whether arm ``label``'s learning rate comes from the sweep (it trains, and there is one)."""
+        return bool(self.learning_rates) and self.run_config(label, self.seeds[0]).total_steps > 0
+
+    def runs(self) -> list[tuple[str, int, float | None]]:
+        """Every run of the study as (arm, seed, the sweep's rate or None), in the config's order."""
+        runs: list[tuple[str, int, float | None]] = []
+        for label in self.arms:
+            if self.swept(label):
+                runs += [(label, self.seeds[0], rate) for rate in self.learning_rates]
+                runs += [(label, seed, None) for seed in self.seeds[1:]]
+            else:
+                runs += [(label, seed, None) for seed in self.seeds]
+        return runs
+
+    def sweep_scores(self, folder: Path, label: str) -> dict[float, float] | None:
+        """Each rate's kept-model score of arm ``label``'s sweep (NaN where the run kept none: no
+        evaluation beat the untrained policy's place); None until every sweep run is done."""
+        paths = {rate: self.sweep_folder(folder, label, rate) for rate in self.learning_rates}
+        if any(status(path) != "done" for path in paths.values()):
+            return None
+        kept = {rate: path / "best" / "evaluation.yaml" for rate, path in paths.items()}
+        return {rate: float(load_yaml(f)["value"]) if f.is_file() else math.nan for rate, f in kept.items()}
+
+    def chosen_rate(self, folder: Path, label: str) -> float | None:
+        """The sweep's best rate for arm ``label`` (the run config's ``evaluation.lower_is_better``; a
+        score of NaN never wins); None until every sweep run is done."""
+        scores = self.sweep_scores(folder, label)
+        if scores is None:
+            return None
+        sign = 1.0 if self.run_config(label, self.seeds[0]).evaluation.lower_is_better else -1.0
+        return min(scores, key=lambda rate: sign * scores[rate] if math.isfinite(scores[rate]) else math.inf)
+
+    def sweep_folder(self, folder: Path, label: str, rate: float) -> Path:
+        return folder / "runs" / f"{slug(label)}-lr{rate:g}-seed{self.seeds[0]}"
+
+    def run_path(self, folder: Path, label: str, seed: int) -> Path:
+        """The run folder of arm ``label`` and training seed ``seed``: the sweep's chosen run for the
+        first seed of a swept arm (an error before the sweep is done), else ``<arm>-seed<k>``."""
+        if self.swept(label) and seed == self.seeds[0]:
+            rate = self.chosen_rate(folder, label)
+            if rate is None:
+                raise FileNotFoundError(f"arm {label!r}: its learning-rate sweep in {folder} is not done")
+            return self.sweep_folder(folder, label, rate)
+        return run_folder(folder, label, seed)
+
+    def job(self, folder: Path, label: str, seed: int, rate: float | None) -> tuple[Path, TrainConfig] | None:
+        """Run (``label``, ``seed``, ``rate``)'s folder and training config, or None while it waits: on
+        its arm's sweep (a later seed of a swept arm) or on an arm it starts from or learns from."""
+        for source in self.sources(label).values():
+            if self.swept(source) and seed == self.seeds[0] and self.chosen_rate(folder, source) is None:
+                return None
+            if status(self.run_path(folder, source, seed)) != "done":
+                return None
+        if rate is not None:
+            return self.sweep_folder(folder, label, rate), self.run_config(label, seed, folder, rate)
+        if self.swept(label):
+            chosen = self.chosen_rate(folder, label)
+            if chosen is None:
+                return None
+            return run_folder(folder, label, seed), self.run_config(label, seed, folder, chosen)
+        return run_folder(folder, label, seed), self.run_config(label, seed, folder)
 
     def flying_env(self, label: str, seed: int) -> dict[str, Any]:
         """The env settings a run of arm ``label`` brings to the comparison: its training env's
@@ -147,6 +233,9 @@ class StudyConfig:
     def _vehicles(self) -> int:
         return max(self.run_config(label, self.seeds[0]).num_envs for label in self.arms)
 
+
+LEARNING_RATE = "hyperparameters.learning_rate"
+"""The training key the study's learning-rate sweep sets."""
 
 SOURCE_KEYS = ("init_from", "teacher")
 """Training keys that may name another arm's run (``"@<arm>"``)."""
@@ -203,35 +292,34 @@ def _train_run(values: dict[str, Any], folder: str, resume: bool) -> str:
 
 
 def train_all(config: StudyConfig, folder: Path, address: str | None = None) -> list[str]:
-    """Every run not finished yet, on Ray, the arms that start from no other arm first; returns a line
+    """Every run not finished yet, on Ray, each as soon as what it waits on is done (its arm's
+    learning-rate sweep, the arm it starts from or learns from: :meth:`StudyConfig.job`); returns a line
     per run trained."""
     import ray
 
     lines: list[str] = []
-    for wave in (
-        [label for label in config.arms if not config.sources(label)],
-        [label for label in config.arms if config.sources(label)],
-    ):
-        pending = [
-            (label, seed, run_folder(folder, label, seed))
-            for label in wave
-            for seed in config.seeds
-            if status(run_folder(folder, label, seed)) != "done"
-        ]
-        if not pending:
-            continue
-        with ray_session(address):
-            task = ray.remote(num_cpus=config.cpus_per_run)(_train_run)
-            jobs = {}
-            for label, seed, run in pending:
-                values = dataclasses.asdict(config.run_config(label, seed, folder))
-                jobs[task.remote(values, str(run), status(run) == "resume")] = (label, seed)
-            while jobs:
-                done, _ = ray.wait(list(jobs))
-                label, seed = jobs.pop(done[0])
-                ray.get(done[0])
-                lines.append(f"trained {label}, seed {seed}")
+    waiting = [run for run in config.runs() if status(_folder_of(config, folder, *run)) != "done"]
+    if not waiting:
+        return lines
+    with ray_session(address):
+        task = ray.remote(num_cpus=config.cpus_per_run)(_train_run)
+        running: dict[Any, tuple[str, int, float | None]] = {}
+        while waiting or running:
+            for run in list(waiting):
+                job = config.job(folder, *run)
+                if job is not None:
+                    waiting.remove(run)
+                    path, values = job[0], dataclasses.asdict(job[1])
+                    running[task.remote(values, str(path), status(path) == "resume")] = run
+            done, _ = ray.wait(list(running))
+            label, seed, rate = running.pop(done[0])
+            ray.get(done[0])
+            lines.append(f"trained {label}, seed {seed}" + (f", learning rate {rate:g}" if rate else ""))
     return lines
+
+
+def _folder_of(config: StudyConfig, folder: Path, label: str, seed: int, rate: float | None) -> Path:
+    return config.sweep_folder(folder, label, rate) if rate is not None else run_folder(folder, label, seed)
 
 
 def _compare_one(comparison: dict[str, Any], label: str) -> dict[tuple[str, str], Evaluation]:
@@ -255,7 +343,7 @@ def evaluate_all(
     for label in config.arms:
         for seed in config.seeds:
             agents[f"{label} seed {seed}"] = {
-                "agent": str(run_folder(folder, label, seed)),
+                "agent": str(config.run_path(folder, label, seed)),
                 "env": config.flying_env(label, seed),
             }
     comparison = {**comparison, "agents": agents}
@@ -326,7 +414,7 @@ def study(config: StudyConfig, folder: str | Path, address: str | None = None) -
     folder = Path(folder).resolve()
     for label in config.arms:  # env settings and hyperparameters, before any run starts
         try:
-            run = config.run_config(label, config.seeds[0], folder)
+            run = config.run_config(label, config.seeds[0])
             check_training(run, folder / "runs" / "not-a-run", sources=not config.sources(label))
         except TrainingConfigError as error:
             raise TrainingConfigError(f"arms[{label!r}]: {error}") from None
@@ -360,12 +448,6 @@ def write_results(config: StudyConfig, folder: Path, rows: list[dict[str, Any]])
                 )
             lines.append(f"| {agent} | {case} | " + " | ".join(cells) + " |")
     primary = columns[0][0]
-    done = []  # (steps, wall seconds) each run trained: the last row of its curve
-    for label in config.arms:
-        for seed in config.seeds:
-            with (run_folder(folder, label, seed) / "curve.csv").open() as handle:
-                last = list(csv.DictReader(handle))[-1]
-            done.append((int(last["steps"]), float(last["wall_seconds"])))
     text = [
         f"# Study of {comparison['env_id']}: {len(config.arms)} arms x training seeds {config.seeds}",
         "",
@@ -379,11 +461,47 @@ def write_results(config: StudyConfig, folder: Path, rows: list[dict[str, Any]])
         "",
         *(differences(rows, primary) or ["- none"]),
         "",
-        f"Each run trained {min(s for s, _ in done):,} to {max(s for s, _ in done):,} env steps in "
-        f"{min(w for _, w in done) / 60:.1f} to {max(w for _, w in done) / 60:.1f} min of wall time; its "
-        "curve.csv and config.yaml are in runs/.",
+        "Training (each run's last row of its curve.csv; its config.yaml beside it in runs/): env steps, "
+        "wall time and env steps per second of wall time, mean over the arm's runs (the sweep's too)"
+        + (
+            "; the learning rate each arm's sweep chose, with the kept models' scores"
+            if config.learning_rates
+            else ""
+        )
+        + ":",
+        "",
+        *training_table(config, folder),
     ]
     (folder / "results.md").write_text("\n".join(text) + "\n")
+
+
+def training_table(config: StudyConfig, folder: Path) -> list[str]:
+    """A line per arm: its runs' env steps, wall minutes and env steps per second (from each run's
+    ``curve.csv``), and its sweep's scores per rate with the one chosen."""
+    lines = ["| arm | learning rate | env steps | wall time [min] | env steps/s |", "|---|---|---|---|---|"]
+    for label in config.arms:
+        done = []  # (steps, wall seconds) of each run: the last row of its curve
+        for arm, seed, rate in config.runs():
+            if arm == label:
+                with (_folder_of(config, folder, arm, seed, rate) / "curve.csv").open() as handle:
+                    last = list(csv.DictReader(handle))[-1]
+                done.append((int(last["steps"]), float(last["wall_seconds"])))
+        steps, seconds = np.array(done, dtype=float).T
+        run = config.run_config(label, config.seeds[0])
+        if config.swept(label):
+            scores = config.sweep_scores(folder, label) or {}
+            chosen = f" → {config.chosen_rate(folder, label):g}"
+            rate = ", ".join(f"{r:g}: {v:.4g}" for r, v in scores.items()) + chosen
+        else:
+            rate = (
+                f"{run.hyperparameters.get('learning_rate', '-')}" if run.total_steps else "- (not trained)"
+            )
+        speed = f"{np.mean(steps / seconds):,.0f}" if steps.min() > 0 else "-"
+        lines.append(
+            f"| {label} | {rate} | {steps.min():,.0f}-{steps.max():,.0f} | "
+            f"{seconds.min() / 60:.1f}-{seconds.max() / 60:.1f} | {speed} |"
+        )
+    return lines
 
 
 def figure(rows: list[dict[str, Any]], env_id: str) -> Any:
