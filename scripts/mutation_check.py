@@ -80,6 +80,18 @@ MUTATIONS = (
         ("tests/test_learned_estimator.py",),
     ),
     Mutation(
+        "learned estimator: every axis's mixture weighed by the x axis's logits",
+        "estimator",
+        (
+            (
+                "quad_wrench_env/estimators/learned_kernel.py",
+                "logits = read[OUTPUTS + i * SOURCES : OUTPUTS + (i + 1) * SOURCES]",
+                "logits = read[OUTPUTS : OUTPUTS + SOURCES]",
+            ),
+        ),
+        ("tests/test_learned_estimator.py",),
+    ),
+    Mutation(
         "motor spin signs flipped",
         "vehicle",
         (
