@@ -316,9 +316,8 @@ MUTATIONS = (
         "reset",
         (
             (
-                "quad_wrench_env/agents/pid.py",
-                "        self._integral = np.zeros(3)\n        self.reference.reset()",
-                "        self._integral = getattr(self, '_integral', np.zeros(3))\n"
+                "quad_wrench_env/control/pid.py",
+                "        self._integral[:] = 0.0\n        self.reference.reset()",
                 "        self.reference.reset()",
             ),
         ),
@@ -421,9 +420,9 @@ MUTATIONS = (
         "controller",
         (
             (
-                "quad_wrench_env/agents/pid.py",
-                "self.desired_acceleration(observation), yaw, self._mass, self._max_tilt",
-                "self.desired_acceleration(observation), yaw, self._mass",
+                "quad_wrench_env/control/pid.py",
+                "attitude_from_acceleration(desired[n], yaw, self._mass, self._max_tilt)",
+                "attitude_from_acceleration(desired[n], yaw, self._mass)",
             ),
         ),
         ("tests/test_pid_integral.py",),
@@ -794,7 +793,7 @@ MUTATIONS = (
         "pid",
         (
             (
-                "quad_wrench_env/agents/pid.py",
+                "quad_wrench_env/control/pid.py",
                 "self._integral = np.clip(self._k_i * error * self._dt + self._integral, -limit, limit)",
                 "self._integral = self._integral + np.clip(self._k_i * error * self._dt, -limit, limit)",
             ),
@@ -806,7 +805,7 @@ MUTATIONS = (
         "pid",
         (
             (
-                "quad_wrench_env/agents/pid.py",
+                "quad_wrench_env/control/pid.py",
                 "            desired += acceleration",
                 "            desired -= acceleration",
             ),
@@ -818,7 +817,7 @@ MUTATIONS = (
         "pid",
         (
             (
-                "quad_wrench_env/agents/pid.py",
+                "quad_wrench_env/control/pid.py",
                 "return bandwidth**2, 2.0 * bandwidth, 0.02 * bandwidth**3",
                 "return bandwidth**2, 2.0 * bandwidth, 0.2 * bandwidth**3",
             ),
@@ -830,7 +829,7 @@ MUTATIONS = (
         "pid",
         (
             (
-                "quad_wrench_env/agents/pid.py",
+                "quad_wrench_env/control/pid.py",
                 "self.bandwidth = min(self.gains.bandwidth, attitude_p / 3.0)",
                 "self.bandwidth = self.gains.bandwidth",
             ),

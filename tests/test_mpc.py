@@ -19,9 +19,9 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from quad_wrench_env.agents.base import Policy
-from quad_wrench_env.agents.guidance import ReferenceExtrapolator, attitude_from_acceleration
 from quad_wrench_env.agents.mpc import NU, NX, MPCGains, MPCPolicy, PositionMPC, linearize
 from quad_wrench_env.autopilot import AutopilotGains
+from quad_wrench_env.control.guidance import ReferenceExtrapolator, attitude_from_acceleration
 from quad_wrench_env.engine.actions import ActionLimits, ActionScaling
 from quad_wrench_env.rotations import quat_from_euler_zyx, rotation_matrix
 from quad_wrench_env.vehicle import GRAVITY, make_vehicle

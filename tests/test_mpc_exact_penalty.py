@@ -18,8 +18,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from quad_wrench_env.agents.guidance import ReferenceExtrapolator
 from quad_wrench_env.agents.mpc import NU, MPCGains, PositionMPC
+from quad_wrench_env.control.guidance import ReferenceExtrapolator
 
 MASS = 0.716  # hummingbird
 TAU = 1.0 / 14.933  # 1/attitude_p of its autopilot

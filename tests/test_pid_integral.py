@@ -135,7 +135,7 @@ def test_the_tilt_limit_keeps_the_vertical_channel():
     """Where roll or pitch passes the limit, both are clipped to it and the thrust keeps the vertical
     force, ``T cos φ cos θ = m (a_z + g)`` (the body z axis's vertical part at any heading); below the
     limit the attitude is the unlimited one, to the bit."""
-    from quad_wrench_env.agents.guidance import attitude_from_acceleration
+    from quad_wrench_env.control.guidance import attitude_from_acceleration
 
     mass, limit = 0.7, math.radians(30.0)
     for yaw in (0.0, 0.4, -2.0):

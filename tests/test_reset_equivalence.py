@@ -29,6 +29,7 @@ REJECTION = "QuadWrench/DisturbanceRejection-v0"
 EXERTION = "QuadWrench/ForceExertion-v0"
 STEPS = 40
 FIRST, SECOND = 11, 12
+RESIDUAL_PID = {"action_type": "residual", "residual": {"base": "pid", "params": {"compensation": True}}}
 ENV_CASES = {  # (env id, env settings)
     "fan tracking, ukf": (FAN_TRACKING, {"estimator": "ukf"}),
     "fan tracking, ukf, matched walks": (FAN_TRACKING, {"estimator_params": {"adaptive_walks": True}}),
@@ -53,6 +54,7 @@ ENV_CASES = {  # (env id, env settings)
         {"action_type": "attitude", "estimator": "learned"},
     ),
     "force exertion, pressing": (EXERTION, {"action_type": "wrench", "start_gap": 0.0}),
+    "disturbance rejection, residual pid": (REJECTION, RESIDUAL_PID),
 }
 AGENT_CASES = {  # (agent, its parameters, env id, env settings)
     "pid": ("pid", {"compensation": True}, REJECTION, {"action_type": "attitude"}),
@@ -71,7 +73,9 @@ AGENT_CASES = {  # (agent, its parameters, env id, env settings)
 STATEFUL = {  # every stateful class: the case that flies it
     "agents.admittance.AdmittancePolicy": "agent: admittance",
     "agents.base.Policy": "protocol: each agent's case",
-    "agents.guidance.ReferenceExtrapolator": "agent: pid, mpc (their reference's acceleration)",
+    "control.guidance.ReferenceExtrapolator": "agent: pid, mpc (their reference's acceleration)",
+    "control.pid.PIDController": "agent: pid; env and vector env: disturbance rejection, residual pid",
+    "control.residual.ResidualActions": "env and vector env: disturbance rejection, residual pid",
     "agents.hover.PositionHoldPolicy": "agent: hold",
     "agents.ida_pbc.IDAPBCPolicy": "agent: ida_pbc",
     "agents.mpc.MPCPolicy": "agent: mpc (its warm start)",
@@ -213,8 +217,10 @@ def test_an_agent_after_an_episode_and_a_reset_is_a_fresh_agent(case):
         fresh_env.close()
 
 
-@pytest.mark.parametrize("env_id", [FAN_TRACKING, EXERTION])
-def test_a_vector_env_after_episodes_and_a_reset_is_a_fresh_one(env_id):
+@pytest.mark.parametrize(
+    ("env_id", "settings"), [(FAN_TRACKING, {}), (EXERTION, {}), (REJECTION, RESIDUAL_PID)]
+)
+def test_a_vector_env_after_episodes_and_a_reset_is_a_fresh_one(env_id, settings):
     """Every vehicle of a vector env (its own and SB3's interface) restarts as new on ``reset``."""
     from quad_wrench_env.envs.sb3_vec_env import SB3VecEnv
 
@@ -230,7 +236,7 @@ def test_a_vector_env_after_episodes_and_a_reset_is_a_fresh_one(env_id):
         return trace
 
     def make():
-        return gym.make_vec(env_id, num_envs=3, vectorization_mode="vector_entry_point")
+        return gym.make_vec(env_id, num_envs=3, vectorization_mode="vector_entry_point", **settings)
 
     used, fresh = make(), make()
     try:

@@ -23,7 +23,7 @@ linearisation per step is the same first-order step about the current state.
 
 The input reference (where the input cost pulls) is the equilibrium input: the thrust and tilt that
 give the reference acceleration against gravity and, with ``compensation``, against ``f̂``
-(:func:`quad_wrench_env.agents.guidance.attitude_from_acceleration`); the attitude states are pulled towards
+(:func:`quad_wrench_env.control.guidance.attitude_from_acceleration`); the attitude states are pulled towards
 its tilt. Soft constraint (Sec. IV-D c)): ``|p_x - p_r,x|, |p_y - p_r,y| <= e_max + ε_k``, ``ε_k >= 0`` on
 every predicted state, with the cost ``w_1·ε + w_2·ε²``. The linear term makes the penalty exact only
 where ``w_1`` exceeds the hard constraint's multiplier, which grows without bound towards the edge of
@@ -50,9 +50,9 @@ import osqp
 import scipy.linalg
 from scipy import sparse
 
-from quad_wrench_env.agents.guidance import ReferenceExtrapolator, attitude_from_acceleration
 from quad_wrench_env.autopilot import AutopilotGains
 from quad_wrench_env.config import build
+from quad_wrench_env.control.guidance import ReferenceExtrapolator, attitude_from_acceleration
 from quad_wrench_env.engine.actions import ActionScaling
 from quad_wrench_env.registry import register
 from quad_wrench_env.rotations import euler_cos_sin, wrap_angle
@@ -450,7 +450,7 @@ class MPCPolicy:
     references and collective thrust from :class:`PositionMPC`, yaw held at ``gains.yaw`` by a proportional
     yaw-rate command. The observation must carry ``reference_position`` and ``reference_velocity``;
     the reference acceleration is their difference between policy steps
-    (:class:`quad_wrench_env.agents.guidance.ReferenceExtrapolator`).
+    (:class:`quad_wrench_env.control.guidance.ReferenceExtrapolator`).
 
     The first-order attitude model ignores the autopilot's attitude-loop resonance (attitude P on a PI
     rate loop with motor lag: damping ratio ≈ 0.35 on ``ardrone2``, ``crazyflie2`` and

@@ -53,6 +53,7 @@ class ObservationScaling:
 
 MEANING_KEYS = (
     "action_type",
+    "residual",
     "action_limits",
     "observe_wrench",
     "history",
@@ -65,8 +66,8 @@ MEANING_KEYS = (
 )
 """Env settings that change what an action or an observation means (``history``, ``sensor_history``,
 ``privileged``, ``preview_seconds``, ``observe_reference_acceleration`` and ``path_ahead_seconds`` its
-size too;
-``action_limits`` the command an action stands for; the last four and ``observe_tracking_error`` are
+size too; ``action_limits`` the command an action stands for, ``residual`` the base controller it corrects;
+the last four and ``observe_tracking_error`` are
 DisturbanceRejection's own and count only where the config has them)."""
 
 

@@ -10,13 +10,17 @@ attitude    roll ``a0`` and pitch ``a1`` times ``max_tilt_deg``, yaw rate ``a2·
 wrench      collective thrust ``(1 + a0)·hover thrust`` and body torques ``(a1, a2, a3)`` times
             ``(l, l, p/k)·hover thrust / 2``, through the mixer
 motors      rotor speed commands ``(a + 1)/2·max rotor speed`` (the motor lag still applies)
+residual    a correction: the vehicle flies ``clip(b + s·a, -1, 1)`` as an ``attitude`` action, ``b`` its base
+            controller's action (``residual.base``, e.g. the PID), ``s`` = ``residual.scale``
+            (:mod:`quad_wrench_env.control.residual`)
 ==========  ==========================================================================================
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -24,6 +28,10 @@ from quad_wrench_env.config import check_numbers
 from quad_wrench_env.vehicle import GRAVITY, VehicleParams
 
 ACTION_TYPES = ("velocity", "attitude", "wrench", "motors")
+"""The action types the engine flies (its ``controls`` kernel's order)."""
+RESIDUAL = "residual"
+"""The action type of a correction to a base controller, which flies :data:`RESIDUAL_FLOWN`."""
+RESIDUAL_FLOWN = "attitude"
 
 
 @dataclass
@@ -39,6 +47,26 @@ class ActionLimits:
         check_numbers("action_limits", self, ("max_speed_xy", "max_speed_z", "max_yaw_rate", "max_tilt_deg"))
         if self.max_tilt_deg >= 90.0:
             raise ValueError(f"action_limits.max_tilt_deg={self.max_tilt_deg} must be below 90")
+
+
+@dataclass
+class ResidualSettings:
+    """The ``residual`` action type's base controller and the size of the policy's correction."""
+
+    base: str | None = None
+    """The controller the policy corrects (``pid``); needed by ``action_type: residual``, refused by the
+    others."""
+    scale: float = 0.25
+    """The correction's bound: the policy's action times this is added to the base's normalised action."""
+    params: dict[str, Any] = field(default_factory=dict)
+    """The base controller's settings, as its agent takes them (e.g. ``{compensation: true}``)."""
+
+    def __post_init__(self) -> None:
+        if not (self.base is None or (isinstance(self.base, str) and self.base)):
+            raise ValueError(f"residual.base={self.base!r} must be a base controller's name, e.g. 'pid'")
+        check_numbers("residual", self, ("scale",))
+        if not isinstance(self.params, dict):
+            raise ValueError(f"residual.params={self.params!r} must be a mapping of the base's settings")
 
 
 @dataclass(frozen=True)

@@ -10,7 +10,13 @@ from quad_wrench_env.config import check_numbers
 from quad_wrench_env.disturbances.base import load_config, wind_config
 from quad_wrench_env.disturbances.payload import PayloadConfig
 from quad_wrench_env.disturbances.wrench_profile import validate_segments
-from quad_wrench_env.engine.actions import ActionLimits
+from quad_wrench_env.engine.actions import (
+    ACTION_TYPES,
+    RESIDUAL,
+    RESIDUAL_FLOWN,
+    ActionLimits,
+    ResidualSettings,
+)
 from quad_wrench_env.scene import make_scene_part
 from quad_wrench_env.sensors import SensorConfig
 from quad_wrench_env.vehicle import CALIBRATED_ROTORS
@@ -71,6 +77,8 @@ class EnvConfig:
     ``"paper"`` (:data:`quad_wrench_env.estimators.NAMED_SETTINGS`)."""
     action_type: str = "velocity"
     action_limits: ActionLimits = field(default_factory=ActionLimits)
+    residual: ResidualSettings = field(default_factory=ResidualSettings)
+    """``action_type: residual``: the base controller the policy corrects and the correction's size."""
     physics_hz: int = 200
     policy_hz: int = 50
     episode_seconds: float = 30.0
@@ -127,6 +135,16 @@ class EnvConfig:
     flip_tilt_deg: float = 90.0
 
     def __post_init__(self) -> None:
+        if self.action_type not in (*ACTION_TYPES, RESIDUAL):
+            raise ValueError(
+                f"unknown action_type {self.action_type!r}; allowed: {[*ACTION_TYPES, RESIDUAL]}"
+            )
+        if (self.action_type == RESIDUAL) != (self.residual.base is not None):
+            raise ValueError(
+                f"action_type={self.action_type!r} with residual.base={self.residual.base!r}: the residual "
+                "action type needs a base controller and a base needs it; allowed: action_type residual "
+                "with residual.base (e.g. 'pid'), or neither"
+            )
         for name in ("physics_hz", "policy_hz"):
             value = getattr(self, name)
             if not (isinstance(value, int) and value > 0):
@@ -167,6 +185,11 @@ class EnvConfig:
             raise ValueError(f"privileged={self.privileged!r} must be true or false")
         if not (0.0 < self.flip_tilt_deg <= 180.0):
             raise ValueError(f"flip_tilt_deg={self.flip_tilt_deg!r} must be in (0, 180]")
+
+    @property
+    def flown_action_type(self) -> str:
+        """The action type the engine flies: a residual's base flies :data:`RESIDUAL_FLOWN`."""
+        return RESIDUAL_FLOWN if self.action_type == RESIDUAL else self.action_type
 
     def resolved_rotor_calibration(self) -> float | None:
         """The residual σ the vehicle's rotors are calibrated to (None: the nominal mixer), the preset's

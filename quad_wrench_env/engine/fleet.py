@@ -123,7 +123,7 @@ class Fleet:
         self.mocap = MotionCapture(sensors, count)
         self.motor_sensor = MotorSpeedSensor(vehicle.max_rotor_speed, sensors.motor_speed_bits)
         self.autopilot = Autopilot(vehicle, dt, count=count)
-        self.action_scaling = ActionScaling.for_vehicle(cfg.action_type, vehicle, cfg.action_limits)
+        self.action_scaling = ActionScaling.for_vehicle(cfg.flown_action_type, vehicle, cfg.action_limits)
         """The map between normalised actions and physical commands (public: agents read it)."""
         self.rotors = Rotors(vehicle, dt, count)
         self.drag_points = vehicle.drag_points()

@@ -12,12 +12,15 @@ tuples (a single env's Python floats, the vector env's arrays and autoresets). R
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
+from quad_wrench_env.control.residual import ResidualActions
+from quad_wrench_env.engine.actions import RESIDUAL
 from quad_wrench_env.engine.components import assemble
 from quad_wrench_env.engine.fleet import ENGINE_TERMINATIONS, Fleet
 from quad_wrench_env.engine.kernels import MOTION_READING_WIDTH, SENSOR_READING_WIDTH
@@ -125,6 +128,19 @@ class Simulation:
         self.history = ObservationHistory(self.fleet.layout, count)
         self.observations = np.zeros((count, self.fleet.layout.size), dtype=np.float32)
         """Each vehicle's last observation (what a restart of others leaves it)."""
+        self.residual = None
+        """``action_type: residual``: every vehicle's base controller under the policy's correction."""
+        if cfg.action_type == RESIDUAL:
+            fleet, tilt = self.fleet, math.radians(cfg.action_limits.max_tilt_deg)
+            self.residual = ResidualActions(
+                cfg.residual,
+                count,
+                fleet.layout.slices,
+                fleet.vehicle,
+                1.0 / cfg.policy_hz,
+                fleet.action_scaling,
+                tilt,
+            )
 
     def start(self, index: int, rng: np.random.Generator, options: Mapping[str, Any]) -> None:
         """Begin vehicle ``index``'s next episode with the (checked) task ``options``, its draws from
@@ -133,6 +149,8 @@ class Simulation:
         self.fleet.reset_vehicle(index, rng, position, yaw)
         self.steps[index] = 0
         self.last_actions[index] = 0.0
+        if self.residual is not None:
+            self.residual.restart(index)
 
     def restarted(self, index: np.ndarray) -> np.ndarray:
         """Read the vehicles ``index`` back after their :meth:`start` (the others keep their bits) and
@@ -143,9 +161,10 @@ class Simulation:
         return self.observe(index)
 
     def step(self, actions: np.ndarray) -> StepResult:
-        """Fly every vehicle one control step with its (N, 4) action, already clipped to [-1, 1]."""
+        """Fly every vehicle one control step with its (N, 4) action, already clipped to [-1, 1] (with
+        the ``residual`` action type, the correction to its base controller's action)."""
         fleet, task = self.fleet, self.task
-        fleet.step(actions)
+        fleet.step(actions if self.residual is None else self.residual.flown(self.observations, actions))
         self.steps += 1
         self.last_actions = actions
         engine = fleet.terminations()

@@ -23,7 +23,9 @@ class ReferenceExtrapolator:
     """Reference position, velocity and acceleration over a horizon, from the current reference alone.
 
     ``p_r(t_k) = p_r + v_r·t_k + a_r·t_k²/2`` and ``v_r(t_k) = v_r + a_r·t_k`` with the acceleration
-    ``a_r = (v_r - v_r,prev)/dt`` held over the horizon (0 on the first step after :meth:`reset`).
+    ``a_r = (v_r - v_r,prev)/dt`` held over the horizon (0 on the first step after :meth:`reset`, and for
+    a batch's vehicles on their first step after :meth:`restart`). One vehicle's reference is (3,) arrays,
+    a batch's (N, 3).
     """
 
     def __init__(self) -> None:
@@ -31,6 +33,8 @@ class ReferenceExtrapolator:
         self.velocity = np.zeros(3)
         self.acceleration = np.zeros(3)
         self._previous_velocity: np.ndarray | None = None
+        self._fresh = np.zeros((), dtype=bool)
+        """Per vehicle of a batch (a 0-d array for one): restarted since the last update."""
 
     def reset(self) -> None:
         """Forget the previous reference (call at the start of an episode)."""
@@ -39,15 +43,22 @@ class ReferenceExtrapolator:
         self.acceleration = np.zeros(3)
         self._previous_velocity = None
 
+    def restart(self, index: np.ndarray | slice) -> None:
+        """Forget the previous reference of a batch's vehicles ``index`` (their episodes restarting)."""
+        if self._previous_velocity is not None:
+            self._fresh[index] = True
+
     def update(self, position: np.ndarray, velocity: np.ndarray, dt: float) -> np.ndarray:
         """Take the reference ``position`` (m) and ``velocity`` (m/s) of this policy step, ``dt`` (s)
         after the previous one; returns the estimated reference acceleration (m/s², world frame)."""
-        velocity = np.asarray(velocity, dtype=float).copy()
-        self.position = np.asarray(position, dtype=float).copy()
+        velocity = np.array(velocity, dtype=float)
+        self.position = np.array(position, dtype=float)
         if self._previous_velocity is None:
-            self.acceleration = np.zeros(3)
+            self.acceleration = np.zeros_like(velocity)
         else:
-            self.acceleration = (velocity - self._previous_velocity) / dt
+            change = (velocity - self._previous_velocity) / dt
+            self.acceleration = np.where(self._fresh[..., None], 0.0, change)
+        self._fresh = np.zeros(velocity.shape[:-1], dtype=bool)
         self.velocity = velocity
         self._previous_velocity = velocity
         return self.acceleration.copy()
