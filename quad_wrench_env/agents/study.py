@@ -170,8 +170,7 @@ class StudyConfig:
         paths = {rate: self.sweep_folder(folder, label, rate) for rate in self.learning_rates}
         if any(status(path) != "done" for path in paths.values()):
             return None
-        kept = {rate: path / "best" / "evaluation.yaml" for rate, path in paths.items()}
-        return {rate: float(load_yaml(f)["value"]) if f.is_file() else math.nan for rate, f in kept.items()}
+        return {rate: kept_score(path) for rate, path in paths.items()}
 
     def chosen_rate(self, folder: Path, label: str) -> float | None:
         """The sweep's best rate for arm ``label`` (the run config's ``evaluation.lower_is_better``; a
@@ -179,8 +178,7 @@ class StudyConfig:
         scores = self.sweep_scores(folder, label)
         if scores is None:
             return None
-        sign = 1.0 if self.run_config(label, self.seeds[0]).evaluation.lower_is_better else -1.0
-        return min(scores, key=lambda rate: sign * scores[rate] if math.isfinite(scores[rate]) else math.inf)
+        return best_of(scores, self.run_config(label, self.seeds[0]).evaluation.lower_is_better)
 
     def sweep_folder(self, folder: Path, label: str, rate: float) -> Path:
         return folder / "runs" / f"{slug(label)}-lr{rate:g}-seed{self.seeds[0]}"
@@ -244,6 +242,19 @@ ESTIMATOR_KEYS = ("estimator", "estimator_params", "fan_walks")
 """The training env's settings a study's run brings to the comparison whatever its arm: the estimator
 it was trained to read and its settings (FanTracking's ``fan_walks`` sizes its walks). A base that leaves
 one to the task's default flies the comparison's."""
+
+
+def kept_score(run: Path) -> float:
+    """The selection score of run ``run``'s kept model (``best/evaluation.yaml``); NaN where it kept none
+    (no evaluation beat the untrained policy's place)."""
+    kept = run / "best" / "evaluation.yaml"
+    return float(load_yaml(kept)["value"]) if kept.is_file() else math.nan
+
+
+def best_of(scores: dict[Any, float], lower_is_better: bool) -> Any:
+    """The key of the best of ``scores`` (a NaN never wins, unless every score is one: the first key)."""
+    sign = 1.0 if lower_is_better else -1.0
+    return min(scores, key=lambda key: sign * scores[key] if math.isfinite(scores[key]) else math.inf)
 
 
 def _is_seed(value: Any) -> bool:
