@@ -228,3 +228,23 @@ def test_an_arm_that_starts_from_a_swept_arm_starts_from_its_chosen_run_and_is_n
 def test_a_bad_sweep_is_refused_by_name(changes, message):
     with pytest.raises(ValueError, match=message):
         _config(**changes)
+
+
+@pytest.mark.parametrize(
+    ("arm", "message"),
+    [
+        (
+            {"algorithm": "sac", "privileged_critic": True},
+            r"arms\['bad'\]: privileged_critic=true with algorithm='sac'",
+        ),
+        (
+            {"algorithm": "dagger"},
+            r"arms\['bad'\]: algorithm='dagger' with teacher=None: distillation needs a teacher",
+        ),
+        ({"env.privileged": True}, r"arms\['bad'\]: env.privileged=true without privileged_critic"),
+    ],
+)
+def test_an_arm_whose_learner_cannot_do_what_it_asks_is_refused_before_any_run(tmp_path, arm, message):
+    with pytest.raises(ValueError, match=message):
+        study(_config(arms={"good": {}, "bad": arm}), tmp_path)
+    assert not (tmp_path / "runs").exists()
