@@ -35,7 +35,7 @@ from tqdm import tqdm
 
 from quad_wrench_cli.common import UsageError, add_key_value_argument, usage_errors, write_csv
 from quad_wrench_cli.consistency import flight_policy
-from quad_wrench_env.config import apply_overrides, build, load_yaml
+from quad_wrench_env.config import apply_overrides, build, check_counts, load_yaml
 from quad_wrench_env.disturbances.wrench_profile import in_weights, validate_segments
 from quad_wrench_env.estimators import OracleBank
 from quad_wrench_env.estimators.bank import TruthRecorder
@@ -85,9 +85,7 @@ class FitConfig:
                     validate_segments(flight["pushes"])
                 except ValueError as error:
                     raise ValueError(f"flights.{name}.pushes: {error}") from None
-        for name in ("runs", "held_out_runs"):
-            if getattr(self, name) < 1:
-                raise ValueError(f"{name}={getattr(self, name)!r} must be an integer >= 1")
+        check_counts(None, self, ("runs", "held_out_runs"))
         if not (math.isfinite(self.action_noise) and 0.0 <= self.action_noise <= 1.0):
             raise ValueError(f"action_noise={self.action_noise!r} must be in [0, 1] (the action's range)")
         self.training = build(TrainingSettings, self.training or {}, prefix="training.")

@@ -187,6 +187,16 @@ def check_numbers(owner: str, obj: Any, names: tuple[str, ...], *, positive: boo
             )
 
 
+def check_counts(owner: str | None, obj: Any, names: tuple[str, ...], *, minimum: int = 1) -> None:
+    """Raise ``ValueError`` naming ``owner.name=value`` (``name=value`` without an owner) unless each
+    attribute is an integer (not a bool) >= ``minimum``."""
+    for name in names:
+        value = getattr(obj, name)
+        if not (isinstance(value, int) and not isinstance(value, bool) and value >= minimum):
+            where = f"{owner}.{name}" if owner else name
+            raise ValueError(f"{where}={value!r} must be an integer >= {minimum}")
+
+
 def build_named(spec: Any, key: str, classes: Mapping[str, type], where: str) -> tuple[str, Any]:
     """``(name, built dataclass)`` of a config entry ``{key: name, **fields}`` whose name picks one of
     ``classes``; a bad entry, name or field is refused naming ``where`` (e.g. ``"wind[0]"``)."""

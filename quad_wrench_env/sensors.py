@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from quad_wrench_env.config import check_numbers
+from quad_wrench_env.config import check_counts, check_numbers
 from quad_wrench_env.numerics import njit
 
 
@@ -50,8 +50,7 @@ class SensorConfig:
     def __post_init__(self) -> None:
         noise = ("position_noise", "attitude_noise", "velocity_noise", "body_rate_noise")
         check_numbers("sensors", self, noise, positive=False)
-        if not (isinstance(self.latency_steps, int) and self.latency_steps >= 0):
-            raise ValueError(f"sensors.latency_steps={self.latency_steps!r} must be an integer >= 0")
+        check_counts("sensors", self, ("latency_steps",), minimum=0)
         if not (isinstance(self.motor_speed_bits, int) and 1 <= self.motor_speed_bits <= 32):
             raise ValueError(
                 f"sensors.motor_speed_bits={self.motor_speed_bits!r} must be an integer in [1, 32]"

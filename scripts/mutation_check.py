@@ -92,6 +92,30 @@ MUTATIONS = (
         ("tests/test_learned_estimator.py",),
     ),
     Mutation(
+        "residual: the correction not scaled",
+        "controller",
+        (
+            (
+                "quad_wrench_env/control/residual.py",
+                "self.base.actions(observations) + self.scale * actions",
+                "self.base.actions(observations) + actions",
+            ),
+        ),
+        ("tests/test_residual.py",),
+    ),
+    Mutation(
+        "study: the sweep keeps the worst rate",
+        "training",
+        (
+            (
+                "quad_wrench_env/agents/study.py",
+                "sign = 1.0 if lower_is_better else -1.0",
+                "sign = -1.0 if lower_is_better else 1.0",
+            ),
+        ),
+        ("tests/test_study.py",),
+    ),
+    Mutation(
         "motor spin signs flipped",
         "vehicle",
         (

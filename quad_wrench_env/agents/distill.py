@@ -25,6 +25,7 @@ from sb3_contrib import RecurrentPPO
 from sb3_contrib.common.recurrent.type_aliases import RNNStates
 from stable_baselines3.common.utils import obs_as_tensor
 
+from quad_wrench_env.config import check_counts
 from quad_wrench_env.engine.observation import PRIVILEGED_BLOCKS
 
 
@@ -48,10 +49,7 @@ class DistillationSettings:
             value = getattr(self, name)
             if not (isinstance(value, float | int) and not isinstance(value, bool) and 0.0 <= value <= 1.0):
                 raise ValueError(f"distillation.{name}={value!r} must be a number in [0, 1]")
-        for name in ("epochs", "kept_iterations", "batch"):
-            value = getattr(self, name)
-            if not (isinstance(value, int) and not isinstance(value, bool) and value >= 1):
-                raise ValueError(f"distillation.{name}={value!r} must be an integer >= 1")
+        check_counts("distillation", self, ("epochs", "kept_iterations", "batch"))
 
 
 TEACHER_FREE_KEYS = ("observe_wrench", "history", "sensor_history", "privileged")

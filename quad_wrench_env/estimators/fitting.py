@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import torch
 
-from quad_wrench_env.config import check_numbers
+from quad_wrench_env.config import check_counts, check_numbers
 from quad_wrench_env.estimators.learned_kernel import FORCES, LOGITS, OUTPUTS, SOURCES
 
 TARGETS = 12
@@ -71,9 +71,7 @@ class TrainingSettings:
     def __post_init__(self) -> None:
         check_numbers("training", self, ("window_seconds", "learning_rate"))
         check_numbers("training", self, ("settle_seconds", "balance_floor"), positive=False)
-        for name in ("hidden", "epochs", "batch"):
-            if getattr(self, name) < 1:
-                raise ValueError(f"training.{name}={getattr(self, name)!r} must be an integer >= 1")
+        check_counts("training", self, ("hidden", "epochs", "batch"))
 
 
 class Network(torch.nn.Module):
