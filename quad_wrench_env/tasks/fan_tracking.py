@@ -384,7 +384,7 @@ def fan_tracking_terms(position, time, actions, ended, motion_tables, fan, weigh
     """FanTracking's per-vehicle numbers into ``out`` (N, 10): the reward terms ``tracking``,
     ``standoff``, ``effort`` and ``crash``; the signed ``axis_error`` y - jet axis, the jet axis y at
     the vehicle, the fan's position ``(0, y, height)`` and the signed stand-off error ``x - x_ref``
-    (``FanTracking.reward_terms`` and ``FanTracking.info``). ``fan``: the jet
+    (:meth:`FanTracking.step` and :meth:`FanTracking.info`). ``fan``: the jet
     (``FanJet.kernel_parameters``); ``weights``: the stand-off ``x_ref``, the reward's axis scale,
     stand-off weight, effort weight and crash penalty."""
     height = fan[5]
