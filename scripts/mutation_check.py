@@ -340,7 +340,7 @@ MUTATIONS = (
         "reset",
         (
             (
-                "quad_wrench_env/control/pid.py",
+                "quad_wrench_env/control/pid_controller.py",
                 "        self._integral[:] = 0.0\n        self.reference.reset()",
                 "        self.reference.reset()",
             ),
@@ -444,7 +444,7 @@ MUTATIONS = (
         "controller",
         (
             (
-                "quad_wrench_env/control/pid.py",
+                "quad_wrench_env/control/pid_controller.py",
                 "attitude_from_acceleration(desired[n], yaw, self._mass, self._max_tilt)",
                 "attitude_from_acceleration(desired[n], yaw, self._mass)",
             ),
@@ -817,7 +817,7 @@ MUTATIONS = (
         "pid",
         (
             (
-                "quad_wrench_env/control/pid.py",
+                "quad_wrench_env/control/pid_controller.py",
                 "self._integral = np.clip(self._k_i * error * self._dt + self._integral, -limit, limit)",
                 "self._integral = self._integral + np.clip(self._k_i * error * self._dt, -limit, limit)",
             ),
@@ -829,7 +829,7 @@ MUTATIONS = (
         "pid",
         (
             (
-                "quad_wrench_env/control/pid.py",
+                "quad_wrench_env/control/pid_controller.py",
                 "            desired += acceleration",
                 "            desired -= acceleration",
             ),
@@ -841,7 +841,7 @@ MUTATIONS = (
         "pid",
         (
             (
-                "quad_wrench_env/control/pid.py",
+                "quad_wrench_env/control/pid_controller.py",
                 "return bandwidth**2, 2.0 * bandwidth, 0.02 * bandwidth**3",
                 "return bandwidth**2, 2.0 * bandwidth, 0.2 * bandwidth**3",
             ),
@@ -853,7 +853,7 @@ MUTATIONS = (
         "pid",
         (
             (
-                "quad_wrench_env/control/pid.py",
+                "quad_wrench_env/control/pid_controller.py",
                 "self.bandwidth = min(self.gains.bandwidth, attitude_p / 3.0)",
                 "self.bandwidth = self.gains.bandwidth",
             ),

@@ -74,7 +74,7 @@ STATEFUL = {  # every stateful class: the case that flies it
     "agents.admittance.AdmittancePolicy": "agent: admittance",
     "agents.base.Policy": "protocol: each agent's case",
     "control.guidance.ReferenceExtrapolator": "agent: pid, mpc (their reference's acceleration)",
-    "control.pid.PIDController": "agent: pid; env and vector env: disturbance rejection, residual pid",
+    "control.pid_controller.PIDController": "agent: pid; env, vector env: residual pid",
     "control.residual.ResidualActions": "env and vector env: disturbance rejection, residual pid",
     "agents.hover.PositionHoldPolicy": "agent: hold",
     "agents.ida_pbc.IDAPBCPolicy": "agent: ida_pbc",

@@ -11,7 +11,7 @@ import pytest
 
 import quad_wrench_env  # noqa: F401  (registers the env ids)
 from quad_wrench_env.agents import make_agent
-from quad_wrench_env.control.pid import PIDController, PIDGains
+from quad_wrench_env.control.pid_controller import PIDController, PIDGains
 
 REJECTION = "QuadWrench/DisturbanceRejection-v0"
 RESIDUAL = {"action_type": "residual", "residual": {"base": "pid", "params": {"compensation": True}}}

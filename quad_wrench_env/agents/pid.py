@@ -1,7 +1,7 @@
 """The PID position controller with disturbance feed-forward of Hentzen et al. 2019 (Sec. IV-C), eq. (3),
-as an agent: :class:`~quad_wrench_env.control.pid.PIDController` (the equations, the gains and their
-bandwidth form) for one vehicle, through the ``attitude`` action; the env's ``residual`` action type flies
-the same controller under a policy's correction.
+as an agent: :class:`~quad_wrench_env.control.pid_controller.PIDController` (the equations, the gains
+and their bandwidth form) for one vehicle, through the ``attitude`` action; the env's ``residual``
+action type flies the same controller under a policy's correction.
 """
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ import gymnasium as gym
 import numpy as np
 
 from quad_wrench_env.config import build
-from quad_wrench_env.control.pid import PIDController, PIDGains
+from quad_wrench_env.control.pid_controller import PIDController, PIDGains
 from quad_wrench_env.registry import register
 
 

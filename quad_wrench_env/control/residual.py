@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from quad_wrench_env.config import build
-from quad_wrench_env.control.pid import PIDController, PIDGains
+from quad_wrench_env.control.pid_controller import PIDController, PIDGains
 from quad_wrench_env.engine.actions import ActionScaling, ResidualSettings
 from quad_wrench_env.vehicle import VehicleParams
 
