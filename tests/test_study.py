@@ -11,7 +11,7 @@ import pytest
 from quad_wrench_env.agents import make_agent
 from quad_wrench_env.agents.evaluate import evaluate
 from quad_wrench_env.agents.sb3 import TrainingConfigError
-from quad_wrench_env.agents.study import StudyConfig, evaluate_all, status, study, train_all
+from quad_wrench_env.agents.study import StudyConfig, _priority, evaluate_all, status, study, train_all
 from quad_wrench_env.config import build, load_yaml
 from tests.conftest import FAN_TRACKING
 
@@ -248,3 +248,15 @@ def test_an_arm_whose_learner_cannot_do_what_it_asks_is_refused_before_any_run(t
     with pytest.raises(ValueError, match=message):
         study(_config(arms={"good": {}, "bad": arm}), tmp_path)
     assert not (tmp_path / "runs").exists()
+
+
+def test_a_slow_learners_run_starts_first_then_an_arm_another_waits_on():
+    arms = {
+        "plain": {},
+        "oracle": {"env.estimator": "oracle"},
+        "lstm": {"algorithm": "recurrent_ppo"},
+        "shipped as is": {"init_from": "@oracle", "total_steps": 0},
+    }
+    config = _config(arms=arms)
+    order = sorted(arms, key=lambda label: _priority(config, label))
+    assert order == ["lstm", "oracle", "plain", "shipped as is"]

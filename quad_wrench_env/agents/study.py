@@ -304,8 +304,8 @@ def _train_run(values: dict[str, Any], folder: str, resume: bool) -> str:
 
 def train_all(config: StudyConfig, folder: Path, address: str | None = None) -> list[str]:
     """Every run not finished yet, on Ray, each as soon as what it waits on is done (its arm's
-    learning-rate sweep, the arm it starts from or learns from: :meth:`StudyConfig.job`); returns a line
-    per run trained."""
+    learning-rate sweep, the arm it starts from or learns from: :meth:`StudyConfig.job`) and a run's
+    CPUs are free, the longest first (:func:`_priority`); returns a line per run trained."""
     import ray
 
     lines: list[str] = []
@@ -314,19 +314,31 @@ def train_all(config: StudyConfig, folder: Path, address: str | None = None) -> 
         return lines
     with ray_session(address):
         task = ray.remote(num_cpus=config.cpus_per_run)(_train_run)
+        slots = max(1, int(ray.cluster_resources().get("CPU", 1.0) // config.cpus_per_run))
         running: dict[Any, tuple[str, int, float | None]] = {}
         while waiting or running:
-            for run in list(waiting):
-                job = config.job(folder, *run)
-                if job is not None:
-                    waiting.remove(run)
-                    path, values = job[0], dataclasses.asdict(job[1])
-                    running[task.remote(values, str(path), status(path) == "resume")] = run
+            ready = [(run, job) for run in waiting if (job := config.job(folder, *run)) is not None]
+            ready.sort(key=lambda item: _priority(config, item[0][0]))
+            for run, (path, values) in ready[: slots - len(running)]:
+                waiting.remove(run)
+                resume = status(path) == "resume"
+                running[task.remote(dataclasses.asdict(values), str(path), resume)] = run
             done, _ = ray.wait(list(running))
             label, seed, rate = running.pop(done[0])
             ray.get(done[0])
             lines.append(f"trained {label}, seed {seed}" + (f", learning rate {rate:g}" if rate else ""))
     return lines
+
+
+SLOW_LEARNERS = ("recurrent_ppo", "dagger")
+"""Algorithms whose runs take several times a PPO run's wall time per env step: started first."""
+
+
+def _priority(config: StudyConfig, label: str) -> tuple[int, int]:
+    """Which ready run starts first (lowest): a slow learner's, then an arm another arm waits on."""
+    slow = config.run_config(label, config.seeds[0]).algorithm in SLOW_LEARNERS
+    awaited = any(label in config.sources(other).values() for other in config.arms)
+    return (0 if slow else 1, 0 if awaited else 1)
 
 
 def _folder_of(config: StudyConfig, folder: Path, label: str, seed: int, rate: float | None) -> Path:
