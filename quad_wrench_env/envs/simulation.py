@@ -128,7 +128,7 @@ class Simulation:
         self.history = ObservationHistory(self.fleet.layout, count)
         self.observations = np.zeros((count, self.fleet.layout.size), dtype=np.float32)
         """Each vehicle's last observation (what a restart of others leaves it)."""
-        self.residual = None
+        self.residual: ResidualActions | None = None
         """``action_type: residual``: every vehicle's base controller under the policy's correction."""
         if cfg.action_type == RESIDUAL:
             fleet, tilt = self.fleet, math.radians(cfg.action_limits.max_tilt_deg)
