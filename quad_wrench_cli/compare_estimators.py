@@ -29,7 +29,7 @@ from quad_wrench_env.agents import make_agent
 from quad_wrench_env.agents.evaluate import run_episode, write_report
 from quad_wrench_env.bench import bare_pybullet_step_seconds, estimator_step_seconds
 from quad_wrench_env.estimators import OracleBank, make_estimator
-from quad_wrench_env.estimators.bank import TruthRecorder
+from quad_wrench_env.estimators.bank import EstimatorInputs, TruthRecorder
 from quad_wrench_env.vehicle import make_vehicle
 
 LABELS = ("f_x", "f_y", "f_z", "tau_x", "tau_y", "tau_z")
@@ -53,7 +53,8 @@ class _Recorder(TruthRecorder):
         super().__init__(inner)
         self.stream = stream
 
-    def step(self, thrusts, body_torques, positions, quaternions, velocities=None, body_rates=None):
+    def step(self, inputs: EstimatorInputs) -> None:
+        thrusts, body_torques, positions, quaternions = inputs[:4]
         self.stream.inputs.append(
             (float(thrusts[0]), body_torques[0].copy(), positions[0].copy(), quaternions[0].copy())
         )

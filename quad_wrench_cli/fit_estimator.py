@@ -38,7 +38,7 @@ from quad_wrench_cli.consistency import flight_policy
 from quad_wrench_env.config import apply_overrides, build, check_counts, load_yaml
 from quad_wrench_env.disturbances.wrench_profile import in_weights, validate_segments
 from quad_wrench_env.estimators import OracleBank
-from quad_wrench_env.estimators.bank import TruthRecorder
+from quad_wrench_env.estimators.bank import EstimatorInputs, TruthRecorder
 from quad_wrench_env.estimators.learned import FittedFor, LearnedModel
 from quad_wrench_env.estimators.learned_kernel import FRAME_STEPS, stream_frames, tracker_gains
 from quad_wrench_env.rotations import rotation_matrices
@@ -114,11 +114,9 @@ class StreamRecorder(TruthRecorder):
         super().reset(index, position, quaternion_wxyz)
         self.starts[index, :3], self.starts[index, 3:] = position, quaternion_wxyz
 
-    def step(self, thrusts, body_torques, positions, quaternions, velocities=None, body_rates=None):
-        measured = (velocities, body_rates) if velocities is not None else ()
-        self.inputs.append(
-            tuple(a.copy() for a in (thrusts, body_torques, positions, quaternions, *measured))
-        )
+    def step(self, inputs: EstimatorInputs) -> None:
+        present = inputs if inputs.velocities is not None else inputs[:4]
+        self.inputs.append(tuple(a.copy() for a in present))
         self.truths.append(self.truth)
 
 

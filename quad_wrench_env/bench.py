@@ -10,7 +10,7 @@ import numpy as np
 import pybullet as p
 
 import quad_wrench_env  # noqa: F401  (registers the env ids)
-from quad_wrench_env.estimators import TruthFed, make_estimator, make_estimator_bank
+from quad_wrench_env.estimators import EstimatorInputs, TruthFed, make_estimator, make_estimator_bank
 from quad_wrench_env.estimators.ukf_kernel import ukf_bank_step
 from quad_wrench_env.rotations import quat_exp, quat_multiply
 from quad_wrench_env.vehicle import GRAVITY, make_vehicle
@@ -239,7 +239,7 @@ def filter_bank_step_seconds(
     noisy = positions + 5e-4 * rng.standard_normal((steps, count, 3))
     start = time.perf_counter()
     for k in range(steps):
-        bank.step(thrusts, torques, noisy[k], quaternions)
+        bank.step(EstimatorInputs(thrusts, torques, noisy[k], quaternions))
     return (time.perf_counter() - start) / steps
 
 

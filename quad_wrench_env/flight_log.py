@@ -48,6 +48,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
+from quad_wrench_env.estimators.bank import EstimatorInputs
 from quad_wrench_env.rotations import quat_from_euler_zyx
 from quad_wrench_env.vehicle import VehicleParams
 
@@ -322,11 +323,11 @@ class FlightRecorder:
         rest = np.zeros(3) if self._measures_motion else None
         self._record(position, quaternion_wxyz, rest, rest, None)
 
-    def step(self, thrusts, body_torques, positions, quaternions, velocities=None, body_rates=None) -> None:
+    def step(self, inputs: EstimatorInputs) -> None:
         """Step the estimator and record the step's sensor data."""
-        self._inner.step(thrusts, body_torques, positions, quaternions, velocities, body_rates)
-        motion = [None if v is None else v[0] for v in (velocities, body_rates)]
-        self._record(positions[0], quaternions[0], *motion, self._fleet.wrench_true[0])
+        self._inner.step(inputs)
+        motion = [None if v is None else v[0] for v in (inputs.velocities, inputs.body_rates)]
+        self._record(inputs.positions[0], inputs.quaternions[0], *motion, self._fleet.wrench_true[0])
 
     def on_step(self, env: gym.Env, info: dict[str, Any]) -> None:
         """``run_episode``'s ``on_step``: after a reset, give its row the fleet's true wrench (computed

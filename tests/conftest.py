@@ -72,8 +72,8 @@ class EstimatorSpy:
     def __getattr__(self, name: str):
         return getattr(self._inner, name)
 
-    def step(self, *args):
+    def step(self, inputs):
         truth = copy.deepcopy(self._fleet.state)  # the fleet's state is updated in place
-        measured = [None if a is None else np.array(a, copy=True) for a in args]
+        measured = [None if a is None else np.array(a, copy=True) for a in inputs]
         self.calls.append((measured, self._fleet.rotors.speeds.copy(), truth))
-        return self._inner.step(*args)
+        return self._inner.step(inputs)

@@ -13,6 +13,7 @@ import pytest
 
 from quad_wrench_cli.consistency import fly
 from quad_wrench_env.estimators import ExtendedFilterBank, FilterNoise, UnscentedFilterBank, make_estimator
+from quad_wrench_env.estimators.bank import EstimatorInputs
 from quad_wrench_env.estimators.noise import EKFNoise
 from quad_wrench_env.numerics import COMPILED
 from quad_wrench_env.vehicle import GRAVITY, PRESETS, make_vehicle
@@ -62,8 +63,8 @@ def test_the_kernels_match_the_walks_as_the_rule_says(name, count):
         inputs = _inputs(rng, count, vehicle, k)
         before = getattr(by_hand, mean_name)[:, entries].copy()
         by_hand.walks[:] = walks
-        by_hand.step(*inputs)
-        adapted.step(*inputs)
+        by_hand.step(EstimatorInputs(*inputs))
+        adapted.step(EstimatorInputs(*inputs))
         np.testing.assert_array_equal(by_hand.walks, walks)  # a forgetting of 1 keeps them
         change = (getattr(by_hand, mean_name)[:, entries] - before).reshape(count, 2, 3)
         walks = 0.9 * walks + (1.0 - 0.9) * change[..., :, None] * change[..., None, :]
@@ -154,7 +155,7 @@ def test_the_ceiling_stops_the_runaway_of_a_filter_told_the_wrong_noise():
         for k in range(600):
             thrusts, torques, positions, quaternions = _inputs(rng, 1, vehicle, k)
             positions += 1.5e-3 * rng.standard_normal((1, 3))
-            bank.step(thrusts, torques, positions, quaternions)
+            bank.step(EstimatorInputs(thrusts, torques, positions, quaternions))
         traces.append(
             np.trace(bank.walks[0], axis1=1, axis2=2) / np.trace(bank.walk_defaults, axis1=1, axis2=2)
         )

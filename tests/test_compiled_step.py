@@ -28,6 +28,7 @@ from quad_wrench_env.engine.kernels import (
     step_views,
 )
 from quad_wrench_env.estimators import make_estimator_bank
+from quad_wrench_env.estimators.bank import EstimatorInputs
 from quad_wrench_env.numerics import bind, specialised
 from quad_wrench_env.numerics.linalg import weighted_gram
 from quad_wrench_env.rotations import quat_exp
@@ -231,12 +232,12 @@ def test_a_bound_step_reads_its_arrays_afresh_and_equals_step(name):
     for bank in (stepped, bound):
         for i in range(count):
             bank.reset(i, positions[i], quaternions[i])
-    step = bound.bind_step(thrusts, torques, positions, quaternions)
+    step = bound.bind_step(EstimatorInputs(thrusts, torques, positions, quaternions))
     for _ in range(50):
         thrusts[:] = vehicle.mass * GRAVITY + 0.1 * rng.normal(size=count)
         positions[:] = 1e-3 * rng.normal(size=(count, 3))
         quaternions[:] = quat_exp(2e-3 * rng.normal(size=(count, 3)))
-        stepped.step(thrusts, torques, positions, quaternions)
+        stepped.step(EstimatorInputs(thrusts, torques, positions, quaternions))
         step()
     np.testing.assert_array_equal(bound.wrenches(), stepped.wrenches())
     np.testing.assert_array_equal(bound.states(), stepped.states())
@@ -257,7 +258,11 @@ def test_a_ukf_whose_state_overflows_restarts_from_the_measured_pose():
     bank.rests[1, 12] = 1e308
     measured = np.array(((0.0, 0.0, 0.0), (0.5, -0.2, 1.0)))
     with np.errstate(over="ignore", invalid="ignore"):
-        bank.step(np.full(2, vehicle.mass * GRAVITY), np.zeros((2, 3)), measured, np.tile(level, (2, 1)))
+        bank.step(
+            EstimatorInputs(
+                np.full(2, vehicle.mass * GRAVITY), np.zeros((2, 3)), measured, np.tile(level, (2, 1))
+            )
+        )
     assert bank.statuses() == ["ok", "reinitialised"]
     np.testing.assert_array_equal(bank.states()[1, :3], measured[1])
     assert np.isfinite(bank.covariances).all() and np.isfinite(bank.rests).all()

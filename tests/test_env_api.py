@@ -282,9 +282,9 @@ def test_an_estimator_bank_swapped_in_mid_episode_is_the_one_stepped():
         def __getattr__(self, name):
             return getattr(self.inner, name)
 
-        def step(self, *inputs):
+        def step(self, inputs):
             self.calls += 1
-            self.inner.step(*inputs)
+            self.inner.step(inputs)
 
     env = gym.make(FAN_TRACKING, estimator="ukf")
     try:

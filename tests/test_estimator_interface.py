@@ -14,6 +14,7 @@ from quad_wrench_env.estimators import (
     make_estimator,
     make_estimator_bank,
 )
+from quad_wrench_env.estimators.bank import EstimatorInputs
 from quad_wrench_env.rotations import quat_from_euler_zyx, rotation_matrix
 from quad_wrench_env.vehicle import GRAVITY, make_vehicle
 
@@ -120,7 +121,7 @@ def test_a_bank_gives_each_vehicle_what_its_single_estimator_gives(name):
         if k == 100:
             bank.reset(1, measured[1], quaternions[1])
             singles[1].reset(measured[1], quaternions[1])
-        bank.step(thrusts, torques, measured, quaternions)
+        bank.step(EstimatorInputs(thrusts, torques, measured, quaternions))
         for i, single in enumerate(singles):
             single.step(thrusts[i], torques[i], measured[i], quaternions[i])
     for i, single in enumerate(singles):
@@ -133,7 +134,7 @@ def test_a_bank_gives_each_vehicle_what_its_single_estimator_gives(name):
         )
     assert bank.statuses() == ["ok"] * count
     with pytest.raises(ValueError, match="non-finite"):
-        bank.step(thrusts, torques, measured * np.nan, quaternions)
+        bank.step(EstimatorInputs(thrusts, torques, measured * np.nan, quaternions))
     states, wrenches = bank.estimates()  # what the envs read: both at once, from one kernel call
     np.testing.assert_array_equal(states, bank.states())
     np.testing.assert_array_equal(wrenches, bank.wrenches())

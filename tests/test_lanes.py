@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 import quad_wrench_env.estimators.ukf as ukf_module
+from quad_wrench_env.estimators.bank import EstimatorInputs
 from quad_wrench_env.estimators.noise import FilterNoise
 from quad_wrench_env.estimators.ukf import UnscentedFilterBank
 from quad_wrench_env.estimators.ukf_kernel import ukf_bank_step
@@ -179,7 +180,7 @@ def test_lane_kernel_refuses_non_finite_input_and_touches_nothing():
     positions, quaternions = np.zeros((count, 3)), np.tile((1.0, 0.0, 0.0, 0.0), (count, 1))
     positions[8, 2] = np.nan
     with pytest.raises(ValueError, match="non-finite input"):
-        bank.step(thrusts, torques, positions, quaternions)
+        bank.step(EstimatorInputs(thrusts, torques, positions, quaternions))
     for array, saved in zip((bank.quaternions, bank.rests, bank.covariances), before, strict=True):
         np.testing.assert_array_equal(array, saved)
 
@@ -210,7 +211,9 @@ def test_a_filter_on_lanes_depends_on_its_own_inputs_only():
         thrusts = vehicle.mass * GRAVITY * (1.0 + 0.2 * rng.standard_normal(count))
         torques = 0.01 * rng.standard_normal((count, 3))
         measured_p = positions + 0.01 * rng.standard_normal((count, 3))
-        banks[0].step(thrusts, torques, measured_p, quaternions)
-        banks[1].step(thrusts[reverse], torques[reverse], measured_p[reverse], quaternions[reverse])
+        banks[0].step(EstimatorInputs(thrusts, torques, measured_p, quaternions))
+        banks[1].step(
+            EstimatorInputs(thrusts[reverse], torques[reverse], measured_p[reverse], quaternions[reverse])
+        )
     for name in ("quaternions", "rests", "covariances", "walks"):
         np.testing.assert_array_equal(getattr(banks[1], name)[reverse], getattr(banks[0], name), err_msg=name)

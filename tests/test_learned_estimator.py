@@ -12,6 +12,7 @@ import torch
 
 import quad_wrench_env  # noqa: F401  (registers the envs)
 from quad_wrench_env.estimators import make_estimator, make_estimator_bank
+from quad_wrench_env.estimators.bank import EstimatorInputs
 from quad_wrench_env.estimators.fitting import Network
 from quad_wrench_env.estimators.learned import LearnedModel, shipped_models
 from quad_wrench_env.estimators.learned_kernel import (
@@ -234,7 +235,7 @@ def test_the_bank_fills_the_frames_the_fitting_fits_on():
         if k == restart:
             bank.reset(1, positions[k - 1, 1], quaternions[k - 1, 1])
             built[1] = []
-        bank.step(thrusts[k], torques[k], positions[k], quaternions[k])
+        bank.step(EstimatorInputs(thrusts[k], torques[k], positions[k], quaternions[k]))
         if (k + 1) % FRAME_STEPS == 0:
             for n in range(2):
                 built[n].append(bank.frames[n].copy())

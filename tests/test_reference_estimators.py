@@ -18,6 +18,7 @@ import quad_wrench_env.estimators.ekf as ekf_module
 import quad_wrench_env.estimators.observer as observer_module
 import quad_wrench_env.estimators.ukf as ukf_module
 from quad_wrench_env.estimators import EKFNoise, FilterNoise, make_estimator, make_estimator_bank
+from quad_wrench_env.estimators.bank import EstimatorInputs
 from quad_wrench_env.estimators.ekf_kernel import ekf_bank_step, ekf_transition
 from quad_wrench_env.estimators.observer_kernel import observer_bank_step
 from quad_wrench_env.estimators.ukf_kernel import ukf_bank_step
@@ -304,7 +305,11 @@ def measured_rise_time(name: str, seconds: float, motion: bool = False, **settin
         if motion:
             moving = velocity + MOTION_NOISE[0] * rng.standard_normal((count, 3))
             rates = MOTION_NOISE[1] * rng.standard_normal((count, 3))
-        bank.step(np.full(count, MASS * GRAVITY), np.zeros((count, 3)), noisy, attitude, moving, rates)
+        bank.step(
+            EstimatorInputs(
+                np.full(count, MASS * GRAVITY), np.zeros((count, 3)), noisy, attitude, moving, rates
+            )
+        )
         force = bank.wrenches()[:, 0].mean()
         for fraction in (0.1, 0.9):
             if k * DT > STEP_AT and fraction not in crossings and force >= fraction * STEP_FORCE:
@@ -472,11 +477,13 @@ def test_the_motion_capture_noise_is_independent_of_the_fans_turbulence():
         errors, turbulence, positions = [], [fan.noise[0].copy()], []
 
         class Spy(EstimatorSpy):
-            def step(self, thrusts, torques, position, quaternion, velocity=None, body_rates=None):
-                errors.append((position[0] - fleet.state.position[0]) / fleet.cfg.sensors.position_noise)
+            def step(self, inputs):
+                errors.append(
+                    (inputs.positions[0] - fleet.state.position[0]) / fleet.cfg.sensors.position_noise
+                )
                 turbulence.append(fan.noise[0].copy())
                 positions.append(fleet.state.position[0].copy())
-                return self._inner.step(thrusts, torques, position, quaternion, velocity, body_rates)
+                return self._inner.step(inputs)
 
         fleet.estimator = Spy(fleet.estimator, fleet)
         for _ in range(500):

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from quad_wrench_env.estimators import make_estimator
+from quad_wrench_env.estimators.bank import EstimatorInputs
 from quad_wrench_env.estimators.noise import FilterNoise
 from quad_wrench_env.estimators.ukf import UnscentedFilterBank, UnscentedWrenchEstimator
 from quad_wrench_env.rotations import (
@@ -194,7 +195,7 @@ def test_a_bank_of_filters_equals_the_filters_run_one_by_one():
         thrusts = 4.1 + 0.1 * rng.standard_normal(n)
         torques = 1e-3 * rng.standard_normal((n, 3))
         positions = positions + 1e-3 * rng.standard_normal((n, 3))
-        bank.step(thrusts, torques, positions, quaternions)
+        bank.step(EstimatorInputs(thrusts, torques, positions, quaternions))
         for k, single in enumerate(singles):
             single.step(thrusts[k], torques[k], positions[k], quaternions[k])
     for k, single in enumerate(singles):

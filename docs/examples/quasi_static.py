@@ -9,7 +9,7 @@ import numpy as np
 
 from quad_wrench_env.config import build, check_numbers
 from quad_wrench_env.estimators import MEASUREMENT_NOISE_KEYS, EstimatorEntry
-from quad_wrench_env.estimators.bank import BankOfOne, check_finite_batch
+from quad_wrench_env.estimators.bank import BankOfOne, EstimatorInputs, check_finite_batch
 from quad_wrench_env.registry import register
 from quad_wrench_env.rotations import rotation_matrices
 from quad_wrench_env.vehicle import GRAVITY, VehicleParams
@@ -52,16 +52,9 @@ class QuasiStaticBank:
         self._acceleration[index] = 0.0
         self._wrenches[index] = 0.0
 
-    def step(self, thrusts, body_torques, positions, quaternions, velocities=None, body_rates=None) -> None:
-        check_finite_batch(
-            self.name,
-            thrusts=thrusts,
-            body_torques=body_torques,
-            positions=positions,
-            quaternions=quaternions,
-            velocities=velocities,
-            body_rates=body_rates,
-        )
+    def step(self, inputs: EstimatorInputs) -> None:
+        check_finite_batch(self.name, **inputs._asdict())
+        thrusts, body_torques, positions, quaternions = inputs[:4]
         a, s = self.alpha, self._states
         velocity = s[:, 3:6] + a * ((positions - s[:, 0:3]) / self.dt - s[:, 3:6])
         self._acceleration += a * ((velocity - s[:, 3:6]) / self.dt - self._acceleration)

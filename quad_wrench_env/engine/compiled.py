@@ -30,7 +30,7 @@ from quad_wrench_env.engine.kernels import (
     physics_constants,
     record_sensor_readings,
 )
-from quad_wrench_env.estimators.bank import FilterBank
+from quad_wrench_env.estimators.bank import EstimatorInputs, FilterBank
 from quad_wrench_env.numerics import bind, specialised
 
 if TYPE_CHECKING:
@@ -149,11 +149,11 @@ class CompiledStep:
             self.velocity_measured,
             self.body_rates_measured,
         )
-        estimator = self.fleet.estimator
+        estimator, inputs = self.fleet.estimator, EstimatorInputs(*measured)
         self.estimate = (
-            estimator.bind_step(*measured)
+            estimator.bind_step(inputs)
             if isinstance(estimator, FilterBank)
-            else partial(estimator.step, *measured)
+            else partial(estimator.step, inputs)
         )
         """One step of the fleet's estimators on the measurements of the physics step just taken."""
 

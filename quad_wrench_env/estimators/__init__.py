@@ -8,7 +8,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from quad_wrench_env.config import build
-from quad_wrench_env.estimators.bank import EstimatorBank, OracleBank
+from quad_wrench_env.estimators.bank import EstimatorBank, EstimatorInputs, OracleBank
 from quad_wrench_env.estimators.base import Estimator, StateEstimate, TruthFed, WrenchEstimate
 from quad_wrench_env.estimators.ekf import ExtendedFilterBank, ExtendedWrenchEstimator
 from quad_wrench_env.estimators.learned import (
@@ -161,6 +161,7 @@ __all__ = [
     "Estimator",
     "EstimatorBank",
     "EstimatorEntry",
+    "EstimatorInputs",
     "ExtendedFilterBank",
     "ExtendedWrenchEstimator",
     "FilterNoise",

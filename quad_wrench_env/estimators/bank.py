@@ -11,12 +11,27 @@ implementation of each algorithm.
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import Protocol, runtime_checkable
+from typing import NamedTuple, Protocol, runtime_checkable
 
 import numpy as np
 
 from quad_wrench_env.estimators.base import StateEstimate, WrenchEstimate
 from quad_wrench_env.numerics import bind
+
+
+class EstimatorInputs(NamedTuple):
+    """What every estimator bank reads at each physics step (docs/estimators.md, "What an estimator
+    sees"), one row per vehicle: the ``thrusts`` (N,) and ``body_torques`` (N, 3) of the nominal mixer
+    from the reported motor speeds, the ``positions`` (N, 3) and ``quaternions`` (N, 4, wxyz) measured
+    at the step's end, and the ``velocities`` and ``body_rates`` (N, 3) an onboard state estimator
+    measures (None without one)."""
+
+    thrusts: np.ndarray
+    body_torques: np.ndarray
+    positions: np.ndarray
+    quaternions: np.ndarray
+    velocities: np.ndarray | None = None
+    body_rates: np.ndarray | None = None
 
 
 @runtime_checkable
@@ -29,18 +44,8 @@ class EstimatorBank(Protocol):
     def reset(self, index: int, position: np.ndarray, quaternion_wxyz: np.ndarray) -> None:
         """Restart estimator ``index`` from a known pose, at rest, with no external wrench."""
 
-    def step(
-        self,
-        thrusts: np.ndarray,
-        body_torques: np.ndarray,
-        positions: np.ndarray,
-        quaternions: np.ndarray,
-        velocities: np.ndarray | None = None,
-        body_rates: np.ndarray | None = None,
-    ) -> None:
-        """One step of every estimator: (N,) thrusts, (N, 3) body torques, the (N, 3) positions and
-        (N, 4) attitudes measured at the step's end, and the (N, 3) velocities and body rates where
-        an onboard state estimator measures them."""
+    def step(self, inputs: EstimatorInputs) -> None:
+        """One step of every estimator on this step's :class:`EstimatorInputs`."""
 
     def wrenches(self) -> np.ndarray:
         """(N, 6) estimated ``[f, τ]``, world frame."""
@@ -73,15 +78,11 @@ _UNMEASURED = np.empty((0, 3))
 """What the kernels get for a velocity or body-rate measurement the sensors do not make."""
 
 
-def _kernel_inputs(thrusts, body_torques, positions, quaternions, velocities, body_rates) -> tuple:
+def _kernel_inputs(inputs: EstimatorInputs) -> EstimatorInputs:
     """A step's inputs as the kernels take them: :data:`_UNMEASURED` for a missing measurement."""
-    return (
-        thrusts,
-        body_torques,
-        positions,
-        quaternions,
-        _UNMEASURED if velocities is None else velocities,
-        _UNMEASURED if body_rates is None else body_rates,
+    return inputs._replace(
+        velocities=_UNMEASURED if inputs.velocities is None else inputs.velocities,
+        body_rates=_UNMEASURED if inputs.body_rates is None else inputs.body_rates,
     )
 
 
@@ -95,56 +96,29 @@ class FilterBank:
     name: str
     count: int
 
-    def step(
-        self,
-        thrusts: np.ndarray,
-        body_torques: np.ndarray,
-        positions: np.ndarray,
-        quaternions: np.ndarray,
-        velocities: np.ndarray | None = None,
-        body_rates: np.ndarray | None = None,
-    ) -> None:
+    def step(self, inputs: EstimatorInputs) -> None:
         """One step of every filter (see :class:`EstimatorBank`)."""
-        kernel, arguments = self._kernel(
-            *_kernel_inputs(thrusts, body_torques, positions, quaternions, velocities, body_rates)
-        )
+        kernel, arguments = self._kernel(_kernel_inputs(inputs))
         if not kernel(*arguments):
-            self._refuse(thrusts, body_torques, positions, quaternions, velocities, body_rates)
+            self._refuse(inputs)
 
-    def bind_step(
-        self,
-        thrusts: np.ndarray,
-        body_torques: np.ndarray,
-        positions: np.ndarray,
-        quaternions: np.ndarray,
-        velocities: np.ndarray | None = None,
-        body_rates: np.ndarray | None = None,
-    ) -> Callable[[], None]:
+    def bind_step(self, inputs: EstimatorInputs) -> Callable[[], None]:
         """:meth:`step` on these input arrays, as a call without arguments that reads them afresh
         each time (the caller refills them in place). The kernel, compiled for these arguments'
         types, and its arguments, the bank's state arrays among them, are bound once
         (:func:`~quad_wrench_env.numerics.bind`; the kernel updates them in place): about 0.5 µs less
         per step than :meth:`step`."""
-        inputs = (thrusts, body_torques, positions, quaternions, velocities, body_rates)
-        kernel, arguments = self._kernel(*_kernel_inputs(*inputs))
+        kernel, arguments = self._kernel(_kernel_inputs(inputs))
         kernel_step = bind(kernel, *arguments)
 
         def bound_step() -> None:
             if not kernel_step():
-                self._refuse(*inputs)
+                self._refuse(inputs)
 
         return bound_step
 
-    def _refuse(self, thrusts, body_torques, positions, quaternions, velocities, body_rates) -> None:
-        check_finite_batch(
-            self.name,
-            thrusts=thrusts,
-            body_torques=body_torques,
-            positions=positions,
-            quaternions=quaternions,
-            velocities=velocities,
-            body_rates=body_rates,
-        )
+    def _refuse(self, inputs: EstimatorInputs) -> None:
+        check_finite_batch(self.name, **inputs._asdict())
 
     def estimates(self) -> tuple[np.ndarray, np.ndarray]:
         """:meth:`states` and :meth:`wrenches` (see :class:`EstimatorBank`) from one call of the
@@ -158,9 +132,7 @@ class FilterBank:
         """The kernel of :meth:`estimates` and its arguments, less the two outputs."""
         raise NotImplementedError
 
-    def _kernel(
-        self, thrusts, body_torques, positions, quaternions, velocities, body_rates
-    ) -> tuple[Callable[..., bool], tuple]:
+    def _kernel(self, inputs: EstimatorInputs) -> tuple[Callable[..., bool], tuple]:
         """The step kernel and its arguments for these inputs (an empty array for a velocity or
         body-rate measurement the sensors do not make)."""
         raise NotImplementedError
@@ -188,7 +160,7 @@ class OracleBank:
         self._states = states
         self._wrenches = wrenches
 
-    def step(self, thrusts, body_torques, positions, quaternions, velocities=None, body_rates=None) -> None:
+    def step(self, inputs: EstimatorInputs) -> None:
         """The truth needs no step."""
 
     def wrenches(self) -> np.ndarray:
@@ -222,7 +194,7 @@ class TruthRecorder:
         self.inner.observe_truth(states, wrenches)
         self.truth = (states.copy(), wrenches.copy())
 
-    def step(self, thrusts, body_torques, positions, quaternions, velocities=None, body_rates=None) -> None:
+    def step(self, inputs: EstimatorInputs) -> None:
         raise NotImplementedError
 
     def wrenches(self) -> np.ndarray:
@@ -265,12 +237,14 @@ class BankOfOne:
             return None if value is None else np.asarray(value, dtype=float)[None, :]
 
         self.bank.step(
-            np.array((thrust,), dtype=float),
-            row(body_torque),
-            row(position),
-            row(quaternion_wxyz),
-            row(velocity),
-            row(body_rates),
+            EstimatorInputs(
+                np.array((thrust,), dtype=float),
+                row(body_torque),
+                row(position),
+                row(quaternion_wxyz),
+                row(velocity),
+                row(body_rates),
+            )
         )
         return self.estimate
 

@@ -32,7 +32,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from quad_wrench_env.estimators.bank import BankOfOne, FilterBank
+from quad_wrench_env.estimators.bank import BankOfOne, EstimatorInputs, FilterBank
 from quad_wrench_env.estimators.ekf_kernel import (
     ekf_bank_step,
     ekf_constants,
@@ -127,18 +127,13 @@ class ExtendedFilterBank(FilterBank):
         self.x[index, E] = euler_zyx_from_quat(np.asarray(quaternion_wxyz, dtype=float))
         self.P[index] = self.P0
 
-    def _kernel(self, thrusts, body_torques, positions, quaternions, velocities, body_rates):
+    def _kernel(self, inputs: EstimatorInputs) -> tuple:
         return ekf_bank_step, (
             self.x,
             self.P,
             self.walks,
             self.reinitialisations,
-            thrusts,
-            body_torques,
-            positions,
-            quaternions,
-            velocities,
-            body_rates,
+            *inputs,
             self.kernel_constants,
         )
 

@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from quad_wrench_env.estimators.bank import BankOfOne, FilterBank
+from quad_wrench_env.estimators.bank import BankOfOne, EstimatorInputs, FilterBank
 from quad_wrench_env.estimators.learned_kernel import (
     FORCES,
     LOGITS,
@@ -200,8 +200,8 @@ class LearnedBank(FilterBank):
         self.outputs[index] = 0.0
         self.outputs[index, 6:12] = self._prior
 
-    def _kernel(self, thrusts, body_torques, positions, quaternions, velocities, body_rates):
-        self.model.check(measured_motion=velocities.shape[0] > 0)
+    def _kernel(self, inputs: EstimatorInputs) -> tuple:
+        self.model.check(measured_motion=inputs.velocities.shape[0] > 0)
         return learned_bank_step, (
             self.previous,
             self.trail,
@@ -211,12 +211,7 @@ class LearnedBank(FilterBank):
             self.frames,
             self.hidden,
             self.outputs,
-            thrusts,
-            body_torques,
-            positions,
-            quaternions,
-            velocities,
-            body_rates,
+            *inputs,
             *self._weights,
             *self._scales,
             self.constants,

@@ -40,7 +40,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from quad_wrench_env.config import check_numbers
-from quad_wrench_env.estimators.bank import BankOfOne, FilterBank
+from quad_wrench_env.estimators.bank import BankOfOne, EstimatorInputs, FilterBank
 from quad_wrench_env.estimators.observer_kernel import (
     observer_bank_step,
     observer_constants,
@@ -135,7 +135,7 @@ class ObserverBank(FilterBank):
         self.forces[index] = 0.0
         self.torques_generalised[index] = 0.0
 
-    def _kernel(self, thrusts, body_torques, positions, quaternions, velocities, body_rates):
+    def _kernel(self, inputs: EstimatorInputs) -> tuple:
         return observer_bank_step, (
             self.positions,
             self.eulers,
@@ -145,12 +145,7 @@ class ObserverBank(FilterBank):
             self.psi_torque,
             self.forces,
             self.torques_generalised,
-            thrusts,
-            body_torques,
-            positions,
-            quaternions,
-            velocities,
-            body_rates,
+            *inputs,
             self.kernel_constants,
         )
 

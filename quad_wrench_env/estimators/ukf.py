@@ -58,7 +58,7 @@ import math
 
 import numpy as np
 
-from quad_wrench_env.estimators.bank import BankOfOne, FilterBank
+from quad_wrench_env.estimators.bank import BankOfOne, EstimatorInputs, FilterBank
 from quad_wrench_env.estimators.noise import (
     FilterNoise,
     mrp_std,
@@ -150,7 +150,7 @@ class UnscentedFilterBank(FilterBank):
         self.walks[index] = self.walk_defaults
         self.reinitialisations[index] = 0
 
-    def _kernel(self, thrusts, body_torques, positions, quaternions, velocities, body_rates):
+    def _kernel(self, inputs: EstimatorInputs) -> tuple:
         """The filter of McKinnon & Schoellig 2016 measures the pose only: ``velocities`` and
         ``body_rates`` are unused."""
         return self._step_kernel, (
@@ -159,10 +159,7 @@ class UnscentedFilterBank(FilterBank):
             self.covariances,
             self.walks,
             self.reinitialisations,
-            thrusts,
-            body_torques,
-            positions,
-            quaternions,
+            *inputs[:4],
             self.kernel_constants,
         )
 
