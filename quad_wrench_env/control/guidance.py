@@ -35,6 +35,8 @@ class ReferenceExtrapolator:
         self._previous_velocity: np.ndarray | None = None
         self._fresh = np.zeros((), dtype=bool)
         """Per vehicle of a batch (a 0-d array for one): restarted since the last update."""
+        self._restarted = False
+        """Whether any vehicle of :attr:`_fresh` is."""
 
     def reset(self) -> None:
         """Forget the previous reference (call at the start of an episode)."""
@@ -47,6 +49,7 @@ class ReferenceExtrapolator:
         """Forget the previous reference of a batch's vehicles ``index`` (their episodes restarting)."""
         if self._previous_velocity is not None:
             self._fresh[index] = True
+            self._restarted = True
 
     def update(self, position: np.ndarray, velocity: np.ndarray, dt: float) -> np.ndarray:
         """Take the reference ``position`` (m) and ``velocity`` (m/s) of this policy step, ``dt`` (s)
@@ -55,10 +58,12 @@ class ReferenceExtrapolator:
         self.position = np.array(position, dtype=float)
         if self._previous_velocity is None:
             self.acceleration = np.zeros_like(velocity)
+            self._fresh, self._restarted = np.zeros(velocity.shape[:-1], dtype=bool), False
         else:
-            change = (velocity - self._previous_velocity) / dt
-            self.acceleration = np.where(self._fresh[..., None], 0.0, change)
-        self._fresh = np.zeros(velocity.shape[:-1], dtype=bool)
+            self.acceleration = (velocity - self._previous_velocity) / dt
+            if self._restarted:
+                self.acceleration[self._fresh] = 0.0
+                self._fresh[...], self._restarted = False, False
         self.velocity = velocity
         self._previous_velocity = velocity
         return self.acceleration.copy()

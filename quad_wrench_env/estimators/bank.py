@@ -80,9 +80,16 @@ _UNMEASURED = np.empty((0, 3))
 
 def _kernel_inputs(inputs: EstimatorInputs) -> EstimatorInputs:
     """A step's inputs as the kernels take them: :data:`_UNMEASURED` for a missing measurement."""
-    return inputs._replace(
-        velocities=_UNMEASURED if inputs.velocities is None else inputs.velocities,
-        body_rates=_UNMEASURED if inputs.body_rates is None else inputs.body_rates,
+    thrusts, body_torques, positions, quaternions, velocities, body_rates = inputs
+    if velocities is not None and body_rates is not None:
+        return inputs
+    return EstimatorInputs(
+        thrusts,
+        body_torques,
+        positions,
+        quaternions,
+        _UNMEASURED if velocities is None else velocities,
+        _UNMEASURED if body_rates is None else body_rates,
     )
 
 
@@ -233,8 +240,8 @@ class BankOfOne:
     ) -> WrenchEstimate:
         """One step of the bank with these inputs as its one row (see :class:`EstimatorBank`)."""
 
-        def row(value):
-            return None if value is None else np.asarray(value, dtype=float)[None, :]
+        def row(value):  # a measurement not made: as the kernels take it (no second record built)
+            return _UNMEASURED if value is None else np.asarray(value, dtype=float)[None, :]
 
         self.bank.step(
             EstimatorInputs(
