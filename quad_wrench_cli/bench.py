@@ -3,6 +3,7 @@
     quad-wrench bench [--steps 2000] [--repeats 3] [--soak-minutes 60]
                       [--peers [--gym-pybullet-drones PATH] [--peers-dir DIR]]
     quad-wrench bench --estimators [--steps 4000] [--repeats 5]
+    quad-wrench bench --controllers [--steps 100] [--repeats 3]
     quad-wrench bench --training [--config configs/train_fan_tracking.yaml] [--steps N] [--repeats 5]
 
 
@@ -30,7 +31,9 @@ Tables printed (all measured in this run, best of ``--repeats`` for timings):
    reported as skipped, with the reason.
 
 ``--estimators`` times the wrench estimators instead (:mod:`quad_wrench_cli.bench_estimators`),
-``--training`` the training path and a short learning run (:mod:`quad_wrench_cli.bench_training`).
+``--training`` the training path and a short learning run (:mod:`quad_wrench_cli.bench_training`),
+``--controllers`` the classical controllers one vehicle at a time and batched
+(:mod:`quad_wrench_cli.bench_controllers`).
 """
 
 from __future__ import annotations
@@ -43,7 +46,7 @@ from pathlib import Path
 import gymnasium as gym
 from rich.console import Console
 
-from quad_wrench_cli import bench_estimators, bench_training
+from quad_wrench_cli import bench_controllers, bench_estimators, bench_training
 from quad_wrench_cli.common import UsageError, add_config_argument, load_config, markdown_table, show
 from quad_wrench_cli.peers import download_summary, jobs, missing, peers
 from quad_wrench_env.agents import make_agent
@@ -177,7 +180,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         type=_count,
         metavar="N",
         help=f"policy steps per timing (default: {STEPS}; with --estimators "
-        f"{bench_estimators.STEPS} estimator steps)",
+        f"{bench_estimators.STEPS} estimator steps, with --controllers {bench_controllers.STEPS})",
     )
     parser.add_argument(
         "--repeats",
@@ -195,6 +198,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--estimators", action="store_true", help="time the wrench estimators instead (µs per estimator step)"
+    )
+    parser.add_argument(
+        "--controllers",
+        action="store_true",
+        help="time the classical controllers instead (µs per vehicle-step, one at a time and batched)",
     )
     parser.add_argument(
         "--training",
@@ -243,6 +251,9 @@ def run(args: argparse.Namespace) -> int:
         bench_training.report(
             args.config or config_path("train_fan_tracking.yaml"), args.steps, args.repeats or REPEATS
         )
+        return 0
+    if args.controllers:
+        bench_controllers.report(args.steps or bench_controllers.STEPS, args.repeats or REPEATS)
         return 0
     if args.estimators:
         bench_estimators.report(

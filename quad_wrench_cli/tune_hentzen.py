@@ -28,7 +28,7 @@ from quad_wrench_cli.common import add_config_argument, load_config, show, usage
 from quad_wrench_cli.reproduce_mckinnon import rise_time
 from quad_wrench_env.agents import make_agent
 from quad_wrench_env.agents.evaluate import run_episode
-from quad_wrench_env.agents.mpc import MPCGains
+from quad_wrench_env.control.mpc_controller import MPCGains
 from quad_wrench_env.vehicle import GRAVITY
 
 ENV_ID = "QuadWrench/DisturbanceRejection-v0"

@@ -10,6 +10,8 @@ import numpy as np
 import pybullet as p
 
 import quad_wrench_env  # noqa: F401  (registers the env ids)
+from quad_wrench_env.config import build
+from quad_wrench_env.control.residual import BASES
 from quad_wrench_env.estimators import EstimatorInputs, TruthFed, make_estimator, make_estimator_bank
 from quad_wrench_env.estimators.ukf_kernel import ukf_bank_step
 from quad_wrench_env.rotations import quat_exp, quat_multiply
@@ -262,3 +264,60 @@ def estimator_step_seconds(
     for k in range(steps):
         est.step(thrust, torque, positions[k], quaternions[k])
     return (time.perf_counter() - start) / steps
+
+
+def recorded_observations(
+    base: str, params: dict[str, Any], count: int, steps: int, seed: int = 0
+) -> tuple[Any, np.ndarray]:
+    """(the vector env's unwrapped attributes, (steps, count, width) observations): ``count`` vehicles of
+    DisturbanceRejection-v0 (``attitude`` action) flown for ``steps`` control steps by the batched
+    ``base`` controller (:data:`quad_wrench_env.control.residual.BASES`) with gains ``params``, from
+    ``seed``; the env is closed, its layout, vehicle, period and scaling kept."""
+    venv = gym.make_vec(
+        "QuadWrench/DisturbanceRejection-v0",
+        num_envs=count,
+        vectorization_mode="vector_entry_point",
+        action_type="attitude",
+    )
+    try:
+        controller = controller_batch(base, params, count, venv)
+        observations, _ = venv.reset(seed=seed)
+        recorded = []
+        for _ in range(steps):
+            recorded.append(observations)
+            observations, *_ = venv.step(controller.actions(observations))
+        return venv.unwrapped, np.array(recorded)
+    finally:
+        venv.close()
+
+
+def controller_batch(base: str, params: dict[str, Any], count: int, env: Any) -> Any:
+    """A batched ``base`` controller of ``count`` vehicles with gains ``params``, configured for ``env``
+    (a vector env or its unwrapped attributes)."""
+    controller_class, gains_class = BASES[base]
+    env = getattr(env, "unwrapped", env)
+    controller = controller_class(build(gains_class, params, prefix=f"{base}."), count)
+    tilt = np.radians(env.cfg.action_limits.max_tilt_deg)
+    controller.configure(env.obs_layout, env.vehicle, env.dt, env.action_scaling, float(tilt))
+    return controller
+
+
+def controller_step_seconds(
+    base: str, params: dict[str, Any], env: Any, observations: np.ndarray, batched: bool
+) -> float:
+    """Seconds per vehicle-step of the ``base`` controller over recorded ``observations`` (steps, count,
+    width): one batch of ``count`` vehicles (``batched``) or ``count`` controllers of one vehicle each,
+    all fresh (set-up not timed)."""
+    steps, count = observations.shape[:2]
+    if batched:
+        batch = controller_batch(base, params, count, env)
+        start = time.perf_counter()
+        for frame in observations:
+            batch.actions(frame)
+    else:
+        singles = [controller_batch(base, params, 1, env) for _ in range(count)]
+        start = time.perf_counter()
+        for frame in observations:
+            for vehicle, single in enumerate(singles):
+                single.actions(frame[vehicle : vehicle + 1])
+    return (time.perf_counter() - start) / (steps * count)

@@ -352,13 +352,18 @@ MUTATIONS = (
         "reset",
         (
             (
-                "quad_wrench_env/agents/mpc.py",
-                "        self.mpc = PositionMPC(settings, vehicle.mass)  # a fresh solver",
-                "        if self.mpc is None or self.mpc.gains != settings:\n"
-                "            self.mpc = PositionMPC(settings, vehicle.mass)  # a fresh solver",
+                "quad_wrench_env/control/mpc_controller.py",
+                "        self.qps = [self._fresh() for _ in range(self.count)]",
+                "        self.qps = self.qps or [self._fresh() for _ in range(self.count)]",
             ),
         ),
         ("tests/test_reset_equivalence.py",),
+    ),
+    Mutation(
+        "mpc: a batch's restarted vehicle keeps its reference history",
+        "reset",
+        (("quad_wrench_env/control/mpc_controller.py", "        self.reference.restart(index)\n", ""),),
+        ("tests/test_mpc.py",),
     ),
     Mutation(
         "flight log: the quaternion's scalar last, in the writer and the reader alike",
@@ -865,7 +870,7 @@ MUTATIONS = (
         "mpc",
         (
             (
-                "quad_wrench_env/agents/mpc.py",
+                "quad_wrench_env/control/mpc_controller.py",
                 "linear = 2.0 * max(g.position_weight[:2]) * g.cross_track_limit * g.terminal_weight",
                 "linear = 0.2 * max(g.position_weight[:2]) * g.cross_track_limit * g.terminal_weight",
             ),
@@ -875,7 +880,7 @@ MUTATIONS = (
     Mutation(
         "MPC: the soft problem's slack kept where the hard problem solves",
         "mpc",
-        (("quad_wrench_env/agents/mpc.py", 'if hard.info.status == "solved":', "if False:"),),
+        (("quad_wrench_env/control/mpc_controller.py", 'if hard.info.status == "solved":', "if False:"),),
         ("tests/test_mpc_exact_penalty.py",),
     ),
     Mutation(
@@ -883,8 +888,8 @@ MUTATIONS = (
         "mpc",
         (
             (
-                "quad_wrench_env/agents/mpc.py",
-                "attitude_from_acceleration(acceleration - force / self.mass, yaw, self.mass, tilt)",
+                "quad_wrench_env/control/mpc_controller.py",
+                "attitude_from_acceleration(acceleration - force / self.mass, yaw, self.mass, self.tilt)",
                 "attitude_from_acceleration(acceleration - force / self.mass, yaw, self.mass)",
             ),
         ),

@@ -19,9 +19,10 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from quad_wrench_env.agents.base import Policy
-from quad_wrench_env.agents.mpc import NU, NX, MPCGains, MPCPolicy, PositionMPC, linearize
+from quad_wrench_env.agents.mpc import MPCPolicy
 from quad_wrench_env.autopilot import AutopilotGains
 from quad_wrench_env.control.guidance import ReferenceExtrapolator, attitude_from_acceleration
+from quad_wrench_env.control.mpc_controller import NU, NX, MPCController, MPCGains, PositionMPC, linearize
 from quad_wrench_env.engine.actions import ActionLimits, ActionScaling
 from quad_wrench_env.rotations import quat_from_euler_zyx, rotation_matrix
 from quad_wrench_env.vehicle import GRAVITY, make_vehicle
@@ -33,8 +34,9 @@ ROLLOUT_TOL = 1e-4  # 20 chained dynamics rows of ~2e-6 each, carried on by A_d 
 
 
 def nonlinear_rhs(x: np.ndarray, u: np.ndarray, yaw: float, force: np.ndarray) -> np.ndarray:
-    """Eqs. (1)-(2) and the first-order attitude, written independently of quad_wrench_env.agents.mpc: the
-    thrust direction comes from the project's rotations (``R = Rz(ψ)·Ry(θ)·Rx(φ)``)."""
+    """Eqs. (1)-(2) and the first-order attitude, written independently of
+    quad_wrench_env.control.mpc_controller: the thrust direction comes from the project's rotations
+    (``R = Rz(ψ)·Ry(θ)·Rx(φ)``)."""
     body_z = rotation_matrix(quat_from_euler_zyx(x[6], x[7], yaw))[:, 2]
     accel = u[0] / MASS * body_z + force / MASS + np.array((0.0, 0.0, -GRAVITY))
     return np.concatenate((x[3:6], accel, (u[1:3] - x[6:8]) / TAU))
@@ -292,3 +294,44 @@ def test_policy_refuses_another_action_type_and_unknown_gains():
     del env.obs_layout["reference_velocity"]
     with pytest.raises(ValueError, match="reference_velocity"):
         MPCPolicy().reset(env)
+
+
+def test_a_batch_commands_what_one_controller_per_vehicle_commands():
+    """Five vehicles in different states, references and forces, soft constraint and compensation on,
+    over 30 control steps on a reference whose velocity changes, vehicle 2 restarting at step 12: the
+    batch's commands are those of five
+    controllers of one vehicle each (the ``mpc`` agent's), fed the same observations, to OSQP's
+    tolerance (1e-6 on a normalised action: the bounds' 2e-5 over the thrust scale m·g)."""
+    env, count = FakeEnv(), 5
+    gains = MPCGains(slack=True, compensation=True, position_weight=(1298.89, 1298.89, 625.0))
+    tilt = math.radians(env.cfg.action_limits.max_tilt_deg)
+
+    def configured(size: int) -> MPCController:
+        controller = MPCController(gains, size)
+        controller.configure(env.obs_layout, env.vehicle, env.dt, env.action_scaling, tilt)
+        return controller
+
+    batch, singles = configured(count), [configured(1) for _ in range(count)]
+    rng = np.random.default_rng(4)
+    start = rng.uniform(-0.3, 0.3, (count, 3)) + np.array((0.0, 0.0, 1.0))
+    forces = rng.uniform(-1.0, 1.0, (count, 3))
+    largest = 0.0
+    for k in range(30):
+        if k == 12:
+            batch.restart(2)
+            singles[2] = configured(1)  # a new controller: what a restart must amount to
+        drift = 0.01 * k * np.array((1.0, -0.5, 0.2))
+        frames = np.array(
+            [
+                env.observation(
+                    start[v] + drift * v, 0.05 * v, -0.03 * v, 0.4 * v, forces[v], (0.02 * k, 0, 1)
+                )
+                for v in range(count)
+            ]
+        )
+        frames[:, FakeEnv.LAYOUT["reference_velocity"]][:, 0] = 0.3 * np.sin(0.2 * k + np.arange(count))
+        together = batch.actions(frames)
+        alone = np.array([single.actions(frames[v : v + 1])[0] for v, single in enumerate(singles)])
+        largest = max(largest, float(np.abs(together - alone).max()))
+        assert all(qp.status == "solved" for qp in batch.qps)
+    assert largest <= 1e-6

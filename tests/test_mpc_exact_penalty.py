@@ -1,7 +1,7 @@
-"""The soft-constrained MPC's slack weights (``quad_wrench_env/agents/mpc.py``, Hentzen et al. 2019,
-Sec. IV-D c)) against the property they are derived for (issue 33): the cost ``w_1·ε + w_2·ε²`` is an exact
-penalty when ``w_1`` exceeds the multiplier the hard constraint ``|p_xy - p_r,xy| <= e_max`` would have, so
-with the derived ``w_1 = 2·q_p·e_max·terminal_weight`` the soft problem behaves as the hard one where the
+"""The soft-constrained MPC's slack weights (``quad_wrench_env/control/mpc_controller.py``, Hentzen et al.
+2019, Sec. IV-D c)) against the property they are derived for (issue 33): the cost ``w_1·ε + w_2·ε²`` is an
+exact penalty when ``w_1`` exceeds the multiplier the hard constraint ``|p_xy - p_r,xy| <= e_max`` would have,
+so with the derived ``w_1 = 2·q_p·e_max·terminal_weight`` the soft problem behaves as the hard one where the
 hard one is feasible (no slack, the cross-track error within its limit, the hard problem's inputs),
 while a weight below the bound lets the error through; where the hard problem is infeasible the soft
 one still solves, with the slack exactly the excess, as small as the physics allows on the first
@@ -18,8 +18,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from quad_wrench_env.agents.mpc import NU, MPCGains, PositionMPC
 from quad_wrench_env.control.guidance import ReferenceExtrapolator
+from quad_wrench_env.control.mpc_controller import NU, MPCGains, PositionMPC
 
 MASS = 0.716  # hummingbird
 TAU = 1.0 / 14.933  # 1/attitude_p of its autopilot

@@ -30,6 +30,10 @@ EXERTION = "QuadWrench/ForceExertion-v0"
 STEPS = 40
 FIRST, SECOND = 11, 12
 RESIDUAL_PID = {"action_type": "residual", "residual": {"base": "pid", "params": {"compensation": True}}}
+RESIDUAL_MPC = {
+    "action_type": "residual",
+    "residual": {"base": "mpc", "params": {"compensation": True, "slack": True}},
+}
 ENV_CASES = {  # (env id, env settings)
     "fan tracking, ukf": (FAN_TRACKING, {"estimator": "ukf"}),
     "fan tracking, ukf, matched walks": (FAN_TRACKING, {"estimator_params": {"adaptive_walks": True}}),
@@ -55,6 +59,7 @@ ENV_CASES = {  # (env id, env settings)
     ),
     "force exertion, pressing": (EXERTION, {"action_type": "wrench", "start_gap": 0.0}),
     "disturbance rejection, residual pid": (REJECTION, RESIDUAL_PID),
+    "disturbance rejection, residual mpc": (REJECTION, RESIDUAL_MPC),
 }
 AGENT_CASES = {  # (agent, its parameters, env id, env settings)
     "pid": ("pid", {"compensation": True}, REJECTION, {"action_type": "attitude"}),
@@ -75,7 +80,8 @@ STATEFUL = {  # every stateful class: the case that flies it
     "agents.base.Policy": "protocol: each agent's case",
     "control.guidance.ReferenceExtrapolator": "agent: pid, mpc (their reference's acceleration)",
     "control.pid_controller.PIDController": "agent: pid; env, vector env: residual pid",
-    "control.residual.ResidualActions": "env and vector env: disturbance rejection, residual pid",
+    "control.residual.ResidualActions": "env and vector env: disturbance rejection, residual pid, mpc",
+    "control.mpc_controller.MPCController": "agent: mpc; env, vector env: residual mpc (warm starts)",
     "agents.hover.PositionHoldPolicy": "agent: hold",
     "agents.ida_pbc.IDAPBCPolicy": "agent: ida_pbc",
     "agents.mpc.MPCPolicy": "agent: mpc (its warm start)",
@@ -218,7 +224,8 @@ def test_an_agent_after_an_episode_and_a_reset_is_a_fresh_agent(case):
 
 
 @pytest.mark.parametrize(
-    ("env_id", "settings"), [(FAN_TRACKING, {}), (EXERTION, {}), (REJECTION, RESIDUAL_PID)]
+    ("env_id", "settings"),
+    [(FAN_TRACKING, {}), (EXERTION, {}), (REJECTION, RESIDUAL_PID), (REJECTION, RESIDUAL_MPC)],
 )
 def test_a_vector_env_after_episodes_and_a_reset_is_a_fresh_one(env_id, settings):
     """Every vehicle of a vector env (its own and SB3's interface) restarts as new on ``reset``."""

@@ -31,9 +31,17 @@ def _fly(env, actions, seed: int = 3) -> list[np.ndarray]:
     return trace
 
 
-def test_at_zero_action_the_residual_flies_the_pid_agent_bit_for_bit():
-    agent = make_agent("pid", compensation=True)
-    classical, residual = gym.make(REJECTION, action_type="attitude"), gym.make(REJECTION, **RESIDUAL)
+MPC_GAINS = {"position_weight": [1298.89, 1298.89, 625.0], "velocity_weight": [103.91, 103.91, 50.0]}
+
+
+@pytest.mark.parametrize(
+    "base, params",
+    [("pid", {"compensation": True}), ("mpc", {**MPC_GAINS, "slack": True, "compensation": True})],
+)
+def test_at_zero_action_the_residual_flies_the_classical_agent_bit_for_bit(base, params):
+    agent = make_agent(base, **params)
+    settings = {"action_type": "residual", "residual": {"base": base, "params": params}}
+    classical, residual = gym.make(REJECTION, action_type="attitude"), gym.make(REJECTION, **settings)
     agent.reset(classical)
     expected = _fly(classical, agent.act)
     got = _fly(residual, lambda _: np.zeros(4, dtype=np.float32))
@@ -112,7 +120,7 @@ def test_a_vehicles_base_restarts_with_its_episode_and_leaves_the_others():
         ),
         (
             {"action_type": "residual", "residual": {"base": "lqr"}},
-            r"residual.base='lqr' .* allowed: \['pid'\]",
+            r"residual.base='lqr' .* allowed: \['mpc', 'pid'\]",
         ),
         ({**RESIDUAL, "residual": {"base": "pid", "scale": 0.0}}, "residual.scale=0.0"),
         ({**RESIDUAL, "residual": {"base": "pid", "scale": -0.2}}, "residual.scale=-0.2"),

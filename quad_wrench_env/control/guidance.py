@@ -69,12 +69,17 @@ class ReferenceExtrapolator:
         return self.acceleration.copy()
 
     def horizon(self, times: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """``(positions, velocities, accelerations)``, each (len(times), 3), at ``times`` (s) from now."""
-        t = np.asarray(times, dtype=float)[:, None]
+        """``(positions, velocities, accelerations)`` at ``times`` (s) from now: each (len(times), 3) for
+        one vehicle, (N, len(times), 3) for a batch."""
+        t = np.asarray(times, dtype=float)
+        t = t.reshape(t.shape + (1,) * self.position.ndim)
         a = self.acceleration
         positions = self.position + self.velocity * t + 0.5 * a * t * t
         velocities = self.velocity + a * t
-        return positions, velocities, np.broadcast_to(a, velocities.shape).copy()
+        accelerations = np.broadcast_to(a, velocities.shape).copy()
+        if self.position.ndim == 1:
+            return positions, velocities, accelerations
+        return tuple(np.moveaxis(x, 0, 1) for x in (positions, velocities, accelerations))
 
 
 def attitude_from_acceleration(

@@ -14,11 +14,12 @@ from __future__ import annotations
 import numpy as np
 
 from quad_wrench_env.config import build
+from quad_wrench_env.control.mpc_controller import MPCController, MPCGains
 from quad_wrench_env.control.pid_controller import PIDController, PIDGains
 from quad_wrench_env.engine.actions import ActionScaling, ResidualSettings
 from quad_wrench_env.vehicle import VehicleParams
 
-BASES = {"pid": (PIDController, PIDGains)}
+BASES = {"pid": (PIDController, PIDGains), "mpc": (MPCController, MPCGains)}
 """Base controller name -> (its batched controller, its gains' dataclass)."""
 
 
