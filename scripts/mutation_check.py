@@ -360,6 +360,18 @@ MUTATIONS = (
         ("tests/test_reset_equivalence.py",),
     ),
     Mutation(
+        "mpc: a batch's restarted vehicle keeps its solver's warm start",
+        "reset",
+        (
+            (
+                "quad_wrench_env/control/mpc_controller.py",
+                "            self.qps[vehicle] = self._fresh()\n",
+                "            pass\n",
+            ),
+        ),
+        ("tests/test_mpc.py", "tests/test_reset_equivalence.py"),
+    ),
+    Mutation(
         "mpc: a batch's restarted vehicle keeps its reference history",
         "reset",
         (("quad_wrench_env/control/mpc_controller.py", "        self.reference.restart(index)\n", ""),),
