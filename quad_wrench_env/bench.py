@@ -12,6 +12,7 @@ import pybullet as p
 import quad_wrench_env  # noqa: F401  (registers the env ids)
 from quad_wrench_env.config import build
 from quad_wrench_env.control.residual import BASES
+from quad_wrench_env.envs.simulation import observations
 from quad_wrench_env.estimators import EstimatorInputs, TruthFed, make_estimator, make_estimator_bank
 from quad_wrench_env.estimators.ukf_kernel import ukf_bank_step
 from quad_wrench_env.rotations import quat_exp, quat_multiply
@@ -206,14 +207,14 @@ def component_seconds(calls: int, num_envs: int = 1, **env_kwargs) -> dict[str, 
         rest = whole - pybullet - estimator
         out["physics step: kernels (autopilot, motors, disturbances, sensors) + glue"] = rest
         out[f"physics step: estimator ({fleet.estimator.name}, compiled)"] = estimator
-        out["policy step: observation, reward, termination, info"] = _time(
-            lambda: (
-                fleet.observations(action),
-                base.task.step(fleet, action, fleet.terminations() > 0),
-                infos(),
-            ),
-            calls,
-        )
+
+        def policy_part() -> None:
+            view = fleet.view()
+            record = base.task.step(view, action, fleet.terminations() > 0)
+            observations(fleet, view, record.blocks, action)
+            infos()
+
+        out["policy step: observation, reward, termination, info"] = _time(policy_part, calls)
         return {name: seconds / num_envs for name, seconds in out.items()}
     finally:
         env.close()

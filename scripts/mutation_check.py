@@ -955,6 +955,30 @@ MUTATIONS = (
         ),
         ("tests/test_sb3.py",),
     ),
+    Mutation(
+        "fan tracking: the tracking term scores the y error alone, not the distance in the y-z plane",
+        "task",
+        (
+            (
+                "quad_wrench_env/tasks/fan_tracking.py",
+                "out[n, 0] = math.sqrt(dy * dy + dz * dz)",
+                "out[n, 0] = abs(dy)",
+            ),
+        ),
+        ("tests/test_task_records.py",),
+    ),
+    Mutation(
+        "force exertion: the tip's gap measured from the centre of mass",
+        "task",
+        (
+            (
+                "quad_wrench_env/tasks/force_exertion.py",
+                'tips = state.position + np.einsum("nij,j->ni", state.rotation, self._tip_offset())',
+                "tips = state.position",
+            ),
+        ),
+        ("tests/test_task_records.py",),
+    ),
 )
 
 

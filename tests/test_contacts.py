@@ -192,7 +192,7 @@ def test_a_start_gap_range_is_drawn_per_episode_from_the_seed(make_env):
     gaps = []
     for seed in (3, 4, 3):
         env.reset(seed=seed, options={"surface": "wall"})
-        gaps.append(float(env.unwrapped.task.gap(env.unwrapped.fleet)[0]))
+        gaps.append(float(env.unwrapped.task.gap(env.unwrapped.fleet.view())[0]))
     assert gaps[0] == gaps[2] != gaps[1]
     assert all(0.0 <= g <= 0.05 for g in gaps)
     with pytest.raises(ValueError, match=r"start_gap=\[0.05, 0.01\]"):
@@ -229,7 +229,7 @@ def test_the_approach_shaping_telescopes_to_the_potential_difference(make_env):
         total += info["reward_terms"]["approach"]
         if np.linalg.norm(info["contact_force"]) > 0.05 or terminated:
             break
-    gap = env.unwrapped.task.gap(env.unwrapped.fleet)[0]
+    gap = env.unwrapped.task.gap(env.unwrapped.fleet.view())[0]
     assert total == pytest.approx(-10.0 * (gap - 0.05), abs=1e-9)
     assert gap < 0.005
 

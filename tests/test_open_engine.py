@@ -18,7 +18,7 @@ from quad_wrench_env.engine.components import Components
 from quad_wrench_env.engine.env_config import EnvConfig
 from quad_wrench_env.envs.env_classes import env_classes
 from quad_wrench_env.numerics import njit
-from quad_wrench_env.tasks.base import TaskDefaults, TaskStep
+from quad_wrench_env.tasks.base import TaskDefaults, TaskRecord
 from tests.conftest import FAN_TRACKING
 
 CROSSWIND = 2.0
@@ -98,18 +98,16 @@ class Hold(TaskDefaults):
     def reset_vehicle(self, index: int, rng: np.random.Generator, options: Mapping[str, Any]):
         return self.reference[index].copy(), 0.0
 
-    def _distance(self, fleet) -> np.ndarray:
-        return np.linalg.norm(fleet.state.position - self.reference, axis=1)
+    def start(self, view, index) -> TaskRecord:
+        return self._record(view, {}, None)
 
-    def step(self, fleet, actions, ended) -> TaskStep:
-        codes = (self._distance(fleet) > self.cfg.radius).astype(int)
-        return TaskStep({"distance": -self._distance(fleet)}, codes)
+    def step(self, view, actions, ended) -> TaskRecord:
+        distance = np.linalg.norm(view.state.position - self.reference, axis=1)
+        return self._record(view, {"distance": -distance}, (distance > self.cfg.radius).astype(int))
 
-    def observe(self, fleet, out: np.ndarray) -> None:
-        out[:] = self.reference
-
-    def info(self, fleet) -> dict[str, np.ndarray]:
-        return {"distance": self._distance(fleet)}
+    def _record(self, view, reward_terms, codes) -> TaskRecord:
+        distance = np.linalg.norm(view.state.position - self.reference, axis=1)
+        return TaskRecord(reward_terms, codes, self.reference.copy(), {"distance": distance})
 
     @staticmethod
     def metrics(trace: Mapping[str, np.ndarray]) -> dict[str, float]:

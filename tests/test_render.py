@@ -205,14 +205,14 @@ def test_the_air_at_the_vehicle_shows_as_an_arrow_pointing_at_it(make_env):
 
 
 def test_a_task_says_what_its_frames_show_through_render_marks(make_env, monkeypatch):
-    """The hook: a task's ``render_marks(fleet, vehicle)`` gives the panel's label and the reference."""
+    """The hook: a task's ``render_marks(vehicle)`` gives the panel's label and the reference."""
     env = make_env(render_mode="rgb_array", fan={"enabled": False})
     _, info = env.reset(seed=0)
     point = np.add(info["position"], (0.0, 0.0, 0.25))
     monkeypatch.setattr(
         env.unwrapped.task,
         "render_marks",
-        lambda fleet, vehicle: {"label": "the task's own line", "reference": point},
+        lambda vehicle: {"label": "the task's own line", "reference": point},
         raising=False,
     )
     calls = panels(monkeypatch)

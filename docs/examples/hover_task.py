@@ -14,7 +14,7 @@ from quad_wrench_env.engine.components import Components
 from quad_wrench_env.engine.env_config import EnvConfig
 from quad_wrench_env.numerics import njit
 from quad_wrench_env.registry import register
-from quad_wrench_env.tasks.base import TaskDefaults, TaskStep, ended_early
+from quad_wrench_env.tasks.base import TaskDefaults, TaskRecord, ended_early
 
 
 class BodyPush:
@@ -94,19 +94,22 @@ class HoldPoint(TaskDefaults):
         self.push.force_body[index] = (0.0, float(push), 0.0)
         return self.target.copy(), 0.0  # start on the target, yaw 0
 
-    def _distance(self, fleet) -> np.ndarray:
-        return np.linalg.norm(fleet.state.position - self.target, axis=1)
+    def start(self, view, index) -> TaskRecord:
+        """Nothing to read of the start: the blocks and ``info`` of every vehicle now."""
+        return TaskRecord({}, blocks=self._blocks(view), info={"distance": self._distance(view)})
 
-    def step(self, fleet, actions, ended) -> TaskStep:
-        codes = (self._distance(fleet) > self.cfg.radius).astype(int)  # 1: termination_reasons[0]
+    def step(self, view, actions, ended) -> TaskRecord:
+        distance = self._distance(view)
+        codes = (distance > self.cfg.radius).astype(int)  # 1: termination_reasons[0]
         ended = ended_early(ended, codes)  # the engine's crash or the task's drift
-        return TaskStep({"distance": -self._distance(fleet), "crash": -10.0 * ended.astype(float)}, codes)
+        reward_terms = {"distance": -distance, "crash": -10.0 * ended.astype(float)}
+        return TaskRecord(reward_terms, codes, self._blocks(view), {"distance": distance})
 
-    def observe(self, fleet, out: np.ndarray) -> None:
-        out[:] = self.target
+    def _distance(self, view) -> np.ndarray:
+        return np.linalg.norm(view.state.position - self.target, axis=1)
 
-    def info(self, fleet) -> dict[str, np.ndarray]:
-        return {"distance": self._distance(fleet)}
+    def _blocks(self, view) -> np.ndarray:
+        return np.tile(self.target, (view.count, 1))  # the block "reference_position"
 
     @staticmethod
     def metrics(trace: Mapping[str, np.ndarray]) -> dict[str, float]:

@@ -32,6 +32,7 @@ from quad_wrench_env.engine.components import Components
 from quad_wrench_env.engine.compose import scratch_width
 from quad_wrench_env.engine.draws import NoiseBlocks
 from quad_wrench_env.engine.env_config import EnvConfig
+from quad_wrench_env.engine.fleet_view import FleetView, read_only
 from quad_wrench_env.engine.kernels import (
     STEP_FIELDS,
     STEP_WIDTH,
@@ -160,9 +161,21 @@ class Fleet:
             )
         )
         self._observe_wrench = float(cfg.observe_wrench)
-        self.revision = 0
-        """Counts the changes of the fleet's state (steps and resets): a key for what tasks cache."""
-        self._estimates: tuple[int, np.ndarray, np.ndarray] = (-1, np.empty(0), np.empty(0))
+        s = self.state
+        self._truth_view = (
+            read_only(self.time),
+            RigidBodyState(
+                read_only(s.position),
+                read_only(s.quaternion),
+                read_only(s.velocity),
+                read_only(s.angular_velocity),
+                read_only(s.rotation),
+                read_only(s.body_rates),
+            ),
+            read_only(self.contact_force),
+            read_only(self.wrench_true),
+        )
+        """What :meth:`view` hands out of the truth: read-only views of the fleet's arrays, made once."""
 
     def _own_buffer(self) -> None:
         """The fleet's step buffer, made once: every per-vehicle array of the step (:data:`STEP_FIELDS`,
@@ -264,7 +277,6 @@ class Fleet:
         self.wind_velocity[index] = self.air_at(selected.position[:, None, :], index)[:, 0]
         self._feed_truth()
         self.compiled.rebind()
-        self.revision += 1
 
     def equilibrium(self, index: int, position: np.ndarray, yaw: float) -> tuple[np.ndarray, np.ndarray]:
         """Attitude and true rotor speeds that hold vehicle ``index`` at rest at ``position`` with
@@ -289,7 +301,6 @@ class Fleet:
     def step(self, actions: np.ndarray) -> None:
         """One policy step: ``substeps`` physics steps with (N, 4) clipped normalised actions."""
         self.compiled.physics_steps(actions, self.substeps)
-        self.revision += 1
 
     def air_at(self, points: np.ndarray, index: np.ndarray | slice, mean: bool = False) -> np.ndarray:
         """(n, P, 3) air velocity of all wind fields at (n, P, 3) world points of vehicles ``index``."""
@@ -339,25 +350,25 @@ class Fleet:
             self.estimator.observe_truth(self.true_states(), self.wrench_true)
 
     # -- what the envs read ------------------------------------------------------------------------
-    def estimates(self) -> tuple[np.ndarray, np.ndarray]:
-        """The estimators' (N, 13) states and (N, 6) wrenches (see
-        :class:`~quad_wrench_env.estimators.bank.EstimatorBank`), read once per :attr:`revision`."""
-        if self._estimates[0] != self.revision:
-            self._estimates = (self.revision, *self.estimator.estimates())
-        return self._estimates[1], self._estimates[2]
+    def view(self) -> FleetView:
+        """The fleet as a task reads it now: the truth and the estimators' states and wrenches (one
+        call of the bank's estimates), all read-only."""
+        states, wrenches = self.estimator.estimates()
+        return FleetView(*self._truth_view, read_only(states), read_only(wrenches))
 
-    def observations(self, last_actions: np.ndarray) -> np.ndarray:
-        """(N, width) float32 observations laid out as :attr:`layout` with the engine's blocks filled:
-        the estimators' states (the attitude as two columns of the rotation matrix) and wrenches
-        (zeros unless ``observe_wrench``), the last actions, and with ``layout.privileged`` the true
-        state and wrench in the same form; the task's blocks are zeros (the env fills them)."""
+    def observations(self, view: FleetView, last_actions: np.ndarray) -> np.ndarray:
+        """(N, width) float32 observations laid out as :attr:`layout` with the engine's blocks filled
+        from ``view``: the estimators' states (the attitude as two columns of the rotation matrix) and
+        wrenches (zeros unless ``observe_wrench``), the last actions, and with ``layout.privileged`` the
+        true state and wrench in the same form; the task's blocks are zeros (the env fills them)."""
         layout = self.layout
         out = np.zeros((self.count, layout.size), dtype=np.float32)
-        states, wrenches = self.estimates()
-        assemble_observations(states, wrenches, last_actions, self._observe_wrench, layout.kernel_starts, out)
+        starts = layout.kernel_starts
+        assemble_observations(
+            view.estimated_state, view.wrench_est, last_actions, self._observe_wrench, starts, out
+        )
         if layout.privileged:
             truth, still = np.zeros((self.count, layout.frame), dtype=np.float32), np.zeros_like(last_actions)
-            starts = layout.kernel_starts
             assemble_observations(self.true_states(), self.wrench_true, still, 1.0, starts, truth)
             privileged = layout.slices["privileged"]
             out[:, privileged] = truth[:, : privileged.stop - privileged.start]

@@ -23,7 +23,7 @@ N, stated on the frame), an arrow of the air's velocity at the vehicle (upwind o
 it; ``wind_scale`` m per m/s) where the env has winds, the time and the key numbers, and a legend.
 ``human`` (the GUI) shows the bodies and follows the vehicle.
 
-What a task adds to its frames (:meth:`SceneRenderer.marks`): its ``render_marks(fleet, vehicle)``
+What a task adds to its frames (:meth:`SceneRenderer.marks`): its ``render_marks(vehicle)``
 (the ``Task`` protocol; ``TaskDefaults`` adds nothing) with any of ``label`` (a line for the panel,
 e.g. the scenario flown), ``reference`` ((3,) where the vehicle should be now) and ``path`` ((K, 3) the
 reference path over the episode), and ``info["reference_position"]`` as the reference where ``info``
@@ -387,7 +387,7 @@ class SceneRenderer:
 
     def marks(self, info: dict[str, Any]) -> dict[str, Any]:
         """What the task adds to this frame (module docstring): ``label``, ``reference``, ``path``."""
-        marks = dict(self.env.task.render_marks(self.env.fleet, 0))
+        marks = dict(self.env.task.render_marks(0))
         if marks.get("reference") is None and "reference_position" in info:
             marks["reference"] = np.asarray(info["reference_position"], dtype=float)
         return marks

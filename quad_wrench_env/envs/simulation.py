@@ -2,8 +2,9 @@
 
 ``Simulation(task_class, cfg, count).step(actions)`` flies every vehicle one control step (the
 fleet's physics, :class:`~quad_wrench_env.engine.fleet.Fleet`), asks the task what the step means
-in one call (:meth:`~quad_wrench_env.tasks.base.Task.step`: its reward terms and its own terminations,
-told which episodes the engine ended), then reads the observations. It returns a
+in one call on a read-only view of the fleet (:meth:`~quad_wrench_env.tasks.base.Task.step`: its reward
+terms, its own terminations, told which episodes the engine ended, its observation blocks and ``info``),
+then assembles the observations. It returns a
 :class:`StepResult` of arrays over vehicles, before any restart; the envs turn it into Gymnasium's
 tuples (a single env's Python floats, the vector env's arrays and autoresets). Restarts go through
 :meth:`Simulation.start` (one vehicle, its generator and task options) and :meth:`Simulation.restarted`
@@ -23,6 +24,7 @@ from quad_wrench_env.control.residual import ResidualActions
 from quad_wrench_env.engine.actions import RESIDUAL
 from quad_wrench_env.engine.components import assemble
 from quad_wrench_env.engine.fleet import ENGINE_TERMINATIONS, Fleet
+from quad_wrench_env.engine.fleet_view import FleetView
 from quad_wrench_env.engine.kernels import MOTION_READING_WIDTH, SENSOR_READING_WIDTH
 from quad_wrench_env.engine.observation import ObservationHistory, ObservationLayout
 from quad_wrench_env.tasks.base import Task
@@ -41,11 +43,13 @@ def termination_codes(engine: np.ndarray, own: np.ndarray | None) -> np.ndarray:
     return np.where((engine == 0) & (own > 0), len(ENGINE_TERMINATIONS) + own, engine)
 
 
-def observations(fleet: Fleet, task: Task, last_actions: np.ndarray) -> np.ndarray:
-    """(N, width) float32 observations: the engine's blocks, then the task's."""
-    out = fleet.observations(last_actions)
-    if task.observation_blocks:
-        task.observe(fleet, out[:, fleet.layout.task_columns])
+def observations(
+    fleet: Fleet, view: FleetView, blocks: np.ndarray | None, last_actions: np.ndarray
+) -> np.ndarray:
+    """(N, width) float32 observations: the engine's blocks, then the task's ``blocks``."""
+    out = fleet.observations(view, last_actions)
+    if blocks is not None:
+        out[:, fleet.layout.task_columns] = blocks
     if fleet.layout.sensor_history:
         out[:, fleet.layout.slices["sensors"]] = fleet.sensor_frames.reshape(fleet.count, -1)
     return out
@@ -63,26 +67,29 @@ def build_fleet(task_class: type[Task], cfg: Any, count: int, gui: bool = False)
     return task, Fleet(cfg, vehicle, count, components, layout, gui=gui)
 
 
-def info_entries(fleet: Fleet, task: Task, vehicle: int | None = None) -> dict[str, Any]:
+def info_entries(
+    fleet: Fleet, view: FleetView, task_info: Mapping[str, np.ndarray], vehicle: int | None = None
+) -> dict[str, Any]:
     """The info of every vehicle, each entry with a leading vehicle axis (the keys of
-    ``docs/architecture.md``, "Contracts"; ``docs/tasks.md`` has them in full); with ``vehicle``, that
-    vehicle's entries alone (Python floats for its scalars). Copies, never views of the fleet's state.
-    ``wrench_cov`` is the estimator's 6x6 covariance of ``wrench_est``, in its frame (the world's; zeros for
-    the oracle); an estimator that carries none (NaN: the observer) leaves it out, as a NaN in ``info`` would
-    break Gymnasium's determinism check. ``contacts`` (K,) bool per vehicle: which of the scene's K parts
+    ``docs/architecture.md``, "Contracts"; ``docs/tasks.md`` has them in full): the engine's from
+    ``view``, then the task's ``task_info``; with ``vehicle``, that vehicle's entries alone (Python
+    floats for its scalars). Copies, never views of the fleet's state. ``wrench_cov`` is the
+    estimator's 6x6 covariance of ``wrench_est``, in its frame (the world's; zeros for the oracle); an
+    estimator that carries none (NaN: the observer) leaves it out, as a NaN in ``info`` would break
+    Gymnasium's determinism check. ``contacts`` (K,) bool per vehicle: which of the scene's K parts
     with ``touch="report"`` it touches, only in a scene that has such parts."""
-    state = fleet.state
+    state = view.state
     covariance = fleet.estimator.wrench_covariances()
     entries = {
-        "time": fleet.time,
+        "time": view.time,
         "position": state.position,
         "velocity": state.velocity,
-        "wrench_true": fleet.wrench_true,
-        "wrench_est": fleet.estimates()[1],
+        "wrench_true": view.wrench_true,
+        "wrench_est": view.wrench_est,
         **({} if np.isnan(covariance).all() else {"wrench_cov": covariance}),
         "wind_velocity": fleet.wind_velocity,
         **({"contacts": fleet.world.touches()} if fleet.world.reported_parts else {}),
-        **task.info(fleet),
+        **task_info,
     }
     statuses = fleet.estimator.statuses()
     if vehicle is None:
@@ -110,6 +117,8 @@ class StepResult:
     """(N,) the episode ended early (``codes > 0``)."""
     truncated: np.ndarray
     """(N,) the episode reached ``episode_seconds`` without ending early."""
+    task_info: Mapping[str, np.ndarray]
+    """The task's own ``info`` entries after the step (new arrays: a restart leaves them)."""
 
 
 class Simulation:
@@ -128,6 +137,10 @@ class Simulation:
         self.history = ObservationHistory(self.fleet.layout, count)
         self.observations = np.zeros((count, self.fleet.layout.size), dtype=np.float32)
         """Each vehicle's last observation (what a restart of others leaves it)."""
+        self.view: FleetView | None = None
+        """The fleet as the task last read it (after the last step or start)."""
+        self.task_info: Mapping[str, np.ndarray] = {}
+        """The task's ``info`` entries of :attr:`view`."""
         self.residual: ResidualActions | None = None
         """``action_type: residual``: every vehicle's base controller under the policy's correction."""
         if cfg.action_type == RESIDUAL:
@@ -156,37 +169,43 @@ class Simulation:
         """Read the vehicles ``index`` back after their :meth:`start` (the others keep their bits) and
         return every vehicle's observation, new for them, their history begun afresh."""
         self.fleet.refresh(index)
-        self.task.read_start(self.fleet, index)
+        self.view = self.fleet.view()
+        record = self.task.start(self.view, index)
+        self.task_info = record.info
         self.history.restart(index)
-        return self.observe(index)
+        return self._observe(record.blocks, index)
 
     def step(self, actions: np.ndarray) -> StepResult:
         """Fly every vehicle one control step with its (N, 4) action, already clipped to [-1, 1] (with
         the ``residual`` action type, the correction to its base controller's action)."""
-        fleet, task = self.fleet, self.task
+        fleet = self.fleet
         fleet.step(actions if self.residual is None else self.residual.flown(self.observations, actions))
         self.steps += 1
         self.last_actions = actions
+        self.view = view = fleet.view()
         engine = fleet.terminations()
-        outcome = task.step(fleet, actions, engine > 0)
-        codes = termination_codes(engine, outcome.codes)
+        record = self.task.step(view, actions, engine > 0)
+        self.task_info = record.info
+        codes = termination_codes(engine, record.codes)
         terminated = codes > 0
-        terms = outcome.reward_terms
+        terms = record.reward_terms
         rewards = np.sum(list(terms.values()), axis=0)
         truncated = ~terminated & (self.steps >= self.max_steps)
-        return StepResult(self.observe(slice(None)), terms, rewards, codes, terminated, truncated)
+        observations = self._observe(record.blocks, slice(None))
+        return StepResult(observations, terms, rewards, codes, terminated, truncated, record.info)
 
-    def observe(self, index: np.ndarray | slice) -> np.ndarray:
+    def _observe(self, blocks: np.ndarray | None, index: np.ndarray | slice) -> np.ndarray:
         """Every vehicle's observation: new for the vehicles ``index`` (their history filled and
         recorded), as it was for the others."""
-        fresh = observations(self.fleet, self.task, self.last_actions)
+        fresh = observations(self.fleet, self.view, blocks, self.last_actions)
         self.history.record(fresh, index)
         self.observations[index] = fresh[index]
         return self.observations.copy()
 
     def info(self, vehicle: int | None = None) -> dict[str, Any]:
-        """Every vehicle's ``info`` entries (arrays over vehicles), or ``vehicle``'s alone."""
-        return info_entries(self.fleet, self.task, vehicle)
+        """Every vehicle's ``info`` entries (arrays over vehicles) after the last step or start, or
+        ``vehicle``'s alone."""
+        return info_entries(self.fleet, self.view, self.task_info, vehicle)
 
     def close(self) -> None:
         """Release the PyBullet client; safe to call more than once."""

@@ -168,8 +168,6 @@ class QuadWrenchVectorEnv(VectorEnv):
         arrays over vehicles (what training reads: ``SB3VecEnv``), with no per-vehicle objects and no
         copies of the fleet's state (the engine's ``info`` entries are not gathered)."""
         result = self._advance(actions)
-        # the ended episodes' numbers: copied before the restarts, which may recompute the task's arrays
-        entries = {key: np.copy(value) for key, value in self.task.info(self.fleet).items()}
         done = result.terminated | result.truncated
         next_observations = self._restart_ended(done) if np.any(done) else result.observations
         return Transition(
@@ -179,7 +177,7 @@ class QuadWrenchVectorEnv(VectorEnv):
             result.terminated,
             result.truncated,
             result.reward_terms,
-            entries,
+            result.task_info,
         )
 
     def close_extras(self, **kwargs: Any) -> None:

@@ -84,7 +84,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any, ClassVar
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -95,15 +95,13 @@ from quad_wrench_env.disturbances.jet import Jet, JetConfig
 from quad_wrench_env.disturbances.one_cosine import OneCosineConfig, OneCosineGust
 from quad_wrench_env.engine.components import Components
 from quad_wrench_env.engine.env_config import EnvConfig
+from quad_wrench_env.engine.fleet_view import FleetView
 from quad_wrench_env.registry import register
 from quad_wrench_env.rotations import quat_from_axis_angle, rotation_matrix
 from quad_wrench_env.scene import Table
 from quad_wrench_env.tasks import terms
-from quad_wrench_env.tasks.base import TaskDefaults, TaskStep
+from quad_wrench_env.tasks.base import TaskDefaults, TaskRecord
 from quad_wrench_env.vehicle import VehicleParams
-
-if TYPE_CHECKING:
-    from quad_wrench_env.engine.fleet import Fleet
 
 SCENARIOS = ("jet_crossing", "table_pass", "gusts", "figure8")
 PATH_SAMPLES = 301
@@ -451,7 +449,6 @@ class DisturbanceRejection(TaskDefaults):
         """Each vehicle's jet side (index into ``jet_crossing.jet_sides``) in a jet crossing."""
         self.disturbance_speed = np.zeros(count)
         """Each vehicle's ``jet_speed`` (jet_crossing) or ``wind_speed`` (figure8), m/s; else 0."""
-        self._cache: tuple[int, dict[str, np.ndarray]] = (-1, {})
 
     def components(self) -> Components:
         """The gust fan's jets, the turbulence, the 1-cosine bump and the table; each vehicle's copy of
@@ -565,61 +562,52 @@ class DisturbanceRejection(TaskDefaults):
         )
         return position, velocity
 
-    def _numbers(self, fleet: Fleet) -> dict[str, np.ndarray]:
-        """The reference and the tracking error of the fleet's state now (once per state)."""
-        revision, numbers = self._cache
-        if revision != fleet.revision:
-            position, velocity = self.reference(fleet.time, self.scenario)
-            error = np.linalg.norm(fleet.state.position - position, axis=1)
-            numbers = {
-                "reference_position": position,
-                "reference_velocity": velocity,
-                "tracking_error": error,
-            }
-            self._cache = (fleet.revision, numbers)
-        return numbers
+    def start(self, view: FleetView, index: np.ndarray) -> TaskRecord:
+        return self._record(view, None, None)
 
-    def step(self, fleet: Fleet, actions: np.ndarray, ended: np.ndarray) -> TaskStep:
-        r = self.cfg.reward
-        return TaskStep(
-            {
-                "tracking": terms.saturating_cost(
-                    self._numbers(fleet)["tracking_error"], r.tracking_cap, r.tracking_scale
-                ),
+    def step(self, view: FleetView, actions: np.ndarray, ended: np.ndarray) -> TaskRecord:
+        return self._record(view, actions, ended)
+
+    def _record(self, view: FleetView, actions: np.ndarray | None, ended: np.ndarray | None) -> TaskRecord:
+        """The step's terms (none without ``actions``), blocks and ``info`` (module docstring)."""
+        position, velocity = self.reference(view.time, self.scenario)
+        error = np.linalg.norm(view.state.position - position, axis=1)
+        reward_terms = {}
+        if actions is not None:
+            r = self.cfg.reward
+            reward_terms = {
+                "tracking": terms.saturating_cost(error, r.tracking_cap, r.tracking_scale),
                 "alive": terms.alive(ended, r.tracking_cap),
                 "effort": terms.effort(actions, r.effort_weight),
                 "crash": terms.crash(ended, r.crash_penalty),
             }
-        )
+        info = {"reference_position": position, "reference_velocity": velocity, "tracking_error": error}
+        return TaskRecord(reward_terms, blocks=self._blocks(view, position, velocity), info=info)
 
-    def observe(self, fleet: Fleet, out: np.ndarray) -> None:
-        numbers = self._numbers(fleet)
-        position, velocity = numbers["reference_position"], numbers["reference_velocity"]
-        if self.cfg.observe_tracking_error:
-            states, _ = fleet.estimates()
-            position, velocity = position - states[:, :3], velocity - states[:, 3:6]
-        out[:, :3] = position
-        out[:, 3:6] = velocity
-        cfg, column = self.cfg, 6
+    def _blocks(self, view: FleetView, position: np.ndarray, velocity: np.ndarray) -> np.ndarray:
+        """(N, width) the observation blocks of :attr:`observation_blocks`, in order."""
+        cfg, estimated = self.cfg, view.estimated_state
+        out = np.empty((view.count, sum(width for _, width, _ in self.observation_blocks)))
+        if cfg.observe_tracking_error:
+            out[:, :3], out[:, 3:6] = position - estimated[:, :3], velocity - estimated[:, 3:6]
+        else:
+            out[:, :3], out[:, 3:6] = position, velocity
+        column = 6
         if cfg.preview_seconds > 0.0:
-            _, ahead = self.reference(fleet.time + cfg.preview_seconds, self.scenario)
-            out[:, 6:9] = ahead - numbers["reference_velocity"]
+            _, ahead = self.reference(view.time + cfg.preview_seconds, self.scenario)
+            out[:, 6:9] = ahead - velocity
             column = 9
         if cfg.observe_reference_acceleration:
-            _, later = self.reference(fleet.time + ACCELERATION_STEP, self.scenario)
-            _, earlier = self.reference(fleet.time - ACCELERATION_STEP, self.scenario)
+            _, later = self.reference(view.time + ACCELERATION_STEP, self.scenario)
+            _, earlier = self.reference(view.time - ACCELERATION_STEP, self.scenario)
             out[:, column : column + 3] = (later - earlier) / (2.0 * ACCELERATION_STEP)
             column += 3
-        if cfg.path_ahead_seconds:
-            states, _ = fleet.estimates()
-            for k, ahead_seconds in enumerate(cfg.path_ahead_seconds):
-                ahead, _ = self.reference(fleet.time + ahead_seconds, self.scenario)
-                out[:, column + 3 * k : column + 3 * k + 3] = ahead - states[:, :3]
+        for k, ahead_seconds in enumerate(cfg.path_ahead_seconds):
+            ahead, _ = self.reference(view.time + ahead_seconds, self.scenario)
+            out[:, column + 3 * k : column + 3 * k + 3] = ahead - estimated[:, :3]
+        return out
 
-    def info(self, fleet: Fleet) -> dict[str, np.ndarray]:
-        return dict(self._numbers(fleet))
-
-    def render_marks(self, fleet: Fleet, vehicle: int) -> dict[str, Any]:
+    def render_marks(self, vehicle: int) -> dict[str, Any]:
         """The scenario (with the jet's speed and side, the wind's speed and heading, or the gust) and
         its reference path over the whole episode; the reference point comes from
         ``info["reference_position"]``."""

@@ -67,7 +67,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any, ClassVar
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -84,14 +84,13 @@ from quad_wrench_env.disturbances.fan import (
 from quad_wrench_env.disturbances.jet_kernels import jet_speed, motion_y, transit_time
 from quad_wrench_env.engine.components import Components
 from quad_wrench_env.engine.env_config import EnvConfig
+from quad_wrench_env.engine.fleet_view import FleetView
 from quad_wrench_env.estimators.noise import FilterNoise
 from quad_wrench_env.numerics import njit
 from quad_wrench_env.registry import register
-from quad_wrench_env.tasks.base import TaskDefaults, TaskStep
+from quad_wrench_env.tasks import terms
+from quad_wrench_env.tasks.base import TaskDefaults, TaskRecord
 from quad_wrench_env.vehicle import VehicleParams, make_vehicle
-
-if TYPE_CHECKING:
-    from quad_wrench_env.engine.fleet import Fleet
 
 
 @dataclass
@@ -265,13 +264,7 @@ class FanTracking(TaskDefaults):
         self.cfg = cfg
         self.vehicle = vehicle
         self.fan = FanJet(cfg.fan, count)
-        r = cfg.reward
         self._jet = self.fan.kernel_parameters()
-        self._weights = np.array(
-            (cfg.standoff_distance, r.axis_scale, r.standoff_weight, r.effort_weight, r.crash_penalty)
-        )
-        """What ``fan_tracking_terms`` reads besides the jet (see its docstring)."""
-        self._cache: tuple[int, np.ndarray] = (-1, np.zeros((count, FAN_TRACKING_NUMBERS)))
 
     def components(self) -> Components:
         """The fan's jet (switched off with ``fan.enabled=False``, it still takes its draws)."""
@@ -315,42 +308,43 @@ class FanTracking(TaskDefaults):
         self.fan.set_motion(index, motion)
         return np.array((cfg.standoff_distance, start_y, cfg.fan.height)), math.pi
 
-    def _numbers(self, fleet: Fleet, actions: np.ndarray | None, ended: np.ndarray | None) -> np.ndarray:
-        """(N, 10) ``fan_tracking_terms``: reward terms tracking, standoff, effort, crash; axis error,
-        jet axis y, fan position (3), stand-off error. Computed once per state of the fleet (the
-        step's call, with its actions, comes before ``info`` reads them)."""
-        revision, numbers = self._cache
-        if revision == fleet.revision:
-            return numbers
-        count = fleet.count
-        actions = np.zeros((count, 4)) if actions is None else actions
-        ended = np.zeros(count, dtype=bool) if ended is None else ended
-        position, time = fleet.state.position, fleet.time
-        numbers = np.empty((count, FAN_TRACKING_NUMBERS))
-        fan_tracking_terms(
-            position, time, actions, ended, self.fan.motion_tables, self._jet, self._weights, numbers
-        )
-        self._cache = (fleet.revision, numbers)
-        return numbers
+    def start(self, view: FleetView, index: np.ndarray) -> TaskRecord:
+        return TaskRecord({}, info=self._info(self._geometry(view)))
 
-    def step(self, fleet: Fleet, actions: np.ndarray, ended: np.ndarray) -> TaskStep:
-        numbers = self._numbers(fleet, actions, ended)
-        return TaskStep(
-            {
-                "tracking": numbers[:, 0],
-                "standoff": numbers[:, 1],
-                "effort": numbers[:, 2],
-                "crash": numbers[:, 3],
-            }
-        )
+    def step(self, view: FleetView, actions: np.ndarray, ended: np.ndarray) -> TaskRecord:
+        """The terms of the module docstring: ``tracking = exp(-d/axis_scale)`` of the distance ``d``
+        from the jet's axis, ``standoff = -standoff_weight·|x - x_ref|``, ``effort``, ``crash``."""
+        r = self.cfg.reward
+        geometry = self._geometry(view)
+        reward_terms = {
+            "tracking": terms.closeness(geometry[:, 0], r.axis_scale),
+            "standoff": terms.linear_cost(geometry[:, 4], r.standoff_weight),
+            "effort": terms.effort(actions, r.effort_weight),
+            "crash": terms.crash(ended, r.crash_penalty),
+        }
+        return TaskRecord(reward_terms, info=self._info(geometry))
 
-    def info(self, fleet: Fleet) -> dict[str, np.ndarray]:
-        numbers = self._numbers(fleet, None, None)
+    def _geometry(self, view: FleetView) -> np.ndarray:
+        """(N, 5) :func:`fan_tracking_geometry` of the vehicles now."""
+        geometry = np.empty((view.count, FAN_TRACKING_GEOMETRY))
+        fan_tracking_geometry(
+            view.state.position,
+            view.time,
+            self.fan.motion_tables,
+            self._jet,
+            self.cfg.standoff_distance,
+            geometry,
+        )
+        return geometry
+
+    def _info(self, geometry: np.ndarray) -> dict[str, np.ndarray]:
+        fan_position = np.zeros((geometry.shape[0], 3))
+        fan_position[:, 1], fan_position[:, 2] = geometry[:, 3], self._jet[5]
         return {
-            "fan_position": numbers[:, 6:9],
-            "jet_axis_y": numbers[:, 5],
-            "axis_error": numbers[:, 4],
-            "standoff_error": numbers[:, 9],
+            "fan_position": fan_position,
+            "jet_axis_y": geometry[:, 2],
+            "axis_error": geometry[:, 1],
+            "standoff_error": geometry[:, 4],
         }
 
     @staticmethod
@@ -375,39 +369,24 @@ class FanTracking(TaskDefaults):
         }
 
 
-FAN_TRACKING_NUMBERS = 10
-"""Columns of :func:`fan_tracking_terms`' output."""
+FAN_TRACKING_GEOMETRY = 5
+"""Columns of :func:`fan_tracking_geometry`'s output."""
 
 
 @njit
-def fan_tracking_terms(position, time, actions, ended, motion_tables, fan, weights, out):
-    """FanTracking's per-vehicle numbers into ``out`` (N, 10): the reward terms ``tracking``,
-    ``standoff``, ``effort`` and ``crash``; the signed ``axis_error`` y - jet axis, the jet axis y at
-    the vehicle, the fan's position ``(0, y, height)`` and the signed stand-off error ``x - x_ref``
-    (:meth:`FanTracking.step` and :meth:`FanTracking.info`). ``fan``: the jet
-    (``FanJet.kernel_parameters``); ``weights``: the stand-off ``x_ref``, the reward's axis scale,
-    stand-off weight, effort weight and crash penalty."""
+def fan_tracking_geometry(position, time, motion_tables, fan, standoff_distance, out):
+    """Each vehicle's place relative to its jet into ``out`` (N, 5): the distance from the jet's axis
+    in the y-z plane, the signed ``axis_error`` y - y_axis, the jet axis's y at the vehicle (the fan's
+    y when the air now at the vehicle left it, McKinnon & Schoellig 2016 Sec. VI-B), the fan's y now
+    and the signed stand-off error ``x - standoff_distance``. ``fan``: the jet
+    (``FanJet.kernel_parameters``)."""
     height = fan[5]
-    x_ref, axis_scale, standoff_weight, effort_weight, crash_penalty = (
-        weights[0],
-        weights[1],
-        weights[2],
-        weights[3],
-        weights[4],
-    )
     for n in range(position.shape[0]):
         _, b = jet_speed(fan, max(position[n, 0], 0.0))
         axis = motion_y(motion_tables[n], time[n] - transit_time(fan, position[n, 0], b))
         dy, dz = position[n, 1] - axis, position[n, 2] - height
-        standoff = position[n, 0] - x_ref
-        out[n, 0] = math.exp(-math.sqrt(dy * dy + dz * dz) / axis_scale)
-        out[n, 1] = -standoff_weight * abs(standoff)
-        effort = 0.0
-        for i in range(actions.shape[1]):
-            effort += actions[n, i] * actions[n, i]
-        out[n, 2] = (-effort_weight / actions.shape[1]) * effort
-        out[n, 3] = -crash_penalty * ended[n]
-        out[n, 4] = dy
-        out[n, 5] = axis
-        out[n, 6], out[n, 7], out[n, 8] = 0.0, motion_y(motion_tables[n], time[n]), height
-        out[n, 9] = standoff
+        out[n, 0] = math.sqrt(dy * dy + dz * dz)
+        out[n, 1] = dy
+        out[n, 2] = axis
+        out[n, 3] = motion_y(motion_tables[n], time[n])
+        out[n, 4] = position[n, 0] - standoff_distance

@@ -49,7 +49,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any, ClassVar
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -57,15 +57,13 @@ from quad_wrench_env.config import check_numbers
 from quad_wrench_env.disturbances.base import BodyState, CompiledForm
 from quad_wrench_env.engine.components import Components
 from quad_wrench_env.engine.env_config import EnvConfig, ToolConfig
+from quad_wrench_env.engine.fleet_view import FleetView
 from quad_wrench_env.numerics import njit
 from quad_wrench_env.registry import register
 from quad_wrench_env.scene import Ceiling, Wall
 from quad_wrench_env.tasks import terms
-from quad_wrench_env.tasks.base import TaskDefaults, TaskStep
+from quad_wrench_env.tasks.base import TaskDefaults, TaskRecord
 from quad_wrench_env.vehicle import GRAVITY, VehicleParams
-
-if TYPE_CHECKING:
-    from quad_wrench_env.engine.fleet import Fleet
 
 SURFACES = ("wall", "ceiling")
 RANDOM = "random"
@@ -211,14 +209,15 @@ class ForceExertion(TaskDefaults):
             position = np.array((1.75, 0.0, z))
         return position, 0.0
 
-    def read_start(self, fleet: Fleet, index: np.ndarray) -> None:
+    def start(self, view: FleetView, index: np.ndarray) -> TaskRecord:
         """Φ(s₀) from each start's own pose: under a push the trimmed start is tilted, and the tip is
         not ``start_gap`` from the surface."""
-        self.potential[index] = -self.cfg.reward.approach_weight * self.gap(fleet)[index]
+        self.potential[index] = -self.cfg.reward.approach_weight * self.gap(view)[index]
+        return TaskRecord({}, blocks=self.target_force.copy(), info=self._info(view))
 
-    def gap(self, fleet: Fleet) -> np.ndarray:
+    def gap(self, view: FleetView) -> np.ndarray:
         """(N,) distance (m) from each tip to its surface's face (0 when touching or beyond)."""
-        state, cfg = fleet.state, self.cfg
+        state, cfg = view.state, self.cfg
         tips = state.position + np.einsum("nij,j->ni", state.rotation, self._tip_offset())
         radius = cfg.tool.tip_radius
         gap = np.where(
@@ -226,31 +225,23 @@ class ForceExertion(TaskDefaults):
         )
         return np.maximum(gap, 0.0)
 
-    def _exerted(self, fleet: Fleet) -> np.ndarray:
-        return -fleet.contact_force
-
-    def step(self, fleet: Fleet, actions: np.ndarray, ended: np.ndarray) -> TaskStep:
+    def step(self, view: FleetView, actions: np.ndarray, ended: np.ndarray) -> TaskRecord:
         r = self.cfg.reward
-        potential = -r.approach_weight * self.gap(fleet)
+        potential = -r.approach_weight * self.gap(view)
         approach = r.discount * potential - self.potential
         self.potential = potential
-        return TaskStep(
-            {
-                "contact": terms.capped_cost(
-                    np.linalg.norm(self._exerted(fleet) - self.target_force, axis=1), r.contact_cap
-                ),
-                "alive": terms.alive(ended, r.contact_cap),
-                "effort": terms.effort(actions, r.effort_weight),
-                "crash": terms.crash(ended, r.crash_penalty),
-                "approach": approach,
-            }
-        )
+        exerted = -view.contact_force
+        reward_terms = {
+            "contact": terms.capped_cost(np.linalg.norm(exerted - self.target_force, axis=1), r.contact_cap),
+            "alive": terms.alive(ended, r.contact_cap),
+            "effort": terms.effort(actions, r.effort_weight),
+            "crash": terms.crash(ended, r.crash_penalty),
+            "approach": approach,
+        }
+        return TaskRecord(reward_terms, blocks=self.target_force.copy(), info=self._info(view))
 
-    def observe(self, fleet: Fleet, out: np.ndarray) -> None:
-        out[:] = self.target_force
-
-    def info(self, fleet: Fleet) -> dict[str, np.ndarray]:
-        return {"contact_force": fleet.contact_force.copy(), "target_force": self.target_force.copy()}
+    def _info(self, view: FleetView) -> dict[str, np.ndarray]:
+        return {"contact_force": view.contact_force.copy(), "target_force": self.target_force.copy()}
 
     @staticmethod
     def metrics(trace: Mapping[str, np.ndarray], window: float = 5.0) -> dict[str, float]:

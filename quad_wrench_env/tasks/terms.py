@@ -7,15 +7,17 @@ the sum of its terms, each reported in ``info["reward_terms"]``.
   flown is worth ``[0, c]`` and ending early never pays (ForceExertion's contact force,
   DisturbanceRejection's tracking);
 - :func:`effort`: ``-w·mean(a²)`` over the action's components;
-- :func:`crash`: ``-penalty`` on the step that ends an episode early.
-
-FanTracking computes the same effort and crash terms inside its compiled reward kernel
-(``fan_tracking_terms``, as ``(-w/4)·Σa²``: the same number to rounding, kept for its numbers bit for bit).
+- :func:`crash`: ``-penalty`` on the step that ends an episode early;
+- :func:`closeness` and :func:`linear_cost`: FanTracking's ``exp(-d/s)`` and ``-w·|e|``.
 """
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
+
+from quad_wrench_env.numerics import njit
 
 
 def capped_cost(error: np.ndarray, cap: float) -> np.ndarray:
@@ -43,3 +45,22 @@ def effort(actions: np.ndarray, weight: float) -> np.ndarray:
 def crash(ended: np.ndarray, penalty: float) -> np.ndarray:
     """``-penalty`` where the episode ended early (``ended`` (N,) bool), else 0."""
     return -penalty * ended.astype(float)
+
+
+def linear_cost(error: np.ndarray, weight: float) -> np.ndarray:
+    """``-weight·|error|``."""
+    return -weight * np.abs(error)
+
+
+def closeness(distance: np.ndarray, scale: float) -> np.ndarray:
+    """``exp(-distance/scale)`` in (0, 1]: 1 at zero distance. Compiled, so that its exponential is
+    the C library's, as in the kernels (NumPy's vectorised one differs in the last bit on some inputs)."""
+    out = np.empty_like(distance)
+    _closeness(distance, scale, out)
+    return out
+
+
+@njit
+def _closeness(distance, scale, out):
+    for n in range(distance.shape[0]):
+        out[n] = math.exp(-distance[n] / scale)
