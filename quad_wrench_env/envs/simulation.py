@@ -15,8 +15,8 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass
-from typing import Any
+from functools import reduce
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -86,7 +86,7 @@ def info_entries(
         "velocity": state.velocity,
         "wrench_true": view.wrench_true,
         "wrench_est": view.wrench_est,
-        **({} if np.isnan(covariance).all() else {"wrench_cov": covariance}),
+        **({} if math.isnan(covariance[0, 0, 0]) else {"wrench_cov": covariance}),
         "wind_velocity": fleet.wind_velocity,
         **({"contacts": fleet.world.touches()} if fleet.world.reported_parts else {}),
         **task_info,
@@ -101,8 +101,7 @@ def info_entries(
     return info
 
 
-@dataclass(frozen=True)
-class StepResult:
+class StepResult(NamedTuple):
     """One control step of N vehicles, before any restart."""
 
     observations: np.ndarray
@@ -189,7 +188,7 @@ class Simulation:
         codes = termination_codes(engine, record.codes)
         terminated = codes > 0
         terms = record.reward_terms
-        rewards = np.sum(list(terms.values()), axis=0)
+        rewards = reduce(np.add, terms.values(), 0.0)  # np.sum(..., axis=0)'s numbers, no stacking
         truncated = ~terminated & (self.steps >= self.max_steps)
         observations = self._observe(record.blocks, slice(None))
         return StepResult(observations, terms, rewards, codes, terminated, truncated, record.info)

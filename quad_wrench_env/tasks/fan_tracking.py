@@ -318,14 +318,14 @@ class FanTracking(TaskDefaults):
         geometry = self._geometry(view)
         reward_terms = {
             "tracking": terms.closeness(geometry[:, 0], r.axis_scale),
-            "standoff": terms.linear_cost(geometry[:, 4], r.standoff_weight),
+            "standoff": terms.linear_cost(geometry[:, 6], r.standoff_weight),
             "effort": terms.effort(actions, r.effort_weight),
             "crash": terms.crash(ended, r.crash_penalty),
         }
         return TaskRecord(reward_terms, info=self._info(geometry))
 
     def _geometry(self, view: FleetView) -> np.ndarray:
-        """(N, 5) :func:`fan_tracking_geometry` of the vehicles now."""
+        """(N, 7) :func:`fan_tracking_geometry` of the vehicles now."""
         geometry = np.empty((view.count, FAN_TRACKING_GEOMETRY))
         fan_tracking_geometry(
             view.state.position,
@@ -337,14 +337,13 @@ class FanTracking(TaskDefaults):
         )
         return geometry
 
-    def _info(self, geometry: np.ndarray) -> dict[str, np.ndarray]:
-        fan_position = np.zeros((geometry.shape[0], 3))
-        fan_position[:, 1], fan_position[:, 2] = geometry[:, 3], self._jet[5]
+    @staticmethod
+    def _info(geometry: np.ndarray) -> dict[str, np.ndarray]:
         return {
-            "fan_position": fan_position,
+            "fan_position": geometry[:, 3:6],
             "jet_axis_y": geometry[:, 2],
             "axis_error": geometry[:, 1],
-            "standoff_error": geometry[:, 4],
+            "standoff_error": geometry[:, 6],
         }
 
     @staticmethod
@@ -369,16 +368,16 @@ class FanTracking(TaskDefaults):
         }
 
 
-FAN_TRACKING_GEOMETRY = 5
+FAN_TRACKING_GEOMETRY = 7
 """Columns of :func:`fan_tracking_geometry`'s output."""
 
 
 @njit
 def fan_tracking_geometry(position, time, motion_tables, fan, standoff_distance, out):
-    """Each vehicle's place relative to its jet into ``out`` (N, 5): the distance from the jet's axis
+    """Each vehicle's place relative to its jet into ``out`` (N, 7): the distance from the jet's axis
     in the y-z plane, the signed ``axis_error`` y - y_axis, the jet axis's y at the vehicle (the fan's
-    y when the air now at the vehicle left it, McKinnon & Schoellig 2016 Sec. VI-B), the fan's y now
-    and the signed stand-off error ``x - standoff_distance``. ``fan``: the jet
+    y when the air now at the vehicle left it, McKinnon & Schoellig 2016 Sec. VI-B), the fan's
+    position now ``(0, y, height)`` and the signed stand-off error ``x - standoff_distance``. ``fan``: the jet
     (``FanJet.kernel_parameters``)."""
     height = fan[5]
     for n in range(position.shape[0]):
@@ -388,5 +387,5 @@ def fan_tracking_geometry(position, time, motion_tables, fan, standoff_distance,
         out[n, 0] = math.sqrt(dy * dy + dz * dz)
         out[n, 1] = dy
         out[n, 2] = axis
-        out[n, 3] = motion_y(motion_tables[n], time[n])
-        out[n, 4] = position[n, 0] - standoff_distance
+        out[n, 3], out[n, 4], out[n, 5] = 0.0, motion_y(motion_tables[n], time[n]), height
+        out[n, 6] = position[n, 0] - standoff_distance
