@@ -20,6 +20,7 @@ physics; a component without a compiled form is refused by name. Under numba's
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numpy as np
 
@@ -44,6 +45,7 @@ from quad_wrench_env.engine.kernels import (
 from quad_wrench_env.engine.observation import ObservationLayout
 from quad_wrench_env.engine.world import RigidBodyState, Tool, World
 from quad_wrench_env.estimators import KALMAN_FILTERS, OracleBank, estimator_settings, make_estimator_bank
+from quad_wrench_env.estimators.bank import FilterBank
 from quad_wrench_env.rotations import cross, quat_from_matrix
 from quad_wrench_env.rotors import Rotors
 from quad_wrench_env.sensors import MotionCapture, MotorSpeedSensor
@@ -161,8 +163,12 @@ class Fleet:
             )
         )
         self._observe_wrench = float(cfg.observe_wrench)
+        self.estimated_state = np.zeros((count, 13))
+        """(N, 13) the estimators' states as the last :meth:`view` read them."""
+        self.wrench_est = np.zeros((count, 6))
+        """(N, 6) the estimators' wrenches as the last :meth:`view` read them."""
         s = self.state
-        self._truth_view = (
+        self._view = FleetView(
             read_only(self.time),
             RigidBodyState(
                 read_only(s.position),
@@ -174,8 +180,11 @@ class Fleet:
             ),
             read_only(self.contact_force),
             read_only(self.wrench_true),
+            read_only(self.estimated_state),
+            read_only(self.wrench_est),
         )
-        """What :meth:`view` hands out of the truth: read-only views of the fleet's arrays, made once."""
+        """What :meth:`view` hands out: read-only views of the fleet's arrays, made once."""
+        self._read_estimates = self._bind_estimates()
 
     def _own_buffer(self) -> None:
         """The fleet's step buffer, made once: every per-vehicle array of the step (:data:`STEP_FIELDS`,
@@ -245,6 +254,19 @@ class Fleet:
     def estimator(self, bank) -> None:
         self._estimator = bank
         self.compiled.bind_estimator()
+        self._read_estimates = self._bind_estimates()
+
+    def _bind_estimates(self) -> Callable[[], None]:
+        """Read the bank's estimates into :attr:`estimated_state` and :attr:`wrench_est`: its kernel
+        bound to them, or (a bank without one, the oracle's truth) a copy."""
+        bank, states, wrenches = self._estimator, self.estimated_state, self.wrench_est
+        if isinstance(bank, FilterBank):
+            return bank.bind_estimates(states, wrenches)
+
+        def copy() -> None:
+            states[...], wrenches[...] = bank.estimates()
+
+        return copy
 
     # -- episodes ----------------------------------------------------------------------------------
     def reset_vehicle(self, index: int, rng: np.random.Generator, position: np.ndarray, yaw: float) -> None:
@@ -351,10 +373,11 @@ class Fleet:
 
     # -- what the envs read ------------------------------------------------------------------------
     def view(self) -> FleetView:
-        """The fleet as a task reads it now: the truth and the estimators' states and wrenches (one
-        call of the bank's estimates), all read-only."""
-        states, wrenches = self.estimator.estimates()
-        return FleetView(*self._truth_view, read_only(states), read_only(wrenches))
+        """The fleet as a task reads it now: the truth and the estimators' states and wrenches (read
+        from the bank by this call), all read-only; the same views each call, showing the fleet's
+        arrays as they change."""
+        self._read_estimates()
+        return self._view
 
     def observations(self, view: FleetView, last_actions: np.ndarray) -> np.ndarray:
         """(N, width) float32 observations laid out as :attr:`layout` with the engine's blocks filled

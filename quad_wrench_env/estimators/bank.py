@@ -135,6 +135,12 @@ class FilterBank:
         kernel(*arguments, states, wrenches)
         return states, wrenches
 
+    def bind_estimates(self, states: np.ndarray, wrenches: np.ndarray) -> Callable[[], None]:
+        """:meth:`estimates` into ``states`` (N, 13) and ``wrenches`` (N, 6) by a call without
+        arguments, the kernel and the bank's arrays bound once (as :meth:`bind_step`)."""
+        kernel, arguments = self._estimates_kernel()
+        return bind(kernel, *arguments, states, wrenches)
+
     def _estimates_kernel(self) -> tuple[Callable[..., None], tuple]:
         """The kernel of :meth:`estimates` and its arguments, less the two outputs."""
         raise NotImplementedError
