@@ -979,6 +979,23 @@ MUTATIONS = (
         ),
         ("tests/test_task_records.py",),
     ),
+    Mutation(
+        "fleet view: the estimates not read again after a step",
+        "engine",
+        (
+            (
+                "quad_wrench_env/engine/fleet.py",
+                "        self._read_estimates()\n        return self._view",
+                "        return self._view",
+            ),
+        ),
+        (
+            "tests/test_task_records.py",
+            "tests/test_env_api.py",
+            "tests/test_ukf.py",
+            "tests/test_determinism.py",
+        ),
+    ),
 )
 
 

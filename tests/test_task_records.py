@@ -132,7 +132,8 @@ def test_a_tasks_record_holds_new_arrays():
 
 
 def test_the_fleets_view_refuses_writes():
-    """What a task reads of a live fleet is read-only (and shows the fleet's later values)."""
+    """What a task reads of a live fleet is read-only and shows the fleet's values after each step,
+    the estimates read from the bank afresh."""
     import gymnasium as gym
 
     env = gym.make("QuadWrench/FanTracking-v1")
@@ -144,7 +145,11 @@ def test_the_fleets_view_refuses_writes():
         for array in [*arrays, view.estimated_state, view.wrench_est]:
             with pytest.raises(ValueError, match="read-only"):
                 array[0] = 0.0
-        env.step(np.zeros(4))
+        for _ in range(3):
+            env.step(np.zeros(4))
+            states, wrenches = fleet.estimator.estimates()  # what the step's view read
+            np.testing.assert_array_equal(view.estimated_state, states)
+            np.testing.assert_array_equal(view.wrench_est, wrenches)
         assert view.time[0] == pytest.approx(fleet.time[0]) and fleet.time[0] > 0.0
     finally:
         env.close()
