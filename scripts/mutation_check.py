@@ -607,11 +607,11 @@ MUTATIONS = (
         (
             (
                 "quad_wrench_env/tasks/fan_tracking.py",
-                "        out[n, 0] = math.exp(-math.sqrt(dy * dy + dz * dz) / axis_scale)",
-                "        out[n, 0] = math.exp(-abs(dy) / axis_scale)",
+                "        out[n, 0] = math.sqrt(dy * dy + dz * dz)",
+                "        out[n, 0] = abs(dy)",
             ),
         ),
-        ("tests/test_fan_tracking_task.py", "tests/test_reference_task.py"),
+        ("tests/test_fan_tracking_task.py", "tests/test_reference_task.py", "tests/test_task_records.py"),
     ),
     Mutation(
         "stand-off reward rewards distance",
@@ -619,8 +619,8 @@ MUTATIONS = (
         (
             (
                 "quad_wrench_env/tasks/fan_tracking.py",
-                "        out[n, 1] = -standoff_weight * abs(standoff)",
-                "        out[n, 1] = standoff_weight * abs(standoff)",
+                '"standoff": terms.linear_cost(',
+                '"standoff": -terms.linear_cost(',
             ),
         ),
         ("tests/test_fan_tracking_task.py", "tests/test_reference_task.py"),
@@ -763,8 +763,8 @@ MUTATIONS = (
         (
             (
                 "quad_wrench_env/tasks/force_exertion.py",
-                "        return -fleet.contact_force",
-                "        return fleet.contact_force",
+                "        exerted = -view.contact_force",
+                "        exerted = view.contact_force",
             ),
         ),
         ("tests/test_reward_terms_by_hand.py",),
@@ -787,8 +787,8 @@ MUTATIONS = (
         (
             (
                 "quad_wrench_env/tasks/disturbance_rejection.py",
-                "error = np.linalg.norm(fleet.state.position - position, axis=1)",
-                "error = np.linalg.norm((fleet.state.position - position)[:, :2], axis=1)",
+                "error = np.linalg.norm(view.state.position - position, axis=1)",
+                "error = np.linalg.norm((view.state.position - position)[:, :2], axis=1)",
             ),
         ),
         ("tests/test_reward_terms_by_hand.py",),
@@ -799,8 +799,8 @@ MUTATIONS = (
         (
             (
                 "quad_wrench_env/tasks/terms.py",
-                "return -weight * np.mean(actions * actions, axis=1)",
-                "return -weight * np.sum(actions * actions, axis=1)",
+                "return -weight * (np.add.reduce(actions * actions, axis=1) / actions.shape[1])",
+                "return -weight * np.add.reduce(actions * actions, axis=1)",
             ),
         ),
         ("tests/test_reward_terms_by_hand.py",),
@@ -913,8 +913,8 @@ MUTATIONS = (
         (
             (
                 "quad_wrench_env/tasks/disturbance_rejection.py",
-                "out[:, column + 3 * k : column + 3 * k + 3] = ahead - states[:, :3]",
-                'out[:, column + 3 * k : column + 3 * k + 3] = ahead - numbers["reference_position"]',
+                "out[:, column + 3 * k : column + 3 * k + 3] = ahead - estimated[:, :3]",
+                "out[:, column + 3 * k : column + 3 * k + 3] = ahead - position",
             ),
         ),
         ("tests/test_disturbance_rejection.py",),
@@ -954,18 +954,6 @@ MUTATIONS = (
             ),
         ),
         ("tests/test_sb3.py",),
-    ),
-    Mutation(
-        "fan tracking: the tracking term scores the y error alone, not the distance in the y-z plane",
-        "task",
-        (
-            (
-                "quad_wrench_env/tasks/fan_tracking.py",
-                "out[n, 0] = math.sqrt(dy * dy + dz * dz)",
-                "out[n, 0] = abs(dy)",
-            ),
-        ),
-        ("tests/test_task_records.py",),
     ),
     Mutation(
         "force exertion: the tip's gap measured from the centre of mass",
