@@ -5,6 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from quad_wrench_env.config import build, config_path, section, shipped_configs
@@ -125,3 +126,23 @@ def test_pyproject_lists_every_package():
     packages = {".".join(d.relative_to(ROOT).parts) for d in folders if d.is_dir() and any(d.glob("*.py"))}
     assert set(setuptools["packages"]) == {*packages, "quad_wrench_env.configs"}
     assert setuptools["package-dir"] == {"quad_wrench_env.configs": "configs"}
+
+
+@pytest.mark.parametrize(
+    "name", sorted(p.name for p in (Path(__file__).parents[1] / "configs").glob("train_*.yaml"))
+)
+def test_every_training_config_builds_its_env_and_steps_it(name):
+    """A shipped training config is a valid TrainConfig whose env resets and takes a step."""
+    import gymnasium as gym
+
+    from quad_wrench_env.agents.sb3 import train_config
+    from quad_wrench_env.config import load_yaml
+
+    config = train_config(load_yaml(Path(__file__).parents[1] / "configs" / name), {})
+    env = gym.make(config.env_id, **config.env)
+    try:
+        env.reset(seed=0)
+        observation, *_ = env.step(np.zeros(4))
+        assert np.all(np.isfinite(observation))
+    finally:
+        env.close()
