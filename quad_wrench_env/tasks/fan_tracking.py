@@ -317,8 +317,8 @@ class FanTracking(TaskDefaults):
         r = self.cfg.reward
         geometry = self._geometry(view)
         reward_terms = {
-            "tracking": terms.closeness(geometry[:, 0], r.axis_scale),
-            "standoff": terms.linear_cost(geometry[:, 6], r.standoff_weight),
+            "tracking": terms.closeness(geometry[:, DISTANCE], r.axis_scale),
+            "standoff": terms.linear_cost(geometry[:, STANDOFF_ERROR], r.standoff_weight),
             "effort": terms.effort(actions, r.effort_weight),
             "crash": terms.crash(ended, r.crash_penalty),
         }
@@ -340,10 +340,10 @@ class FanTracking(TaskDefaults):
     @staticmethod
     def _info(geometry: np.ndarray) -> dict[str, np.ndarray]:
         return {
-            "fan_position": geometry[:, 3:6],
-            "jet_axis_y": geometry[:, 2],
-            "axis_error": geometry[:, 1],
-            "standoff_error": geometry[:, 6],
+            "fan_position": geometry[:, FAN_POSITION],
+            "jet_axis_y": geometry[:, AXIS_Y],
+            "axis_error": geometry[:, AXIS_ERROR],
+            "standoff_error": geometry[:, STANDOFF_ERROR],
         }
 
     @staticmethod
@@ -369,7 +369,8 @@ class FanTracking(TaskDefaults):
 
 
 FAN_TRACKING_GEOMETRY = 7
-"""Columns of :func:`fan_tracking_geometry`'s output."""
+"""Columns of :func:`fan_tracking_geometry`'s output, named below."""
+DISTANCE, AXIS_ERROR, AXIS_Y, FAN_POSITION, STANDOFF_ERROR = 0, 1, 2, slice(3, 6), 6
 
 
 @njit
