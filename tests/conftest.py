@@ -51,7 +51,7 @@ def controls_on_a_copy(fleet, actions, instant_motors: bool = True, buffer=None)
 
     from quad_wrench_env.engine.kernels import CONSTANT_FIELDS, STEP_FIELDS, controls, offsets, step_views
 
-    buffer = fleet.buffer.copy() if buffer is None else buffer
+    buffer = fleet.step_buffer.array.copy() if buffer is None else buffer
     constants = fleet.compiled.constants.copy()
     if instant_motors:
         start = offsets(CONSTANT_FIELDS)["motors"]

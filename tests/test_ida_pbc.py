@@ -305,7 +305,7 @@ def test_balance_with_the_observer_meets_the_acceptance(make_env):
     while not done:
         observation, _, terminated, truncated, info = env.step(policy.act(observation))
         done = terminated or truncated
-        thrust = base.fleet.fields["rotor_wrench"][0, 0]  # the true rotors' c_t in the last physics step
+        thrust = base.fleet.step_buffer.fields["rotor_wrench"][0, 0]  # true rotors: c_t, last step
         rotation = base.world.state().rotation[0]
         times.append(info["time"])
         velocities.append(info["velocity"].copy())

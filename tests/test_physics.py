@@ -130,7 +130,7 @@ def test_motor_lag_is_first_order(make_env):
     )
     env.reset(seed=0)
     fleet = env.unwrapped.fleet
-    buffer = fleet.buffer.copy()
+    buffer = fleet.step_buffer.array.copy()
     speeds = controls_on_a_copy(fleet, np.zeros((1, 4)), False, buffer)["speeds"]  # a view of ``buffer``
     speeds[:] = 300.0
     command = np.full((1, 4), 2.0 * 700.0 / vehicle.max_rotor_speed - 1.0)  # 700 rad/s

@@ -385,7 +385,7 @@ def test_the_rate_loop_adds_the_torque_that_keeps_a_rotation_steady(make_env):
     fleet = env.unwrapped.fleet
     vehicle, dt, autopilot = fleet.vehicle, fleet.dt, fleet.autopilot
     omega = np.array((0.6, -0.4, 0.3))
-    buffer = fleet.buffer.copy()
+    buffer = fleet.step_buffer.array.copy()
     level = {
         "rotation": np.eye(3),
         "quaternion": (1.0, 0.0, 0.0, 0.0),

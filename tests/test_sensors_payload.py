@@ -24,7 +24,7 @@ def test_motion_capture_noise_has_the_configured_spread(make_env):
     env = make_env(estimator="oracle", sensors={"position_noise": 0.01, "attitude_noise": 0.05})
     env.reset(seed=0)
     fleet = env.unwrapped.fleet
-    buffer, constants = fleet.buffer.copy(), fleet.compiled.constants
+    buffer, constants = fleet.step_buffer.array.copy(), fleet.compiled.constants
     fields = dict(zip((name for name, _ in STEP_FIELDS), step_views(buffer, 1), strict=True))
     q = quat_from_euler_zyx(0.1, 0.2, 0.3)
     fields["position"][0], fields["quaternion"][0] = (1.0, 2.0, 3.0), q

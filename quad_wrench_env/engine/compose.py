@@ -24,8 +24,7 @@ One physics step, as written for every composition::
     (after the policy step's last physics step) the air at the centres of mass
 
 The step's scratch arrays (the drag points, the air there, the normal draws, the rotors' thrusts) are
-views of the step buffer after the components' states (:func:`scratch_width`): no array is allocated
-per step.
+regions of the step buffer (:mod:`.step_buffer`): no array is allocated per step.
 """
 
 from __future__ import annotations
@@ -42,7 +41,7 @@ from pathlib import Path
 from types import ModuleType
 
 from quad_wrench_env.disturbances.base import CompiledForm
-from quad_wrench_env.engine.kernels import STEP_FIELDS, offsets
+from quad_wrench_env.engine.step_buffer import StepLayout
 
 ROLES = {"wind": ("velocity", "advance"), "load": ("load",), "rotor": ("thrust",)}
 """The kernels each kind of component must name (:mod:`quad_wrench_env.disturbances.base`)."""
@@ -73,38 +72,33 @@ class Slot:
             raise ValueError(f"the compiled form in {self.form.module} names no {missing} kernel(s)")
 
 
-def _arguments(k: int, slot: Slot, state_start: int) -> str:
+def _arguments(k: int, slot: Slot, layout: StepLayout) -> str:
     """Source of component ``k``'s first three kernel arguments: numbers, table, state."""
     table = f"table_{k}" if slot.form.table else "_NO_TABLE"
     if slot.state_width:
-        state = f"rows_view(buffer, {state_start} * n, n, {slot.state_width})"
+        state = f"rows_view(buffer, {layout.start[f'state_{k}']} * n, n, {slot.state_width})"
     else:
         state = "_NO_TABLE"
     return f"_engine.component_slice(constants, {k}), {table}, {state}"
 
 
-def scratch_width(points: int, noise_width: int) -> int:
-    """Floats per vehicle of the step's scratch space, after the components' states: the drag points'
-    world offsets, the points and the air there (3 P each), the step's normal draws, the rotors'
-    thrusts and added thrusts (4 each), the centre of mass and the air there (3 each)."""
-    return 9 * points + noise_width + 8 + 6
-
-
-def source(slots: list[Slot], state_start: int, points: int, noise_width: int) -> str:
-    """Python source of the step for ``slots`` (in order), their states from ``state_start`` (floats per
-    vehicle into the step buffer) on, then the scratch space (:func:`scratch_width`) for ``points`` drag
-    points and ``noise_width`` normal draws per step; every offset is written in as a number, read from
-    the declaration (:data:`~quad_wrench_env.engine.kernels.STEP_FIELDS`) and the slots."""
-    field = offsets(STEP_FIELDS)
+def source(slots: list[Slot], layout: StepLayout) -> str:
+    """Python source of the step for ``slots`` (in order) on a step buffer laid out by ``layout``
+    (:mod:`.step_buffer`: the slots' states and the scratch space); every offset is written in as a
+    number, read from the layout by its region's name."""
+    if tuple(slot.state_width for slot in slots) != layout.state_widths:
+        raise ValueError(
+            f"the slots' state widths {[slot.state_width for slot in slots]} are not the layout's "
+            f"{list(layout.state_widths)}"
+        )
+    field, points, noise_width = layout.start, layout.points, layout.noise_width
     imports, winds, rotors, loads, advances, centre = [], [], [], [], [], []
-    start = state_start
     for k, slot in enumerate(slots):
         names = dict(slot.form.kernels)
         for role in ROLES[slot.kind]:
             module, _, function = names[role].rpartition(":")
             imports.append(f"from {module or slot.form.module} import {function} as c{k}_{role}")
-        head = _arguments(k, slot, start)
-        start += slot.state_width
+        head = _arguments(k, slot, layout)
         if slot.kind == "wind":
             a, b = slot.noise
             winds.append(f"    c{k}_velocity({head}, points, time, air)")
@@ -116,10 +110,9 @@ def source(slots: list[Slot], state_start: int, points: int, noise_width: int) -
             loads.append(
                 f"    c{k}_load({head}, time, position, velocity, angular_velocity, rotation, loads)"
             )
-    offsets_at, points_at, air_at = start, start + 3 * points, start + 6 * points
-    normals_at = start + 9 * points
-    thrusts_at, added_at = normals_at + noise_width, normals_at + noise_width + 4
-    centre_at, centre_air_at = added_at + 4, added_at + 7
+    offsets_at, points_at, air_at = field["point_offsets"], field["points"], field["air"]
+    normals_at, thrusts_at, added_at = field["normals"], field["rotor_thrusts"], field["added_thrust"]
+    centre_at, centre_air_at = field["centre"], field["centre_air"]
     tables = "".join(f", table_{k}" for k, slot in enumerate(slots) if slot.form.table)
     rotor_block = [
         f"    thrusts = rows(buffer, {thrusts_at}, n, 4)",
@@ -258,11 +251,11 @@ def _fingerprint(text: str, slots: list[Slot]) -> str:
     return digest.hexdigest()[:20]
 
 
-def compose(slots: list[Slot], state_start: int, points: int, noise_width: int) -> ModuleType:
+def compose(slots: list[Slot], layout: StepLayout) -> ModuleType:
     """The module holding the step for ``slots`` (``before_world_step``, ``before_world_step_one``,
     ``after_world_step``, ``after_world_step_one``, ``centre_wind``), written and imported on first
     use (arguments as :func:`source`)."""
-    text = source(slots, state_start, points, noise_width)
+    text = source(slots, layout)
     key = _fingerprint(text, slots)
     if key in _LOADED:
         return _LOADED[key]

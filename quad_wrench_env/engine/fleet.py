@@ -30,19 +30,18 @@ from quad_wrench_env.disturbances.drag import QuadraticDrag
 from quad_wrench_env.engine.actions import ActionScaling
 from quad_wrench_env.engine.compiled import CompiledStep
 from quad_wrench_env.engine.components import Components
-from quad_wrench_env.engine.compose import scratch_width
+from quad_wrench_env.engine.compose import Slot
 from quad_wrench_env.engine.draws import NoiseBlocks
 from quad_wrench_env.engine.env_config import EnvConfig
 from quad_wrench_env.engine.fleet_view import FleetView, read_only
 from quad_wrench_env.engine.kernels import (
-    STEP_FIELDS,
-    STEP_WIDTH,
     assemble_observations,
     delay_line_width,
-    step_views,
+    physics_constants,
     termination_codes,
 )
 from quad_wrench_env.engine.observation import ObservationLayout
+from quad_wrench_env.engine.step_buffer import StepBuffer, StepLayout
 from quad_wrench_env.engine.world import RigidBodyState, Tool, World
 from quad_wrench_env.estimators import KALMAN_FILTERS, OracleBank, estimator_settings, make_estimator_bank
 from quad_wrench_env.estimators.bank import FilterBank
@@ -70,6 +69,12 @@ def make_tool(cfg: EnvConfig, vehicle: VehicleParams) -> Tool | None:
         half_length, half_height = vehicle.arm + vehicle.rotor_radius, 0.5 * vehicle.hull_height
         offset = (half_length + 0.1, 0.0, half_height + 0.1)
     return Tool(np.array(offset, dtype=float), tool.tip_radius, tool.friction)
+
+
+def _state_width(component: object) -> int:
+    """Floats per vehicle of ``component``'s declared state (``CompiledForm.state``; 0: none)."""
+    name = component.compiled.state  # type: ignore[attr-defined]
+    return getattr(component, name).shape[1] if name else 0
 
 
 def refuse_uncompiled(components: Components) -> None:
@@ -142,14 +147,30 @@ class Fleet:
         width = SENSOR_NOISE_WIDTH + (STATE_ESTIMATOR_NOISE_WIDTH if sensors.state_estimator else 0)
         self.noise = NoiseBlocks(count, column + width)
         self.world = World(vehicle, dt, count, gui=gui, scene=components.scene, tool=make_tool(cfg, vehicle))
-        self._own_buffer()
+        parts = [
+            (Slot(kind, c.compiled, _state_width(c), self.noise_columns.get(id(c), (0, 0))), c)
+            for kind, c in components.ordered()
+        ]
+        self.step_buffer = self._make_step_buffer([slot for slot, _ in parts])
+        """The physics step's buffer: the fleet's per-vehicle arrays are its regions (:mod:`.step_buffer`)."""
         self.contact_force = np.zeros((count, 3))
         """(N, 3) force of the scene on each tool's tip in the last physics step (world frame, N)."""
         self.sensor_frames = np.zeros((count, observation.sensor_history, observation.sensor_width))
         """(N, K, width) the estimators' sensor readings of the last K physics steps, newest first (the
         observation's ``sensors`` block; K = 0 without one)."""
-        self.compiled = CompiledStep(self)
+        self.compiled = CompiledStep(
+            self.step_buffer,
+            self._engine_constants(),
+            parts,
+            self.world,
+            self.noise,
+            self.autopilot.saturated,
+            self.contact_force,
+            self.sensor_frames,
+            sensors.state_estimator,
+        )
         """The physics step on the compiled kernels."""
+        self.compiled.bind_estimator(self._estimator, self.truth_fed)
         arena = cfg.arena
         self._limits = np.array(
             (
@@ -186,49 +207,29 @@ class Fleet:
         """What :meth:`view` hands out: read-only views of the fleet's arrays, made once."""
         self._read_estimates = self._bind_estimates()
 
-    def _own_buffer(self) -> None:
-        """The fleet's step buffer, made once: every per-vehicle array of the step (:data:`STEP_FIELDS`,
-        then the components' declared states, then the compiled step's scratch space, then the motion
-        capture's delay line) is a view of it. The fleet's ``time``, ``state``, ``wrench_true`` and
-        ``wind_velocity``, the autopilot's and the rotors' state, each component's
-        ``CompiledForm.state`` array and the motion capture's delay line become those views here, their
-        numbers copied in; from then on everything updates them in place."""
-        count, components = self.count, self.components.ordered()
-        states = [(c, c.compiled.state) for _, c in components if c.compiled.state]
-        widths = [getattr(owner, name).shape[1] for owner, name in states]
-        points, noise_width = len(self.drag_points), self.noise.buffer.shape[2]
-        self.delay_line_start = STEP_WIDTH + sum(widths) + scratch_width(points, noise_width)
-        """Where the motion capture's delay line starts (floats per vehicle into the buffer)."""
-        delay_width = delay_line_width(self.cfg.sensors.latency_steps)
-        self.buffer = np.zeros(count * (self.delay_line_start + delay_width))
-        """The flat step buffer (:func:`~quad_wrench_env.engine.kernels.step_views` cuts its fields)."""
-        self.fields = dict(
-            zip((name for name, _ in STEP_FIELDS), step_views(self.buffer, count), strict=True)
+    def _make_step_buffer(self, slots: list[Slot]) -> StepBuffer:
+        """The fleet's step buffer, laid out for ``slots``: the fleet's ``time``, ``state``,
+        ``wrench_true`` and ``wind_velocity`` are its engine fields; the autopilot's and the rotors'
+        state, each component's declared state (``CompiledForm.state``) and the motion capture's delay
+        line are handed their regions, their numbers copied in; from then on everything updates them
+        in place."""
+        layout = StepLayout(
+            tuple(slot.state_width for slot in slots),
+            len(self.drag_points),
+            self.noise.buffer.shape[2],
+            delay_line_width(self.cfg.sensors.latency_steps),
         )
-        """Each :data:`STEP_FIELDS` array by name: views of :attr:`buffer`."""
-        self.component_states = []
-        """``(component, attribute)`` of each component's state in the buffer, in step order."""
-        ap, rotors, start = self.autopilot, self.rotors, STEP_WIDTH
-        owners = [
-            (ap, "yaw_setpoint"),
-            (ap, "velocity_integral"),
-            (ap, "rate_integral"),
-            (rotors, "speeds"),
-            (rotors, "allocations"),
-            (rotors, "sensed_allocations"),
-        ]
-        views = [self.fields[name] for _, name in owners]
-        for (owner, name), width in zip(states, widths, strict=True):
-            owners.append((owner, name))
-            views.append(self.buffer[start * count : (start + width) * count].reshape(count, width))
-            self.component_states.append((owner, name))
-            start += width
-        for (owner, name), view in zip(owners, views, strict=True):
-            view[...] = getattr(owner, name)
-            setattr(owner, name, view)
-        start = self.delay_line_start * count
-        self.mocap.delay_line = self.buffer[start : start + count * delay_width].reshape(count, delay_width)
-        f = self.fields
+        buffer = StepBuffer(layout, self.count)
+        ap, rotors = self.autopilot, self.rotors
+        for attribute in ("yaw_setpoint", "velocity_integral", "rate_integral"):
+            buffer.hand_over(ap, attribute, attribute)
+        for attribute in ("speeds", "allocations", "sensed_allocations"):
+            buffer.hand_over(rotors, attribute, attribute)
+        for k, (_, component) in enumerate(self.components.ordered()):
+            if component.compiled.state:
+                buffer.hand_over(component, component.compiled.state, f"state_{k}")
+        buffer.hand_over(self.mocap, "delay_line", "delay_line")
+        f = buffer.fields
         self.time = f["time"]
         self.state = RigidBodyState(
             f["position"],
@@ -243,6 +244,38 @@ class Fleet:
         """(N, 6) everything the environment does to each vehicle beyond gravity and its nominal rotors."""
         self.wind_velocity = f["wind_velocity"]
         """(N, 3) air velocity at each centre of mass (world frame), after the last step or reset."""
+        return buffer
+
+    def _engine_constants(self) -> np.ndarray:
+        """The engine's numbers for the kernels (:func:`~quad_wrench_env.engine.kernels.physics_constants`),
+        read from the fleet's own parts."""
+        ap, sensors = self.autopilot, self.cfg.sensors
+        latency = sensors.latency_steps
+        action_type, scales = self.action_scaling.kernel_parameters()
+        sensing = (
+            self.motor_sensor.levels,
+            self.motor_sensor.step,
+            sensors.position_noise,
+            sensors.attitude_noise,
+            sensors.velocity_noise,
+            sensors.body_rate_noise,
+            float(sensors.state_estimator),
+        )
+        delay_start = self.step_buffer.layout.start["delay_line"] if latency else 0  # unused without latency
+        return physics_constants(
+            {
+                "action_type": action_type,
+                "scales": scales,
+                "autopilot": ap.kernel_parameters(),
+                "inverse": ap.mixer.inverse,
+                "motors": np.append(self.rotors.kernel_parameters(), self.drag.coefficient),
+                "sensing": np.array(sensing),
+                "dt": self.dt,
+                "noise_column": self.sensor_noise_column,
+                "delay_line": (latency, delay_start),
+            },
+            self.drag_points,
+        )
 
     @property
     def estimator(self):
@@ -253,7 +286,7 @@ class Fleet:
     @estimator.setter
     def estimator(self, bank) -> None:
         self._estimator = bank
-        self.compiled.bind_estimator()
+        self.compiled.bind_estimator(bank, self.truth_fed)
         self._read_estimates = self._bind_estimates()
 
     def _bind_estimates(self) -> Callable[[], None]:
