@@ -53,10 +53,10 @@ from quad_wrench_env.agents import make_agent
 from quad_wrench_env.bench import (
     FLOORS,
     bare_pybullet_step_seconds,
-    component_seconds,
     env_step_seconds,
     paired_floor_shares,
     paired_step_seconds,
+    step_parts_seconds,
     vector_step_seconds,
 )
 from quad_wrench_env.config import config_path
@@ -337,12 +337,17 @@ def run(args: argparse.Namespace) -> int:
         )
         + "\n"
     )
-    part_tables = [  # a call steps all 64 vehicles: fewer calls than the single env's
-        ("ukf env", "µs", args.steps, 1),
-        (f"ukf vector env x {VECTOR_ENVS}", "µs per vehicle", max(args.steps // 8, 20), VECTOR_ENVS),
+    part_tables = [  # a step steps all 64 vehicles: fewer steps than the single env's
+        ("ukf env", "µs per policy step", min(args.steps, 500), 1),
+        (
+            f"ukf vector env x {VECTOR_ENVS}",
+            "µs per vehicle and policy step",
+            max(args.steps // 16, 20),
+            VECTOR_ENVS,
+        ),
     ]
-    for title, unit, calls, num_envs in part_tables:
-        parts = component_seconds(calls, num_envs=num_envs, estimator="ukf")
+    for title, unit, steps, num_envs in part_tables:
+        parts = step_parts_seconds(steps, num_envs=num_envs, estimator="ukf")
         rows = [[name, f"{seconds * 1e6:.2f}"] for name, seconds in parts.items()]
         show(markdown_table([f"part of a step ({title})", unit], rows) + "\n")
     print(

@@ -12,7 +12,6 @@ import pybullet as p
 import quad_wrench_env  # noqa: F401  (registers the env ids)
 from quad_wrench_env.config import build
 from quad_wrench_env.control.residual import BASES
-from quad_wrench_env.envs.simulation import observations
 from quad_wrench_env.estimators import EstimatorInputs, TruthFed, make_estimator, make_estimator_bank
 from quad_wrench_env.estimators.ukf_kernel import ukf_bank_step
 from quad_wrench_env.rotations import quat_exp, quat_multiply
@@ -153,27 +152,69 @@ def vector_step_seconds(steps: int, num_envs: int, **env_kwargs) -> float:
         venv.close()
 
 
-def _time(call, calls: int, repeats: int = 3) -> float:
-    """Seconds per call of ``call``: the least of ``repeats`` runs of ``calls`` calls."""
-    best = float("inf")
-    for _ in range(repeats):
-        start = time.perf_counter()
-        for _ in range(calls):
-            call()
-        best = min(best, (time.perf_counter() - start) / calls)
-    return best
+class _Clock:
+    """Seconds spent in each timed call of a step, by part."""
+
+    def __init__(self) -> None:
+        self.spent: dict[str, float] = {}
+
+    def timed(self, name: str, call: Any) -> Any:
+        """``call`` with its time added to part ``name`` at each call."""
+        spent, clock = self.spent, time.perf_counter
+        spent.setdefault(name, 0.0)
+
+        def timed_call(*args: Any) -> Any:
+            start = clock()
+            try:
+                return call(*args)
+            finally:
+                spent[name] += clock() - start
+
+        return timed_call
 
 
-def component_seconds(calls: int, num_envs: int = 1, **env_kwargs) -> dict[str, float]:
-    """Seconds per call and vehicle of each part of a step, timed in isolation on a live env: the
-    single env, or with ``num_envs`` > 1 the vector env. The parts of one physics step (PyBullet's
-    calls as the compiled step makes them, the estimator, the kernels and glue as the rest of the whole
-    step), then the per-policy-step work."""
+PHYSICS_PARTS = {
+    "_before": "controls and disturbance loads (kernel)",
+    "read_world": "PyBullet read",
+    "_after_kernel": "state, winds and sensors (kernel)",
+    "estimate": "estimator (compiled)",
+    "_record_sensors": "sensor block (kernel)",
+    "_centre_wind": "air at the centres of mass (kernel)",
+}
+"""The compiled step's calls timed as parts of a physics step (attribute -> part), besides PyBullet's
+step (``World.step_one`` or ``World.step``)."""
+
+STEP_PARTS = (
+    "physics: controls and disturbance loads (kernel)",
+    "physics: PyBullet apply + step",
+    "physics: PyBullet read",
+    "physics: state, winds and sensors (kernel)",
+    "physics: estimator (compiled)",
+    "physics: sensor block (kernel)",
+    "physics: air at the centres of mass (kernel)",
+    "physics: the loop's own Python",
+    "policy: fleet view (estimates read)",
+    "policy: engine terminations",
+    "policy: task step (reward terms, codes, blocks, info)",
+    "policy: observation",
+    "policy: the simulation's own Python (codes, reward sum, truncation)",
+    "policy: info",
+    "policy: the env's own Python (checks, clip, restarts, info dict)",
+)
+"""The parts :func:`step_parts_seconds` reports, in order; they add up to a timed step."""
+
+
+def step_parts_seconds(steps: int, num_envs: int = 1, blocks: int = 3, **env_kwargs: Any) -> dict[str, float]:
+    """Where a FanTracking policy step's time goes (seconds per vehicle and policy step, zero actions):
+    each part of :data:`STEP_PARTS` timed inside real steps of the single env (``num_envs`` = 1) or the
+    vector env, the calls of each layer timed and the layer's own Python the rest of it, so the parts add
+    up to the timed step; ``"whole step (timed)"`` is their sum, ``"whole step"`` the same steps without
+    timers (alternating blocks of ``steps`` steps, the least block of each) and ``"the timers' own cost"``
+    the difference (spread over the parts, the Python ones mostly)."""
     if num_envs == 1:
         env = gym.make("QuadWrench/FanTracking-v1", **env_kwargs)
-        env.reset(seed=0, options={"offset_y": 0.4})
         base = env.unwrapped
-        infos = base._info
+        info_name, action = "_info", np.zeros(4, dtype=np.float32)
     else:
         env = gym.make_vec(
             "QuadWrench/FanTracking-v1",
@@ -181,43 +222,104 @@ def component_seconds(calls: int, num_envs: int = 1, **env_kwargs) -> dict[str, 
             vectorization_mode="vector_entry_point",
             **env_kwargs,
         )
-        env.reset(seed=0)
         base = env.unwrapped
-        infos = base._infos
+        info_name, action = "_infos", np.zeros((num_envs, 4), dtype=np.float32)
     try:
-        fleet = base.fleet
-        action = np.zeros((num_envs, 4))
-        base.step(action[0] if num_envs == 1 else action)
-        compiled = fleet.compiled  # PyBullet's calls as the step makes them (one vehicle: step_one)
-        parts_one = (compiled.forces, compiled.torques, fleet.state.position)
-        loads = [tuple(part[0].tolist()) for part in parts_one]
-        parts = {
-            "compiled: autopilot, motors, disturbances": lambda: compiled.physics_steps(action, 1),
-            "PyBullet apply + step": (
-                (lambda: fleet.world.step_one(*loads))
-                if compiled.single
-                else lambda: fleet.world.step(compiled.forces, compiled.torques, fleet.state.position)
-            ),
-            "PyBullet read": compiled.read_world,
-        }
-        out = {f"physics step: {name}": _time(call, calls) for name, call in parts.items()}
-        whole = out.pop("physics step: compiled: autopilot, motors, disturbances")  # less what is timed alone
-        estimator = _time(compiled.estimate, calls)
-        pybullet = out["physics step: PyBullet apply + step"] + out["physics step: PyBullet read"]
-        rest = whole - pybullet - estimator
-        out["physics step: kernels (autopilot, motors, disturbances, sensors) + glue"] = rest
-        out[f"physics step: estimator ({fleet.estimator.name}, compiled)"] = estimator
-
-        def policy_part() -> None:
-            view = fleet.view()
-            record = base.task.step(view, action, fleet.terminations() > 0)
-            observations(fleet, view, record.blocks, action)
-            infos()
-
-        out["policy step: observation, reward, termination, info"] = _time(policy_part, calls)
-        return {name: seconds / num_envs for name, seconds in out.items()}
+        env.reset(seed=0)
+        env.step(action)  # compiled kernels load on first use
+        compiled = base.fleet.compiled
+        best_plain, best_timed, parts = float("inf"), float("inf"), {}
+        for _ in range(blocks):
+            env.reset(seed=0)
+            start = time.perf_counter()
+            for _ in range(steps):
+                env.step(action)
+            best_plain = min(best_plain, time.perf_counter() - start)
+            clock = _Clock()
+            _instrument(clock, base, info_name)
+            env.reset(seed=0)  # restarts rebind the compiled step: its parts timed again after each
+            clock.spent.update(dict.fromkeys(clock.spent, 0.0))  # the reset's own calls not counted
+            start = time.perf_counter()
+            for _ in range(steps):
+                env.step(action)
+            whole = time.perf_counter() - start
+            for owner, name in _timed_attributes(base, info_name):
+                owner.__dict__.pop(name, None)
+            compiled.rebind()
+            if whole < best_timed:
+                best_timed, parts = whole, _layers(clock.spent, whole)
+        per = steps * num_envs
+        out = {name: parts.get(name, 0.0) / per for name in STEP_PARTS}
+        out["whole step (timed)"] = best_timed / per
+        out["whole step"] = best_plain / per
+        out["the timers' own cost"] = (best_timed - best_plain) / per
+        return out
     finally:
         env.close()
+
+
+def _timed_attributes(base: Any, info_name: str) -> list[tuple[Any, str]]:
+    """``(object, attribute)`` of every call :func:`_instrument` wraps (instance attributes it sets)."""
+    simulation, fleet = base.simulation, base.fleet
+    return [
+        (base, info_name),
+        (simulation, "step"),
+        (simulation, "_observe"),
+        (simulation.task, "step"),
+        (fleet, "view"),
+        (fleet, "terminations"),
+        (fleet.world, "step_one"),
+        (fleet.world, "step"),
+        (fleet.compiled, "rebind"),
+        (fleet.compiled, "physics_steps"),
+        *((fleet.compiled, name) for name in PHYSICS_PARTS),
+    ]
+
+
+def _instrument(clock: _Clock, base: Any, info_name: str) -> None:
+    """Wrap every call of a step with ``clock`` (instance attributes shadowing the methods); the
+    compiled step's bound calls wrapped again after each of its rebinds."""
+    simulation, fleet = base.simulation, base.fleet
+    compiled, world = fleet.compiled, fleet.world
+    for owner, name, part in (
+        (base, info_name, "policy: info"),
+        (simulation, "step", "simulation"),
+        (simulation, "_observe", "policy: observation"),
+        (simulation.task, "step", "policy: task step (reward terms, codes, blocks, info)"),
+        (fleet, "view", "policy: fleet view (estimates read)"),
+        (fleet, "terminations", "policy: engine terminations"),
+        (world, "step_one", "physics: PyBullet apply + step"),
+        (world, "step", "physics: PyBullet apply + step"),
+        (compiled, "physics_steps", "physics loop"),
+    ):
+        setattr(owner, name, clock.timed(part, getattr(owner, name)))
+    rebind = type(compiled).rebind
+
+    def rebind_timed() -> None:
+        for name in PHYSICS_PARTS:
+            compiled.__dict__.pop(name, None)
+        rebind(compiled)
+        for name, part in PHYSICS_PARTS.items():
+            call = getattr(compiled, name)
+            if call is not None:
+                setattr(compiled, name, clock.timed(f"physics: {part}", call))
+
+    compiled.rebind = rebind_timed
+
+
+def _layers(spent: dict[str, float], whole: float) -> dict[str, float]:
+    """The timed calls as :data:`STEP_PARTS` of a step that took ``whole``: each layer's own Python is
+    its time less its timed calls' (the fleet's step, a call into the physics loop, is the simulation's
+    own; the env's own is the step less the simulation's step and the info)."""
+    parts = dict(spent)
+    physics = [f"physics: {part}" for part in PHYSICS_PARTS.values()] + ["physics: PyBullet apply + step"]
+    loop = parts.pop("physics loop", 0.0)
+    parts["physics: the loop's own Python"] = loop - sum(parts.get(name, 0.0) for name in physics)
+    policy = STEP_PARTS[8:12]
+    simulation = parts.pop("simulation", 0.0)
+    parts[STEP_PARTS[12]] = simulation - loop - sum(parts.get(name, 0.0) for name in policy)
+    parts[STEP_PARTS[14]] = whole - simulation - parts.get("policy: info", 0.0)
+    return parts
 
 
 def filter_bank_step_seconds(

@@ -8,7 +8,13 @@ import gymnasium as gym
 import pytest
 
 import quad_wrench_env.bench as bench
-from quad_wrench_env.bench import FLOORS, bare_pybullet_step_seconds, component_seconds, paired_step_seconds
+from quad_wrench_env.bench import (
+    FLOORS,
+    STEP_PARTS,
+    bare_pybullet_step_seconds,
+    paired_step_seconds,
+    step_parts_seconds,
+)
 
 
 def test_the_floor_refuses_an_unknown_load_by_name():
@@ -47,15 +53,15 @@ def test_paired_timing_gives_one_figure_per_setting_and_steps_every_env(monkeypa
     assert [m["steps"] for m in made] == [1 + 2 * 3] * 2
 
 
-def test_the_parts_of_a_step_are_the_documented_keys():
-    """Catches a part dropped from or renamed in the per-component breakdown, single and vector env."""
+def test_the_parts_of_a_step_add_up_to_the_timed_step():
+    """Every part of :data:`STEP_PARTS` is reported and timed inside real steps, single and vector env: they
+    add up to the timed step, each a time (none negative), those the env runs non-zero (no sensor
+    block here); a step without timers is no slower than one with them."""
     for num_envs in (1, 2):
-        parts = component_seconds(2, num_envs=num_envs, estimator="ekf")
-        assert set(parts) == {
-            "physics step: PyBullet apply + step",
-            "physics step: PyBullet read",
-            "physics step: kernels (autopilot, motors, disturbances, sensors) + glue",
-            "physics step: estimator (ekf, compiled)",
-            "policy step: observation, reward, termination, info",
-        }
-        assert all(math.isfinite(seconds) for seconds in parts.values())
+        parts = step_parts_seconds(20, num_envs=num_envs, blocks=2, estimator="ekf")
+        assert list(parts) == [*STEP_PARTS, "whole step (timed)", "whole step", "the timers' own cost"]
+        spent = [parts[name] for name in STEP_PARTS]
+        assert math.isclose(sum(spent), parts["whole step (timed)"], rel_tol=1e-9)
+        assert min(spent) >= 0.0
+        assert [name for name in STEP_PARTS if parts[name] == 0.0] == ["physics: sensor block (kernel)"]
+        assert 0.0 < parts["whole step"] <= parts["whole step (timed)"]
