@@ -56,7 +56,7 @@ def test_paired_timing_gives_one_figure_per_setting_and_steps_every_env(monkeypa
 def test_the_parts_of_a_step_add_up_to_the_timed_step():
     """Every part of :data:`STEP_PARTS` is reported and timed inside real steps, single and vector env: they
     add up to the timed step, each a time (none negative), those the env runs non-zero (no sensor
-    block here); a step without timers is no slower than one with them."""
+    block here)."""
     for num_envs in (1, 2):
         parts = step_parts_seconds(20, num_envs=num_envs, blocks=2, estimator="ekf")
         assert list(parts) == [*STEP_PARTS, "whole step (timed)", "whole step", "the timers' own cost"]
@@ -64,4 +64,5 @@ def test_the_parts_of_a_step_add_up_to_the_timed_step():
         assert math.isclose(sum(spent), parts["whole step (timed)"], rel_tol=1e-9)
         assert min(spent) >= 0.0
         assert [name for name in STEP_PARTS if parts[name] == 0.0] == ["physics: sensor block (kernel)"]
-        assert 0.0 < parts["whole step"] <= parts["whole step (timed)"]
+        assert parts["whole step"] > 0.0  # (no order between the timed and plain steps: a noisy machine)
+        assert parts["the timers' own cost"] == parts["whole step (timed)"] - parts["whole step"]
