@@ -968,6 +968,30 @@ MUTATIONS = (
         ("tests/test_task_records.py",),
     ),
     Mutation(
+        "step buffer: the air region laid out before the drag points",
+        "engine",
+        (
+            (
+                "quad_wrench_env/engine/step_buffer.py",
+                '            ("points", 3 * p),\n            ("air", 3 * p),',
+                '            ("air", 3 * p),\n            ("points", 3 * p),',
+            ),
+        ),
+        ("tests/test_step_buffer.py",),
+    ),
+    Mutation(
+        "step buffer: a part handed its region without its numbers",
+        "engine",
+        (
+            (
+                "quad_wrench_env/engine/step_buffer.py",
+                "        view[...] = held\n",
+                "",
+            ),
+        ),
+        ("tests/test_step_buffer.py",),
+    ),
+    Mutation(
         "fleet view: the estimates not read again after a step",
         "engine",
         (
