@@ -67,7 +67,8 @@ def record(env: gym.Env, policy: IDAPBCPolicy, seed: int, options: dict) -> dict
         rows["p"].append(info["position"])
         rows["v"].append(info["velocity"])
         rows["eta"].append(euler_zyx(rotation))
-        rows["fne"].append(fleet.step_buffer.fields["rotor_wrench"][0, 0] * rotation[:, 2] - weight)  # true c_t
+        thrust = fleet.step_buffer.fields["rotor_wrench"][0, 0]  # the true rotors' c_t
+        rows["fne"].append(thrust * rotation[:, 2] - weight)
         rows["w"].append(info["wrench_true"])
         rows["w_hat"].append(info["wrench_est"])
         rows["contact"].append(fleet.contact_force[0].copy())
