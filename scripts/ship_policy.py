@@ -6,7 +6,8 @@ Copies the run's ``config.yaml`` (``init_from`` and ``teacher`` as paths relativ
 never this machine's), ``commit.txt``, ``curve.csv`` and its kept model (``best/``, else ``final/``) into
 ``quad_wrench_env/agents/policies/NAME/`` and writes ``metrics.md``: which run it is, its budget, its
 selection score and its held-out numbers in the study (``results.csv``: the run's mean over the held-out
-seeds per case and metric). The policy then flies by name with the env settings it was trained with.
+seeds per case and metric, beside the arm's and the study's classical agents' on the same seeds). The
+policy then flies by name with the env settings it was trained with.
 """
 
 from __future__ import annotations
@@ -59,7 +60,10 @@ def main() -> None:
     with (run / "curve.csv").open() as handle:
         last = list(csv.DictReader(handle))[-1]
     with (folder / "results.csv").open() as handle:
-        rows = [r for r in csv.DictReader(handle) if r["agent"] == args.arm]
+        results = list(csv.DictReader(handle))
+    rows = [r for r in results if r["agent"] == args.arm]
+    classical = {(r["case"], r["metric"], r["agent"]): r for r in results if r["kind"] == "classical"}
+    baselines = list(dict.fromkeys(agent for _, _, agent in classical))
     position = config.seeds.index(seed)
     lines = [
         f"# {args.name}",
@@ -73,16 +77,21 @@ def main() -> None:
         + ", ".join(f"seed {s}: {v:.4g}" for s, v in scores.items())
         + f'. By name it flies with the env settings it was trained with (`make_agent("{args.name}")`).',
         "",
-        "Its mean over the study's held-out seeds per case (the arm's spread across training seeds is in "
-        "docs/results.md):",
+        "Its mean over the study's held-out seeds per case beside the arm's (mean ± sd across training "
+        "seeds) and the study's classical agents' on the same seeds (mean ± sd over the seeds):",
         "",
-        "| case | metric | this run | the arm, mean ± sd across training seeds |",
-        "|---|---|---|---|",
+        "| case | metric | this run | the arm, mean ± sd across training seeds | "
+        + " | ".join(baselines)
+        + " |",
+        "|---|---|---|---|" + "---|" * len(baselines),
     ]
     for r in rows:
         value = float(r["values"].split(";")[position])
+        beside = [classical[(r["case"], r["metric"], agent)] for agent in baselines]
         lines.append(
-            f"| {r['case']} | {r['metric']} | {value:.4g} | {float(r['mean']):.4g} ± {float(r['sd']):.2g} |"
+            f"| {r['case']} | {r['metric']} | {value:.4g} | {float(r['mean']):.4g} ± {float(r['sd']):.2g} | "
+            + " | ".join(f"{float(b['mean']):.4g} ± {float(b['sd']):.2g}" for b in beside)
+            + " |"
         )
     (target / "metrics.md").write_text("\n".join(lines) + "\n")
     print(f"shipped {args.arm!r} seed {seed} as {target}")
