@@ -968,6 +968,18 @@ MUTATIONS = (
         ("tests/test_task_records.py",),
     ),
     Mutation(
+        "bench: the env's own Python counts the info's time again",
+        "engine",
+        (
+            (
+                "quad_wrench_env/bench.py",
+                '    parts[STEP_PARTS[14]] = whole - simulation - parts.get("policy: info", 0.0)',
+                "    parts[STEP_PARTS[14]] = whole - simulation",
+            ),
+        ),
+        ("tests/test_bench.py",),
+    ),
+    Mutation(
         "step buffer: the air region laid out before the drag points",
         "engine",
         (
