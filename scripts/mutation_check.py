@@ -619,8 +619,8 @@ MUTATIONS = (
         (
             (
                 "quad_wrench_env/tasks/fan_tracking.py",
-                '"standoff": terms.linear_cost(',
-                '"standoff": -terms.linear_cost(',
+                "        out[1, n] = terms.linear_cost(",
+                "        out[1, n] = -terms.linear_cost(",
             ),
         ),
         ("tests/test_fan_tracking_task.py", "tests/test_reference_task.py"),
@@ -794,13 +794,13 @@ MUTATIONS = (
         ("tests/test_reward_terms_by_hand.py",),
     ),
     Mutation(
-        "the shared effort term summed, not averaged (DisturbanceRejection, ForceExertion)",
+        "the shared effort term summed, not averaged (every task)",
         "rewards",
         (
             (
                 "quad_wrench_env/tasks/terms.py",
-                "return -weight * (np.add.reduce(actions * actions, axis=1) / actions.shape[1])",
-                "return -weight * np.add.reduce(actions * actions, axis=1)",
+                "    return -weight * (total / action.shape[0])",
+                "    return -weight * total",
             ),
         ),
         ("tests/test_reward_terms_by_hand.py",),

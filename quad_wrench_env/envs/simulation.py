@@ -15,10 +15,10 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from functools import reduce
 from typing import Any, NamedTuple
 
 import numpy as np
+from numba import literal_unroll
 
 from quad_wrench_env.control.residual import ResidualActions
 from quad_wrench_env.engine.actions import RESIDUAL
@@ -27,6 +27,7 @@ from quad_wrench_env.engine.fleet import ENGINE_TERMINATIONS, Fleet
 from quad_wrench_env.engine.fleet_view import FleetView
 from quad_wrench_env.engine.kernels import MOTION_READING_WIDTH, SENSOR_READING_WIDTH
 from quad_wrench_env.engine.observation import ObservationHistory, ObservationLayout
+from quad_wrench_env.numerics import njit
 from quad_wrench_env.tasks.base import Task
 from quad_wrench_env.vehicle import make_vehicle
 
@@ -36,11 +37,30 @@ def termination_reasons(task: Task) -> tuple[str, ...]:
     return ("", *ENGINE_TERMINATIONS, *task.termination_reasons)
 
 
-def termination_codes(engine: np.ndarray, own: np.ndarray | None) -> np.ndarray:
-    """(N,) codes into :func:`termination_reasons`: the ``engine``'s first, then the task's ``own``."""
-    if own is None:
-        return engine
-    return np.where((engine == 0) & (own > 0), len(ENGINE_TERMINATIONS) + own, engine)
+@njit
+def step_outcome(engine, own, steps, max_steps, terms, rewards, codes, terminated, truncated):
+    """Each vehicle's outcome of a control step into the last four (N,) arrays: ``steps`` counted one up,
+    the reward ``((0 + t₀) + t₁) + …`` of the task's ``terms`` in order, the termination code (the
+    ``engine``'s first, then the task's ``own`` (empty: none) after the engine's), ``terminated``
+    (a code) and ``truncated`` (no code, ``steps`` reached ``max_steps``)."""
+    for n in range(engine.shape[0]):
+        steps[n] += 1
+        total = 0.0
+        for term in literal_unroll(terms):
+            total += term[n]
+        rewards[n] = total
+        code = engine[n]
+        if code == 0 and own.shape[0] > 0 and own[n] > 0:
+            code = _FIRST_OWN + own[n]
+        codes[n] = code
+        terminated[n] = code > 0
+        truncated[n] = code == 0 and steps[n] >= max_steps
+
+
+_FIRST_OWN = len(ENGINE_TERMINATIONS)
+"""A task's own code ``k`` is ``_FIRST_OWN + k`` among :func:`termination_reasons`."""
+_NO_CODES = np.zeros(0, dtype=np.int64)
+"""A task's own codes when it has none."""
 
 
 def observations(
@@ -179,17 +199,26 @@ class Simulation:
         the ``residual`` action type, the correction to its base controller's action)."""
         fleet = self.fleet
         fleet.step(actions if self.residual is None else self.residual.flown(self.observations, actions))
-        self.steps += 1
         self.last_actions = actions
         self.view = view = fleet.view()
         engine = fleet.terminations()
         record = self.task.step(view, actions, engine > 0)
         self.task_info = record.info
-        codes = termination_codes(engine, record.codes)
-        terminated = codes > 0
         terms = record.reward_terms
-        rewards = reduce(np.add, terms.values(), 0.0)  # np.sum(..., axis=0)'s numbers, no stacking
-        truncated = ~terminated & (self.steps >= self.max_steps)
+        rewards, codes = np.empty(self.count), np.empty(self.count, dtype=np.int64)
+        terminated, truncated = np.empty(self.count, dtype=bool), np.empty(self.count, dtype=bool)
+        own = _NO_CODES if record.codes is None else record.codes
+        step_outcome(
+            engine,
+            own,
+            self.steps,
+            self.max_steps,
+            tuple(terms.values()),
+            rewards,
+            codes,
+            terminated,
+            truncated,
+        )
         observations = self._observe(record.blocks, slice(None))
         return StepResult(observations, terms, rewards, codes, terminated, truncated, record.info)
 
@@ -198,7 +227,10 @@ class Simulation:
         recorded), as it was for the others."""
         fresh = observations(self.fleet, self.view, blocks, self.last_actions)
         self.history.record(fresh, index)
-        self.observations[index] = fresh[index]
+        if isinstance(index, slice):  # every vehicle
+            self.observations = fresh
+        else:
+            self.observations[index] = fresh[index]
         return self.observations.copy()
 
     def info(self, vehicle: int | None = None) -> dict[str, Any]:

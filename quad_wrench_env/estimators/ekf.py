@@ -43,8 +43,8 @@ from quad_wrench_env.estimators.ekf_kernel import (
 )
 from quad_wrench_env.estimators.noise import (
     EKFNoise,
+    add_rotor_spread,
     rotor_spread_body,
-    rotor_spread_covariance,
     walk_matrices,
 )
 from quad_wrench_env.rotations import euler_zyx_from_quat, quat_from_euler_zyx
@@ -157,7 +157,8 @@ class ExtendedFilterBank(FilterBank):
         (:func:`~quad_wrench_env.estimators.noise.rotor_spread_covariance`)."""
         out = np.empty((self.count, 6, 6))
         ekf_wrench_covariances(self.x, self.P, out)
-        return out + rotor_spread_covariance(self._rotor_spread, self.quaternions())
+        add_rotor_spread(self._rotor_spread, self.quaternions(), out)
+        return out
 
     def states(self) -> np.ndarray:
         """(N, 13) estimated position, velocity, quaternion and body rates."""

@@ -157,17 +157,22 @@ def rotor_spread_covariance(body: np.ndarray, quaternions: np.ndarray) -> np.nda
     (:func:`rotor_spread_body`), for attitudes ``quaternions`` (N, 4) ``[w, x, y, z]``: ``J body Jᵀ`` with
     ``J = [R e_z, 0; 0, R]``. A filter sees the rotors' wrench as external; the env's ``wrench_true``
     leaves it out (it is the vehicle's own), so the covariance a filter reports for ``wrench_est -
-    wrench_true`` adds it: a consider covariance (Schmidt 1966: a parameter the filter does not estimate,
-    whose uncertainty it carries), exact at hover and a first-order one elsewhere."""
-    out = np.empty((len(quaternions), 6, 6))
-    _world_covariances(body, np.ascontiguousarray(quaternions, dtype=float), out)
+    wrench_true`` adds it (:func:`add_rotor_spread`): a consider covariance (Schmidt 1966: a parameter
+    the filter does not estimate, whose uncertainty it carries), exact at hover and a first-order one
+    elsewhere."""
+    out = np.zeros((len(quaternions), 6, 6))
+    add_rotor_spread(body, quaternions, out)
     return out
 
 
+def add_rotor_spread(body: np.ndarray, quaternions: np.ndarray, covariances: np.ndarray) -> None:
+    """Add :func:`rotor_spread_covariance` to a filter's own (N, 6, 6) wrench ``covariances``, in place."""
+    _add_world_covariances(body, np.ascontiguousarray(quaternions, dtype=float), covariances)
+
+
 @njit
-def _world_covariances(body, quaternions, out):
-    """``J body Jᵀ`` per vehicle into ``out`` (N, 6, 6), the upper triangle mirrored (symmetric to the
-    bit)."""
+def _add_world_covariances(body, quaternions, out):
+    """``J body Jᵀ`` per vehicle added to ``out`` (N, 6, 6), its upper triangle's sums mirrored."""
     rotation = np.empty((3, 3))
     jacobian = np.zeros((6, 4))
     for n in range(quaternions.shape[0]):
@@ -183,8 +188,9 @@ def _world_covariances(body, quaternions, out):
                 for a in range(4):
                     for b in range(4):
                         total += jacobian[i, a] * body[a, b] * jacobian[j, b]
-                out[n, i, j] = total
-                out[n, j, i] = total
+                out[n, i, j] += total
+                if j != i:
+                    out[n, j, i] += total
 
 
 def walk_matrices(variances: np.ndarray) -> np.ndarray:

@@ -61,19 +61,22 @@ import numpy as np
 from quad_wrench_env.estimators.bank import BankOfOne, EstimatorInputs, FilterBank
 from quad_wrench_env.estimators.noise import (
     FilterNoise,
+    add_rotor_spread,
     mrp_std,
     rotor_spread_body,
-    rotor_spread_covariance,
     walk_matrices,
 )
-from quad_wrench_env.estimators.ukf_kernel import ukf_bank_step, ukf_constants, ukf_estimates
+from quad_wrench_env.estimators.ukf_kernel import (
+    ukf_bank_step,
+    ukf_constants,
+    ukf_estimates,
+    ukf_wrench_covariances,
+)
 from quad_wrench_env.numerics import COMPILED
 from quad_wrench_env.vehicle import GRAVITY, VehicleParams
 
 STATE_DIM = 18
 NOISE_DIM = 12
-_WRENCH_BLOCK = np.ix_(np.r_[15:18, 12:15], np.r_[15:18, 12:15])
-"""Error-state block of ``[f_e, τ_e]`` (the order of :class:`WrenchEstimate`'s covariance)."""
 
 
 class UnscentedFilterBank(FilterBank):
@@ -179,8 +182,10 @@ class UnscentedFilterBank(FilterBank):
         """(N, 6, 6) covariance of ``[f_e, τ_e]`` about the external wrench: the filter's own, plus the
         rotors' thrust-coefficient spread it cannot tell from an external wrench
         (:func:`~quad_wrench_env.estimators.noise.rotor_spread_covariance`)."""
-        spread = rotor_spread_covariance(self._rotor_spread, self.quaternions)
-        return self.covariances[:, _WRENCH_BLOCK[0], _WRENCH_BLOCK[1]] + spread
+        out = np.empty((self.count, 6, 6))
+        ukf_wrench_covariances(self.covariances, out)
+        add_rotor_spread(self._rotor_spread, self.quaternions, out)
+        return out
 
     def statuses(self) -> list[str]:
         return ["ok" if k == 0 else "reinitialised" for k in self.reinitialisations.tolist()]

@@ -318,3 +318,13 @@ def ukf_estimates(quaternions, rests, states, wrenches):
             wrenches[n, i], wrenches[n, 3 + i] = rests[n, 12 + i], rests[n, 9 + i]
         for i in range(4):
             states[n, 6 + i] = quaternions[n, i]
+
+
+@njit
+def ukf_wrench_covariances(covariances, out):
+    """Each filter's covariance of ``[f_e, τ_e]`` (error states 15-17, 12-14) into ``out`` (N, 6, 6)."""
+    for n in range(covariances.shape[0]):
+        for i in range(6):
+            a = 15 + i if i < 3 else 9 + i
+            for j in range(6):
+                out[n, i, j] = covariances[n, a, 15 + j if j < 3 else 9 + j]

@@ -578,8 +578,8 @@ class DisturbanceRejection(TaskDefaults):
             reward_terms = {
                 "tracking": terms.saturating_cost(error, r.tracking_cap, r.tracking_scale),
                 "alive": terms.alive(ended, r.tracking_cap),
-                "effort": terms.effort(actions, r.effort_weight),
-                "crash": terms.crash(ended, r.crash_penalty),
+                "effort": terms.efforts(actions, r.effort_weight),
+                "crash": terms.crashes(ended, r.crash_penalty),
             }
         info = {"reference_position": position, "reference_velocity": velocity, "tracking_error": error}
         return TaskRecord(reward_terms, blocks=self._blocks(view, position, velocity), info=info)

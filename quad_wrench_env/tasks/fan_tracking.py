@@ -265,6 +265,8 @@ class FanTracking(TaskDefaults):
         self.vehicle = vehicle
         self.fan = FanJet(cfg.fan, count)
         self._jet = self.fan.kernel_parameters()
+        r = cfg.reward
+        self._weights = np.array((r.axis_scale, r.standoff_weight, r.effort_weight, r.crash_penalty))
 
     def components(self) -> Components:
         """The fan's jet (switched off with ``fan.enabled=False``, it still takes its draws)."""
@@ -312,17 +314,14 @@ class FanTracking(TaskDefaults):
         return TaskRecord({}, info=self._info(self._geometry(view)))
 
     def step(self, view: FleetView, actions: np.ndarray, ended: np.ndarray) -> TaskRecord:
-        """The terms of the module docstring: ``tracking = exp(-d/axis_scale)`` of the distance ``d``
-        from the jet's axis, ``standoff = -standoff_weight·|x - x_ref|``, ``effort``, ``crash``."""
-        r = self.cfg.reward
-        geometry = self._geometry(view)
-        reward_terms = {
-            "tracking": terms.closeness(geometry[:, DISTANCE], r.axis_scale),
-            "standoff": terms.linear_cost(geometry[:, STANDOFF_ERROR], r.standoff_weight),
-            "effort": terms.effort(actions, r.effort_weight),
-            "crash": terms.crash(ended, r.crash_penalty),
-        }
-        return TaskRecord(reward_terms, info=self._info(geometry))
+        """The terms of the module docstring (:func:`fan_tracking_step`)."""
+        geometry, rewards = np.empty((view.count, FAN_TRACKING_GEOMETRY)), np.empty((4, view.count))
+        position, time = view.state.position, view.time
+        tables, standoff = self.fan.motion_tables, self.cfg.standoff_distance
+        fan_tracking_step(
+            position, time, tables, self._jet, standoff, actions, ended, self._weights, geometry, rewards
+        )
+        return TaskRecord(dict(zip(REWARD_TERMS, rewards, strict=True)), info=self._info(geometry))
 
     def _geometry(self, view: FleetView) -> np.ndarray:
         """(N, 7) :func:`fan_tracking_geometry` of the vehicles now."""
@@ -371,6 +370,25 @@ class FanTracking(TaskDefaults):
 FAN_TRACKING_GEOMETRY = 7
 """Columns of :func:`fan_tracking_geometry`'s output, named below."""
 DISTANCE, AXIS_ERROR, AXIS_Y, FAN_POSITION, STANDOFF_ERROR = 0, 1, 2, slice(3, 6), 6
+REWARD_TERMS = ("tracking", "standoff", "effort", "crash")
+"""The rows of :func:`fan_tracking_step`'s reward terms."""
+
+
+@njit
+def fan_tracking_step(
+    position, time, motion_tables, fan, standoff_distance, actions, ended, weights, geometry, out
+):
+    """Each vehicle's :func:`fan_tracking_geometry` into ``geometry`` (N, 7) and its reward terms into the
+    rows of ``out`` (4, N), :data:`REWARD_TERMS`: ``tracking = exp(-d/axis_scale)`` of the distance ``d``
+    from the jet's axis, ``standoff = -standoff_weight·|x - x_ref|``, ``effort`` of its action (N, 4)
+    and ``crash`` where ``ended`` (N,); ``weights``: ``(axis_scale, standoff_weight, effort_weight,
+    crash_penalty)``."""
+    fan_tracking_geometry(position, time, motion_tables, fan, standoff_distance, geometry)
+    for n in range(position.shape[0]):
+        out[0, n] = terms.closeness(geometry[n, DISTANCE], weights[0])
+        out[1, n] = terms.linear_cost(geometry[n, STANDOFF_ERROR], weights[1])
+        out[2, n] = terms.effort(actions[n], weights[2])
+        out[3, n] = terms.crash(ended[n], weights[3])
 
 
 @njit

@@ -234,8 +234,8 @@ class ForceExertion(TaskDefaults):
         reward_terms = {
             "contact": terms.capped_cost(np.linalg.norm(exerted - self.target_force, axis=1), r.contact_cap),
             "alive": terms.alive(ended, r.contact_cap),
-            "effort": terms.effort(actions, r.effort_weight),
-            "crash": terms.crash(ended, r.crash_penalty),
+            "effort": terms.efforts(actions, r.effort_weight),
+            "crash": terms.crashes(ended, r.crash_penalty),
             "approach": approach,
         }
         return TaskRecord(reward_terms, blocks=self.target_force.copy(), info=self._info(view))

@@ -1,6 +1,6 @@
-"""Reward terms the tasks share, each a function of (N,) arrays that returns an (N,) term, with its
-weight from the task's reward config (in the spirit of Isaac Lab's reward terms). A task's reward is
-the sum of its terms, each reported in ``info["reward_terms"]``.
+"""Reward terms the tasks share, each with its weight from the task's reward config (in the spirit of
+Isaac Lab's reward terms). A task's reward is the sum of its terms, each reported in
+``info["reward_terms"]``.
 
 - :func:`capped_cost` or :func:`saturating_cost`, and :func:`alive` together: a cost ``-min(e, c)``
   or ``-c·(1 - exp(-e/s))`` and ``+c`` on every step that does not end the episode early, so a step
@@ -9,6 +9,12 @@ the sum of its terms, each reported in ``info["reward_terms"]``.
 - :func:`effort`: ``-w·mean(a²)`` over the action's components;
 - :func:`crash`: ``-penalty`` on the step that ends an episode early;
 - :func:`closeness` and :func:`linear_cost`: FanTracking's ``exp(-d/s)`` and ``-w·|e|``.
+
+:func:`effort`, :func:`crash`, :func:`closeness` and :func:`linear_cost` are compiled functions of one
+vehicle, for a task's compiled step to call (FanTracking's); :func:`efforts` and :func:`crashes` are
+them over every vehicle, for a task that composes its terms with NumPy. :func:`capped_cost`,
+:func:`saturating_cost` and :func:`alive` are NumPy functions of (N,) arrays (``saturating_cost``'s
+exponential is NumPy's, whose last bit differs from the C library's on some inputs).
 """
 
 from __future__ import annotations
@@ -37,30 +43,55 @@ def alive(ended: np.ndarray, cap: float) -> np.ndarray:
     return cap * (~ended)
 
 
-def effort(actions: np.ndarray, weight: float) -> np.ndarray:
-    """``-weight·mean(a²)`` of (N, 4) normalised actions."""
-    return -weight * (np.add.reduce(actions * actions, axis=1) / actions.shape[1])  # np.mean's numbers
+@njit(inline=True)
+def effort(action, weight):
+    """``-weight·mean(a²)`` of one vehicle's normalised action, its squares summed in order (NumPy's
+    mean of so few numbers)."""
+    total = 0.0
+    for a in action:
+        total += a * a
+    return -weight * (total / action.shape[0])
 
 
-def crash(ended: np.ndarray, penalty: float) -> np.ndarray:
-    """``-penalty`` where the episode ended early (``ended`` (N,) bool), else 0."""
-    return -penalty * ended  # a float array: -penalty, or -0.0
+@njit(inline=True)
+def crash(ended, penalty):
+    """``-penalty`` where the episode ended early, else ``-0.0``."""
+    return -penalty * (1.0 if ended else 0.0)
 
 
-def linear_cost(error: np.ndarray, weight: float) -> np.ndarray:
+@njit(inline=True)
+def linear_cost(error, weight):
     """``-weight·|error|``."""
-    return -weight * np.abs(error)
+    return -weight * abs(error)
 
 
-def closeness(distance: np.ndarray, scale: float) -> np.ndarray:
-    """``exp(-distance/scale)`` in (0, 1]: 1 at zero distance. Compiled, so that its exponential is
-    the C library's, as in the kernels (NumPy's vectorised one differs in the last bit on some inputs)."""
-    out = np.empty_like(distance)
-    _closeness(distance, scale, out)
+@njit(inline=True)
+def closeness(distance, scale):
+    """``exp(-distance/scale)`` in (0, 1]: 1 at zero distance."""
+    return math.exp(-distance / scale)
+
+
+def efforts(actions: np.ndarray, weight: float) -> np.ndarray:
+    """(N,) :func:`effort` of (N, 4) normalised actions."""
+    out = np.empty(actions.shape[0])
+    _efforts(actions, weight, out)
+    return out
+
+
+def crashes(ended: np.ndarray, penalty: float) -> np.ndarray:
+    """(N,) :func:`crash` of ``ended`` (N,) bool."""
+    out = np.empty(ended.shape[0])
+    _crashes(ended, penalty, out)
     return out
 
 
 @njit
-def _closeness(distance, scale, out):
-    for n in range(distance.shape[0]):
-        out[n] = math.exp(-distance[n] / scale)
+def _efforts(actions, weight, out):
+    for n in range(actions.shape[0]):
+        out[n] = effort(actions[n], weight)
+
+
+@njit
+def _crashes(ended, penalty, out):
+    for n in range(ended.shape[0]):
+        out[n] = crash(ended[n], penalty)
