@@ -197,7 +197,7 @@ STEP_PARTS = (
     "policy: engine terminations",
     "policy: task step (reward terms, codes, blocks, info)",
     "policy: observation",
-    "policy: the simulation's own Python (codes, reward sum, truncation)",
+    "policy: the simulation's own Python (the step's outcome kernel: counts, rewards, codes)",
     "policy: info",
     "policy: the env's own Python (checks, clip, restarts, info dict)",
 )

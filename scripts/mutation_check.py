@@ -1020,6 +1020,30 @@ MUTATIONS = (
             "tests/test_determinism.py",
         ),
     ),
+    Mutation(
+        "step outcome: an episode that ended early also counted as truncated",
+        "terminations",
+        (
+            (
+                "quad_wrench_env/envs/simulation.py",
+                "        truncated[n] = code == 0 and steps[n] >= max_steps",
+                "        truncated[n] = steps[n] >= max_steps",
+            ),
+        ),
+        ("tests/test_task_records.py", "tests/test_env_api.py"),
+    ),
+    Mutation(
+        "UKF's reported covariance: the torque's rows where the force's belong",
+        "ukf",
+        (
+            (
+                "quad_wrench_env/estimators/ukf_kernel.py",
+                "            a = 15 + i if i < 3 else 9 + i",
+                "            a = 12 + i",
+            ),
+        ),
+        ("tests/test_wrench_covariance.py", "tests/test_ukf.py"),
+    ),
 )
 
 

@@ -153,3 +153,32 @@ def test_the_fleets_view_refuses_writes():
         assert view.time[0] == pytest.approx(fleet.time[0]) and fleet.time[0] > 0.0
     finally:
         env.close()
+
+
+def test_a_steps_outcome_counts_sums_and_codes_each_vehicle():
+    """``step_outcome`` of four vehicles at step 9 of 10: one going on, one the engine ended (flip,
+    code 2, over the task's own), one the task ended (its code 1 after the engine's three), one
+    truncated at step 10; rewards summed in order from 0 (so -0.0 terms give +0.0, as NumPy's sum
+    of a start of 0.0)."""
+    from quad_wrench_env.envs.simulation import step_outcome
+
+    engine = np.array([0, 2, 0, 0])
+    own = np.array([0, 1, 1, 0])
+    steps = np.array([8, 8, 8, 9])
+    terms = (
+        np.array([1.0, 0.5, -0.0, 1e16]),
+        np.array([2.0, 0.25, -0.0, 1.0]),
+        np.array([-4.0, 0.0, -0.0, -1e16]),
+    )
+    rewards, codes = np.full(4, np.nan), np.full(4, -1)
+    terminated, truncated = np.zeros(4, dtype=bool), np.ones(4, dtype=bool)
+    step_outcome(engine, own, steps, 10, terms, rewards, codes, terminated, truncated)
+    np.testing.assert_array_equal(steps, [9, 9, 9, 10])
+    np.testing.assert_array_equal(rewards, [-1.0, 0.75, 0.0, 0.0])  # (1e16 + 1) - 1e16: in order
+    assert not np.signbit(rewards[2])
+    np.testing.assert_array_equal(codes, [0, 2, 4, 0])
+    np.testing.assert_array_equal(terminated, [False, True, True, False])
+    np.testing.assert_array_equal(truncated, [False, False, False, True])
+    step_outcome(engine, np.zeros(0, dtype=np.int64), steps, 10, terms, rewards, codes, terminated, truncated)
+    np.testing.assert_array_equal(codes, [0, 2, 0, 0])  # no codes of the task's own
+    np.testing.assert_array_equal(truncated, [True, False, True, True])  # at 10 or 11 of 10 steps, not ended

@@ -176,7 +176,7 @@ class QuadWrenchEnv(gym.Env, EzPickle):
                 "episode goes on past its end; call reset()"
             )
         result = self.simulation.step(clip_actions(action, (4,)).reshape(1, 4))
-        terminated, truncated = bool(result.terminated[0]), bool(result.truncated[0])
+        terminated, truncated = result.terminated.item(0), result.truncated.item(0)
         self._ended = self._ended or terminated or truncated
         info = self._info()
         info["reward_terms"] = {key: value.item(0) for key, value in result.reward_terms.items()}
@@ -184,7 +184,7 @@ class QuadWrenchEnv(gym.Env, EzPickle):
             info["termination_reason"] = self.termination_reasons[result.codes.item(0)]
         if self.render_mode == "human":
             self.render()
-        return result.observations[0], float(sum(info["reward_terms"].values())), terminated, truncated, info
+        return result.observations[0], result.rewards.item(0), terminated, truncated, info
 
     def render(self) -> np.ndarray | None:
         if self._closed:

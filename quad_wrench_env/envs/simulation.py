@@ -208,17 +208,8 @@ class Simulation:
         rewards, codes = np.empty(self.count), np.empty(self.count, dtype=np.int64)
         terminated, truncated = np.empty(self.count, dtype=bool), np.empty(self.count, dtype=bool)
         own = _NO_CODES if record.codes is None else record.codes
-        step_outcome(
-            engine,
-            own,
-            self.steps,
-            self.max_steps,
-            tuple(terms.values()),
-            rewards,
-            codes,
-            terminated,
-            truncated,
-        )
+        summed = tuple(terms.values()) or (np.zeros(self.count),)  # a task without terms: rewards of 0
+        step_outcome(engine, own, self.steps, self.max_steps, summed, rewards, codes, terminated, truncated)
         observations = self._observe(record.blocks, slice(None))
         return StepResult(observations, terms, rewards, codes, terminated, truncated, record.info)
 
