@@ -321,7 +321,9 @@ class FanTracking(TaskDefaults):
         fan_tracking_step(
             position, time, tables, self._jet, standoff, actions, ended, self._weights, geometry, rewards
         )
-        return TaskRecord(dict(zip(REWARD_TERMS, rewards, strict=True)), info=self._info(geometry))
+        return TaskRecord(
+            {name: rewards[k] for k, name in enumerate(REWARD_TERMS)}, info=self._info(geometry)
+        )
 
     def _geometry(self, view: FleetView) -> np.ndarray:
         """(N, 7) :func:`fan_tracking_geometry` of the vehicles now."""
