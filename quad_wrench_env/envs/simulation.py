@@ -106,11 +106,13 @@ def info_entries(
         "velocity": state.velocity,
         "wrench_true": view.wrench_true,
         "wrench_est": view.wrench_est,
-        **({} if math.isnan(covariance[0, 0, 0]) else {"wrench_cov": covariance}),
-        "wind_velocity": fleet.wind_velocity,
-        **({"contacts": fleet.world.touches()} if fleet.world.reported_parts else {}),
-        **task_info,
     }
+    if not math.isnan(covariance[0, 0, 0]):
+        entries["wrench_cov"] = covariance
+    entries["wind_velocity"] = fleet.wind_velocity
+    if fleet.world.reported_parts:
+        entries["contacts"] = fleet.world.touches()
+    entries.update(task_info)
     statuses = fleet.estimator.statuses()
     if vehicle is None:
         info = {key: value.copy() for key, value in entries.items()}

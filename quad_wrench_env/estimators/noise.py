@@ -167,11 +167,11 @@ def rotor_spread_covariance(body: np.ndarray, quaternions: np.ndarray) -> np.nda
 
 def add_rotor_spread(body: np.ndarray, quaternions: np.ndarray, covariances: np.ndarray) -> None:
     """Add :func:`rotor_spread_covariance` to a filter's own (N, 6, 6) wrench ``covariances``, in place."""
-    _add_world_covariances(body, np.ascontiguousarray(quaternions, dtype=float), covariances)
+    add_world_covariances(body, np.ascontiguousarray(quaternions, dtype=float), covariances)
 
 
 @njit
-def _add_world_covariances(body, quaternions, out):
+def add_world_covariances(body, quaternions, out):
     """``J body Jᵀ`` per vehicle added to ``out`` (N, 6, 6), its upper triangle's sums mirrored."""
     rotation = np.empty((3, 3))
     jacobian = np.zeros((6, 4))

@@ -61,7 +61,6 @@ import numpy as np
 from quad_wrench_env.estimators.bank import BankOfOne, EstimatorInputs, FilterBank
 from quad_wrench_env.estimators.noise import (
     FilterNoise,
-    add_rotor_spread,
     mrp_std,
     rotor_spread_body,
     walk_matrices,
@@ -183,8 +182,7 @@ class UnscentedFilterBank(FilterBank):
         rotors' thrust-coefficient spread it cannot tell from an external wrench
         (:func:`~quad_wrench_env.estimators.noise.rotor_spread_covariance`)."""
         out = np.empty((self.count, 6, 6))
-        ukf_wrench_covariances(self.covariances, out)
-        add_rotor_spread(self._rotor_spread, self.quaternions, out)
+        ukf_wrench_covariances(self.covariances, self.quaternions, self._rotor_spread, out)
         return out
 
     def statuses(self) -> list[str]:

@@ -24,6 +24,7 @@ import math
 
 import numpy as np
 
+from quad_wrench_env.estimators.noise import add_world_covariances
 from quad_wrench_env.estimators.walks import match_walks, start_walks, walk_noise
 from quad_wrench_env.numerics import njit
 from quad_wrench_env.numerics.linalg import (
@@ -321,10 +322,13 @@ def ukf_estimates(quaternions, rests, states, wrenches):
 
 
 @njit
-def ukf_wrench_covariances(covariances, out):
-    """Each filter's covariance of ``[f_e, τ_e]`` (error states 15-17, 12-14) into ``out`` (N, 6, 6)."""
+def ukf_wrench_covariances(covariances, quaternions, spread, out):
+    """Each filter's covariance of ``[f_e, τ_e]`` (error states 15-17, 12-14) into ``out`` (N, 6, 6), plus
+    the rotors' ``spread`` (:func:`~quad_wrench_env.estimators.noise.rotor_spread_covariance`) at its
+    attitude ``quaternions`` (N, 4)."""
     for n in range(covariances.shape[0]):
         for i in range(6):
             a = 15 + i if i < 3 else 9 + i
             for j in range(6):
                 out[n, i, j] = covariances[n, a, 15 + j if j < 3 else 9 + j]
+    add_world_covariances(spread, quaternions, out)
