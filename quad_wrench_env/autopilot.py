@@ -15,8 +15,8 @@ What PX4 is to the vehicle of Hentzen et al. 2019 and the AR.Drone firmware to t
 Gains follow from the vehicle: the rate-loop bandwidth is set by the motor time constant ``τ_m``
 (``k_rate = 0.7/τ_m`` gives a damping ratio of 0.6 for the loop ``k/(s(τ_m s + 1))``; the integrator,
 ``0.1·k²``, puts the PI's zero a decade below the crossover and holds a constant torque disturbance
-such as a mass hung under one rotor within ~1/(0.1·k) s; at ``0.6·k²``, as before, the zero sat at the
-crossover and the attitude loop on top rang with a damping ratio of 0.025), bounded by the
+such as a mass hung under one rotor within ~1/(0.1·k) s; at ``0.6·k²`` the zero would sit at the
+crossover and the attitude loop on top ring with a damping ratio of 0.025), bounded by the
 torque authority α (``VehicleParams.max_angular_acceleration``): the largest rate step may ask for
 at most :data:`AUTHORITY_SHARE` of it, ``k_rate·max_rate <= share·α``, by a lower rate limit first
 (down to :data:`MIN_MAX_RATE`), then a lower gain (``yuksel1kg``: 9.4 instead of 35). Each outer loop

@@ -1,8 +1,8 @@
 """stable-baselines3's ``VecNormalize`` with its per-step work in one compiled call.
 
-``VecNormalize.step_wait`` spends about 4 µs per vehicle and step in some twenty small numpy calls
-(the running statistics of the observations and of the discounted returns, the scaling, a deep copy
-of the observations): 11-14 % of the vector env's own step here (``quad-wrench bench --training``).
+``VecNormalize.step_wait`` spends a noticeable share of the vector env's own step in some twenty small
+numpy calls (the running statistics of the observations and of the discounted returns, the scaling, a
+deep copy of the observations; docs/architecture.md, "Measurements behind the hot paths").
 :class:`CompiledVecNormalize` does the same arithmetic in the same order in one numba call per
 step, so it gives the same bits (``tests/test_normalize.py`` checks it against ``VecNormalize``
 itself), and it saves as ``VecNormalize`` does (same attributes); its ``load`` takes a

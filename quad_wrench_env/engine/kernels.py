@@ -62,7 +62,7 @@ STEP_FIELDS: tuple[tuple[str, int], ...] = (
 )
 """The engine's per-vehicle arrays (widths per vehicle), in the order :func:`step_views` cuts them out
 of one flat buffer of ``n`` vehicles (field ``k`` from ``n·start_k``): one array argument instead of
-twenty-four, as numba's cost per call grows with the number of array arguments (about 35 ns each).
+twenty-four, as numba's cost per call grows with the number of array arguments.
 The autopilot's and the rotors' state (yaw set-point to allocations) are views the fleet gives them;
 the components' own states follow at :data:`STEP_WIDTH`."""
 

@@ -2,8 +2,8 @@
 vehicles.
 
 Every PyBullet call passes ``physicsClientId``; the calls of every physics step (:meth:`World.step`,
-:meth:`World.read`) pass it as their last positional argument, which PyBullet parses about 0.13 µs
-faster per call than the keyword. :meth:`World.close` is guarded and idempotent. All
+:meth:`World.read`) pass it as their last positional argument, which PyBullet parses faster than the
+keyword. :meth:`World.close` is guarded and idempotent. All
 loads act on each body as one resultant force through its centre of mass and one torque, both in the
 world frame: callers sum forces applied at body points (``r × F``) before handing them over, which is
 exactly what PyBullet does with a force at a point, in one call instead of one per point.
@@ -17,8 +17,8 @@ residual summed over every contact of the world is small made one vehicle's cont
 on the others' contacts.
 Frames an arena apart (each vehicle shifted by its own origin) would cost each position the
 rounding of the shift's magnitude (1e-14 m at 10 m) and break that; coinciding vehicles cost
-Bullet's broadphase the pairs of overlapping bounding boxes it finds and then discards (about 0.5
-µs per body and physics step for 64 vehicles flying one task in one place). The body is built once
+Bullet's broadphase the pairs of overlapping bounding boxes it finds and then discards (a small cost
+per body and physics step: docs/architecture.md, "Measurements behind the hot paths"). The body is built once
 and later episodes put it back in place (``resetBasePositionAndOrientation`` and
 ``resetBaseVelocity`` fix every degree of freedom of a free body, so nothing of an earlier episode
 survives).
@@ -173,7 +173,7 @@ class World:
             physicsClientId=cid,
         )
         plane_shape = p.createCollisionShape(p.GEOM_PLANE, physicsClientId=cid)
-        # a static rigid body (maximal coordinates), not a fixed multibody: ~0.1 µs less per step
+        # a static rigid body (maximal coordinates), not a fixed multibody: less work per step
         self.plane = p.createMultiBody(0.0, plane_shape, useMaximalCoordinates=1, physicsClientId=cid)
         p.setCollisionFilterGroupMask(self.plane, -1, _GROUND_GROUP, _VEHICLE_GROUP, physicsClientId=cid)
         self._crash_bodies = [self.plane]
@@ -255,8 +255,8 @@ class World:
     def read_first(self) -> tuple[tuple, tuple]:
         """Vehicle 0's ``((position, quaternion (x, y, z, w)), (velocity, angular velocity))`` as
         PyBullet returns them. A world of one
-        vehicle hands them to the compiled step as they are, instead of :meth:`read_flat`'s row:
-        about 0.5 µs less per step, as Python builds no array."""
+        vehicle hands them to the compiled step as they are, instead of :meth:`read_flat`'s row, so
+        that Python builds no array."""
         body, cid = self.bodies[0], self.client
         return p.getBasePositionAndOrientation(body, cid), p.getBaseVelocity(body, cid)
 
@@ -290,7 +290,7 @@ class World:
 
     def step_one(self, force: tuple, torque: tuple, centre_of_mass: tuple) -> None:
         """:meth:`step` for a world of one vehicle, with its loads as the sequences PyBullet takes:
-        what the compiled step of a single env calls, about 0.4 µs less than :meth:`step` with arrays."""
+        what the compiled step of a single env calls, with no arrays to build."""
         if self.count != 1:
             raise ValueError(f"step_one steps a world of one vehicle; this world has {self.count}")
         cid = self.client

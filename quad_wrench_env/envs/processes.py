@@ -17,8 +17,9 @@ options (the same bits in a vector env of any size, ``tests/test_determinism.py`
 env gives every vehicle exactly the numbers of one :class:`QuadWrenchVectorEnv` of ``num_envs``
 vehicles, and a training run the same model.
 
-**The hand-off.** A pipe costs 140-300 µs per round trip on a virtual machine (the idle side's
-core sleeps, and waking it goes through the hypervisor): as much as stepping 8 vehicles. Steps
+**The hand-off.** A pipe's round trip on a virtual machine costs as much as stepping several
+vehicles (the idle side's core sleeps, and waking it goes through the hypervisor; docs/architecture.md,
+"Measurements behind the hot paths"). Steps
 therefore go through shared memory: the actions and each step's arrays (laid out after the
 worker's first step, which comes through the pipe) and two sequence numbers, which each side
 watches in a busy loop while it waits. A worker waits that way for :data:`SPIN_SECONDS` and then

@@ -113,8 +113,8 @@ class FilterBank:
         """:meth:`step` on these input arrays, as a call without arguments that reads them afresh
         each time (the caller refills them in place). The kernel, compiled for these arguments'
         types, and its arguments, the bank's state arrays among them, are bound once
-        (:func:`~quad_wrench_env.numerics.bind`; the kernel updates them in place): about 0.5 µs less
-        per step than :meth:`step`."""
+        (:func:`~quad_wrench_env.numerics.bind`; the kernel updates them in place), which :meth:`step`
+        does on every call."""
         kernel, arguments = self._kernel(_kernel_inputs(inputs))
         kernel_step = bind(kernel, *arguments)
 

@@ -3,7 +3,7 @@
 The same filter as :func:`~quad_wrench_env.estimators.ukf_kernel.ukf_bank_step`, with the same shortcuts
 (see that module's docstring), written on :mod:`~quad_wrench_env.numerics.lanes`: every number of
 the step is a value of eight lanes, one lane per filter, so each arithmetic step runs on eight
-filters at once. About 3x fewer µs per filter than the filter-by-filter kernel in a bank of 64
+filters at once: faster per filter than the filter-by-filter kernel in a large bank
 (``python scripts/bench_estimators.py``), but a block costs as much as eight filters, so
 :class:`~quad_wrench_env.estimators.ukf.UnscentedFilterBank` runs banks of fewer than
 :data:`LANES_FROM` filters filter by filter.
@@ -48,8 +48,8 @@ from quad_wrench_env.numerics.quaternions import (
 )
 
 LANES_FROM = 3
-"""Smallest bank that runs on lanes: a block of eight costs about 7 µs; filter by filter
-(``ukf_bank_step``) one filter costs 3.9 µs, two 6.2 µs and three 8.5 µs (AMD EPYC, AVX-512)."""
+"""Smallest bank that runs on lanes: from three filters a block of eight costs less than filter by filter
+(``ukf_bank_step``; docs/architecture.md, "Measurements behind the hot paths")."""
 
 _ALL = (1 << WIDTH) - 1
 

@@ -49,8 +49,7 @@ def walk_noise(walks, block, i, j, defaults, adaptation):
     """Entry ``(i, j)`` of the matched walk covariance a filter adds to its ``block`` (0 force, 1 torque)
     this step: the walks' entry and the floor ``floor² q₀`` on the diagonal, so that no
     direction's walk falls below the floor's fraction of its default sd ``q₀`` (``defaults``, force then
-    torque variances). Fixed walks do not come here: the kernels add their constants' diagonal, as before
-    matched walks existed."""
+    torque variances). Fixed walks do not come here: the kernels add their constants' diagonal."""
     value = walks[block, i, j]
     if i == j:
         value += adaptation[2] * defaults[3 * block + i]

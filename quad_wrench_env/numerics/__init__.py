@@ -40,8 +40,8 @@ def njit(function=None, *, inline: bool = False):
 def specialised(kernel: Callable[..., Any], *arguments: Any) -> Callable[..., Any]:
     """``kernel``'s compiled form for the types of ``arguments`` (numba's ``Dispatcher.compile``,
     from the disk cache when there), to call with arguments of exactly those types: it skips the
-    dispatcher's typing of the arguments on every call (about 80 ns per call and 10 ns per array;
-    the unboxing, about 35 ns per array, remains: hence kernels with few array arguments).
+    dispatcher's typing of the arguments on every call (the unboxing of each array remains: hence
+    kernels with few array arguments).
     ``kernel`` itself under ``NUMBA_DISABLE_JIT=1``."""
     if not isinstance(kernel, _numba.core.registry.CPUDispatcher):
         return kernel

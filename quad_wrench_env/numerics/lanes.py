@@ -38,8 +38,8 @@ _VECTOR = ir.VectorType(ir.DoubleType(), WIDTH)
 @njit(inline=True)
 def empty(entries):
     """An uninitialised lane-layout array of ``entries`` entries, aligned to 64 bytes, so that no
-    lane value straddles two cache lines. numba aligns its arrays to 32 bytes only: on those the
-    lane UKF took 0.61-0.85 µs per filter from one process to the next, aligned 0.71-0.74 µs."""
+    lane value straddles two cache lines. numba aligns its arrays to 32 bytes only, on which the lane
+    UKF's speed varied from one process to the next."""
     buffer = np.empty((entries + 1) * WIDTH)
     start = (-(buffer.ctypes.data // 8)) % WIDTH
     return buffer[start : start + entries * WIDTH]

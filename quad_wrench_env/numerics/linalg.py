@@ -12,7 +12,7 @@ from quad_wrench_env.numerics import njit
 @njit(inline=True)
 def rows_view(array, start, n, width):
     """(n, width) view, rows in order, of the flat float ``array`` from ``start``: free where numba's
-    ``reshape`` costs a call (about 20 ns each, as much as a small kernel's arithmetic)."""
+    ``reshape`` costs a call (as much as a small kernel's arithmetic)."""
     return as_strided(array[start : start + n * width], shape=(n, width), strides=(8 * width, 8))
 
 
