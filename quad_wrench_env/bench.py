@@ -184,6 +184,12 @@ PHYSICS_PARTS = {
 """The compiled step's calls timed as parts of a physics step (attribute -> part), besides PyBullet's
 step (``World.step_one`` or ``World.step``)."""
 
+VIEW, TERMINATIONS = "policy: fleet view (estimates read)", "policy: engine terminations"
+TASK_STEP, OBSERVATION = "policy: task step (reward terms, codes, blocks, info)", "policy: observation"
+POLICY_CALLS = (VIEW, TERMINATIONS, TASK_STEP, OBSERVATION)
+"""The simulation's timed calls besides the physics."""
+SIMULATION_OWN = "policy: the simulation's own Python (the step's outcome kernel: counts, rewards, codes)"
+ENV_OWN = "policy: the env's own Python (checks, clip, restarts, info dict)"
 STEP_PARTS = (
     "physics: controls and disturbance loads (kernel)",
     "physics: PyBullet apply + step",
@@ -193,13 +199,10 @@ STEP_PARTS = (
     "physics: sensor block (kernel)",
     "physics: air at the centres of mass (kernel)",
     "physics: the loop's own Python",
-    "policy: fleet view (estimates read)",
-    "policy: engine terminations",
-    "policy: task step (reward terms, codes, blocks, info)",
-    "policy: observation",
-    "policy: the simulation's own Python (the step's outcome kernel: counts, rewards, codes)",
+    *POLICY_CALLS,
+    SIMULATION_OWN,
     "policy: info",
-    "policy: the env's own Python (checks, clip, restarts, info dict)",
+    ENV_OWN,
 )
 """The parts :func:`step_parts_seconds` reports, in order; they add up to a timed step."""
 
@@ -284,10 +287,10 @@ def _instrument(clock: _Clock, base: Any, info_name: str) -> None:
     for owner, name, part in (
         (base, info_name, "policy: info"),
         (simulation, "step", "simulation"),
-        (simulation, "_observe", "policy: observation"),
-        (simulation.task, "step", "policy: task step (reward terms, codes, blocks, info)"),
-        (fleet, "view", "policy: fleet view (estimates read)"),
-        (fleet, "terminations", "policy: engine terminations"),
+        (fleet, "view", VIEW),
+        (fleet, "terminations", TERMINATIONS),
+        (simulation.task, "step", TASK_STEP),
+        (simulation, "_observe", OBSERVATION),
         (world, "step_one", "physics: PyBullet apply + step"),
         (world, "step", "physics: PyBullet apply + step"),
         (compiled, "physics_steps", "physics loop"),
@@ -315,10 +318,9 @@ def _layers(spent: dict[str, float], whole: float) -> dict[str, float]:
     physics = [f"physics: {part}" for part in PHYSICS_PARTS.values()] + ["physics: PyBullet apply + step"]
     loop = parts.pop("physics loop", 0.0)
     parts["physics: the loop's own Python"] = loop - sum(parts.get(name, 0.0) for name in physics)
-    policy = STEP_PARTS[8:12]
     simulation = parts.pop("simulation", 0.0)
-    parts[STEP_PARTS[12]] = simulation - loop - sum(parts.get(name, 0.0) for name in policy)
-    parts[STEP_PARTS[14]] = whole - simulation - parts.get("policy: info", 0.0)
+    parts[SIMULATION_OWN] = simulation - loop - sum(parts.get(name, 0.0) for name in POLICY_CALLS)
+    parts[ENV_OWN] = whole - simulation - parts.get("policy: info", 0.0)
     return parts
 
 

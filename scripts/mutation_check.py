@@ -973,8 +973,8 @@ MUTATIONS = (
         (
             (
                 "quad_wrench_env/bench.py",
-                '    parts[STEP_PARTS[14]] = whole - simulation - parts.get("policy: info", 0.0)',
-                "    parts[STEP_PARTS[14]] = whole - simulation",
+                '    parts[ENV_OWN] = whole - simulation - parts.get("policy: info", 0.0)',
+                "    parts[ENV_OWN] = whole - simulation",
             ),
         ),
         ("tests/test_bench.py",),
