@@ -126,6 +126,14 @@ def test_a_vehicles_base_restarts_with_its_episode_and_leaves_the_others():
         ({**RESIDUAL, "residual": {"base": "pid", "scale": -0.2}}, "residual.scale=-0.2"),
         ({**RESIDUAL, "residual": {"base": "pid", "params": {"k_q": 1.0}}}, "residual.params.k_q"),
         ({"action_type": "steer"}, r"unknown action_type 'steer'; allowed: .*'residual'"),
+        (
+            {
+                **RESIDUAL,
+                "residual": {"base": "pid", "params": {"compensation": True}},
+                "observe_wrench": False,
+            },
+            r"residual.params.compensation=True with observe_wrench=False: .* would not\s+compensate",
+        ),
     ],
 )
 def test_a_residual_it_cannot_fly_is_refused_by_name(settings, message):

@@ -6,7 +6,7 @@ eq. (3), with its gains from ``residual.params``, as the ``pid`` agent takes the
 action type, ``a`` the policy's action in [-1, 1]⁴ and ``s`` = ``residual.scale``. At ``a = 0`` it flies
 exactly as the classical agent; the policy learns on top of a good controller (residual RL, Johannink et
 al. 2019; over a cascaded PID in wind, Ishihara et al. 2023). The base reads the observation's blocks, so
-with ``observe_wrench: false`` its compensation subtracts nothing.
+a compensating base needs ``observe_wrench`` (the env's config refuses the pair without it).
 """
 
 from __future__ import annotations
