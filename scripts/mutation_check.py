@@ -1021,6 +1021,18 @@ MUTATIONS = (
         ),
     ),
     Mutation(
+        "residual: the base reads the policy's observation, without the hidden wrench",
+        "actions",
+        (
+            (
+                "quad_wrench_env/envs/simulation.py",
+                "        if not self._wrench_hidden:\n            return self.observations",
+                "        if True:\n            return self.observations",
+            ),
+        ),
+        ("tests/test_residual.py",),
+    ),
+    Mutation(
         "step outcome: an episode that ended early also counted as truncated",
         "terminations",
         (

@@ -5,8 +5,8 @@ eq. (3), with its gains from ``residual.params``, as the ``pid`` agent takes the
 ``b`` from the observation the policy saw, and the vehicle flies ``clip(b + s·a, -1, 1)`` in the base's
 action type, ``a`` the policy's action in [-1, 1]⁴ and ``s`` = ``residual.scale``. At ``a = 0`` it flies
 exactly as the classical agent; the policy learns on top of a good controller (residual RL, Johannink et
-al. 2019; over a cascaded PID in wind, Ishihara et al. 2023). The base reads the observation's blocks, so
-a compensating base needs ``observe_wrench`` (the env's config refuses the pair without it).
+al. 2019; over a cascaded PID in wind, Ishihara et al. 2023). The base reads the observation's blocks and
+the estimated wrench even where ``observe_wrench: false`` leaves it out of the policy's observation.
 """
 
 from __future__ import annotations

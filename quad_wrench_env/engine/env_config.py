@@ -170,12 +170,6 @@ class EnvConfig:
             make_scene_part(spec, position)
         if not isinstance(self.observe_wrench, bool):
             raise ValueError(f"observe_wrench={self.observe_wrench!r} must be true or false")
-        if self.residual.params.get("compensation") is True and not self.observe_wrench:
-            raise ValueError(
-                "residual.params.compensation=True with observe_wrench=False: the base controller reads "
-                "the estimate from the observation, whose wrench is zeros without observe_wrench, so it "
-                "would not compensate; allowed: observe_wrench true, or residual.params.compensation false"
-            )
         if not (isinstance(self.history, int) and not isinstance(self.history, bool) and self.history >= 0):
             raise ValueError(f"history={self.history!r} must be an integer >= 0 (previous steps observed)")
         if not (

@@ -175,6 +175,8 @@ class Simulation:
                 fleet.action_scaling,
                 tilt,
             )
+        self._wrench_hidden = not cfg.observe_wrench
+        """The policy's observation leaves the wrench out: the residual's base reads it all the same."""
 
     def start(self, index: int, rng: np.random.Generator, options: Mapping[str, Any]) -> None:
         """Begin vehicle ``index``'s next episode with the (checked) task ``options``, its draws from
@@ -200,7 +202,9 @@ class Simulation:
         """Fly every vehicle one control step with its (N, 4) action, already clipped to [-1, 1] (with
         the ``residual`` action type, the correction to its base controller's action)."""
         fleet = self.fleet
-        fleet.step(actions if self.residual is None else self.residual.flown(self.observations, actions))
+        fleet.step(
+            actions if self.residual is None else self.residual.flown(self._base_observations(), actions)
+        )
         self.last_actions = actions
         self.view = view = fleet.view()
         engine = fleet.terminations()
@@ -214,6 +218,18 @@ class Simulation:
         step_outcome(engine, own, self.steps, self.max_steps, summed, rewards, codes, terminated, truncated)
         observations = self._observe(record.blocks, slice(None))
         return StepResult(observations, terms, rewards, codes, terminated, truncated, record.info)
+
+    def _base_observations(self) -> np.ndarray:
+        """What the residual's base controllers read: the observations, with the estimated wrench of
+        :attr:`view` even where the policy's observation leaves it out (the base runs on board, beside
+        the estimator; ``observe_wrench`` is the policy's)."""
+        if not self._wrench_hidden:
+            return self.observations
+        slices, wrench = self.fleet.layout.slices, self.view.wrench_est
+        observed = self.observations.copy()
+        observed[:, slices["force"]] = wrench[:, :3]
+        observed[:, slices["torque"]] = wrench[:, 3:]
+        return observed
 
     def _observe(self, blocks: np.ndarray | None, index: np.ndarray | slice) -> np.ndarray:
         """Every vehicle's observation: new for the vehicles ``index`` (their history filled and
