@@ -225,10 +225,8 @@ class Simulation:
         the estimator; ``observe_wrench`` is the policy's)."""
         if not self._wrench_hidden:
             return self.observations
-        slices, wrench = self.fleet.layout.slices, self.view.wrench_est
         observed = self.observations.copy()
-        observed[:, slices["force"]] = wrench[:, :3]
-        observed[:, slices["torque"]] = wrench[:, 3:]
+        observed[:, self.fleet.layout.slices["wrench"]] = self.view.wrench_est
         return observed
 
     def _observe(self, blocks: np.ndarray | None, index: np.ndarray | slice) -> np.ndarray:
