@@ -407,6 +407,33 @@ def controller_batch(base: str, params: dict[str, Any], count: int, env: Any) ->
     return controller
 
 
+def solver_profile(base: str, params: dict[str, Any], env: Any, observations: np.ndarray) -> dict[str, float]:
+    """What the OSQP problems of a fresh batch of the ``mpc`` controller did over recorded
+    ``observations`` (steps, count, width), over all vehicle-steps: OSQP's own solve time (s, mean),
+    the iterations (mean, median, max), the share of vehicle-steps solved in two stages (the soft
+    problem, then the hard one from it: :meth:`~quad_wrench_env.control.mpc_controller.PositionMPC.
+    solve_prepared`) and the share of all iterations spent in those."""
+    if base != "mpc":
+        raise ValueError(f"solver_profile reads OSQP's problems: base must be 'mpc', not {base!r}")
+    batch = controller_batch(base, params, observations.shape[1], env)
+    iterations, seconds, stages = [], [], []
+    for frame in observations:
+        batch.actions(frame)
+        for qp in batch.qps:
+            iterations.append(qp.iterations)
+            seconds.append(qp.solve_time)
+            stages.append(qp.stages)
+    counts, two = np.array(iterations), np.array(stages) == 2
+    return {
+        "solve_seconds": float(np.mean(seconds)),
+        "iterations_mean": float(counts.mean()),
+        "iterations_median": float(np.median(counts)),
+        "iterations_max": float(counts.max()),
+        "two_stage_share": float(two.mean()),
+        "two_stage_iteration_share": float(counts[two].sum() / counts.sum()),
+    }
+
+
 def controller_step_seconds(
     base: str, params: dict[str, Any], env: Any, observations: np.ndarray, batched: bool
 ) -> float:

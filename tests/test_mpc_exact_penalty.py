@@ -103,6 +103,7 @@ def test_with_the_derived_weights_the_soft_constraint_is_the_hard_one_where_that
     np.testing.assert_allclose(soft.predicted_inputs, hard.predicted_inputs, rtol=0, atol=1e-4)
 
     weak, weak_error = _solve(state, reference_velocity, linear=DERIVED / 10.0)  # the same: two stages
+    assert weak.stages == 2
     assert weak.slack_values.max() < TOL and weak_error.max() <= E_MAX + TOL
     np.testing.assert_allclose(weak.predicted_inputs, hard.predicted_inputs, rtol=0, atol=1e-4)
 
@@ -117,6 +118,7 @@ def test_where_the_hard_constraint_is_infeasible_the_soft_one_violates_it_as_lit
     exact-penalty weight never buys more violation)."""
     state = np.array((0.0, 0.0, 1.0, 0.0, 1.0, 0.0, 0.0, 0.0))
     soft, error = _solve(state)
+    assert soft.stages == 2  # the hard problem tried from the soft solution, and failed
     start = soft.A_d @ state + soft.c_d
     reach = soft.B_d[1] * np.vstack((soft.input_lower[:NU], soft.input_upper[:NU]))
     nearest = start[1] + reach.min(axis=0).sum()  # the smallest y_1 any input in its bounds reaches

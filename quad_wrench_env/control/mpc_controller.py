@@ -265,8 +265,9 @@ class PositionMPC:
     After :meth:`solve`: ``predicted_states`` (N+1, 8, row 0 the current state), ``predicted_inputs``
     (N, 3: thrust N, roll and pitch references rad), ``slack_values`` (N, zeros without slack),
     ``input_reference`` (N, 3), ``state_reference`` (N+1, 8), the model used (``A_d``, ``B_d``,
-    ``c_d``), ``status`` (OSQP's), ``iterations``, ``solve_time`` (s, OSQP's own) and ``total_time`` (s,
-    the whole call: linearisation, update and solve).
+    ``c_d``), ``status`` (OSQP's), ``iterations``, ``solve_time`` (s, OSQP's own), ``stages`` (the
+    problems solved: 1, or 2 where the soft solution used slack and the hard problem was solved from it)
+    and ``total_time`` (s, the whole call: linearisation, update and solve).
     """
 
     def __init__(
@@ -301,6 +302,7 @@ class PositionMPC:
         self.status = "unsolved"
         self.iterations = 0
         self.solve_time = 0.0
+        self.stages = 0
         self.total_time = 0.0
 
     # -- set-up ----------------------------------------------------------------------------------
@@ -495,9 +497,10 @@ class PositionMPC:
         # copies: osqp 1.1's binding reads a row of a 2-D array from the start of the array's buffer
         self.solver.update(q=data.q[index].copy(), l=lower, u=upper, Ax=data.matrix[index].copy())
         result = self.solver.solve(raise_error=False)
-        self.iterations, self.solve_time = result.info.iter, result.info.solve_time
+        self.iterations, self.solve_time, self.stages = result.info.iter, result.info.solve_time, 1
         if g.slack and result.x is not None and result.x[n * NX + NU :: nu].max() > SLACK_USED:
             result = self._hard_or(result, lower, upper)
+            self.stages = 2
         self.status = result.info.status
         z = result.x
         if z is None or not np.all(np.isfinite(z)):  # no solution: hold the equilibrium input
