@@ -176,7 +176,7 @@ def dump(path: Path) -> None:
     path.write_text(json.dumps(hashes, indent=1))
 
 
-def _checkout(revision: str | None, folder: Path) -> Path:
+def checkout(revision: str | None, folder: Path) -> Path:
     """The package of ``revision`` (the work tree when None) in ``folder``."""
     if revision is None:
         return ROOT
@@ -192,7 +192,7 @@ def compare(base: str, revision: str | None) -> int:
     results = {}
     with tempfile.TemporaryDirectory() as tmp:
         for label, rev in (("base", base), ("revision", revision)):
-            tree = _checkout(rev, Path(tmp) / label)
+            tree = checkout(rev, Path(tmp) / label)
             out = Path(tmp) / f"{label}.json"
             env = {**os.environ, "PYTHONPATH": str(tree)}
             script = ROOT / "scripts" / "same_numbers.py"
