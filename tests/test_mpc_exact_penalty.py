@@ -32,6 +32,11 @@ REFERENCE_TOLERANCE = 1e-9
 """OSQP's tolerance for the hard problem's reference solution: with the weight of 1e6 the problem is
 ill-conditioned, and at the default 1e-6 its thrusts near the edge of feasibility are off by 7 mN."""
 TOL = 1e-5
+INPUT_TOL = np.array((5e-3, 5e-4, 5e-4))
+"""How close two solutions of the same QP at OSQP's default tolerance (1e-6) come to the reference's
+inputs (thrust N, roll and pitch rad): cold-started near the edge of feasibility they are 2.4 mN and
+1.3e-4 rad off (0.03 % of the 7 N hover thrust, 0.008°); flying with slack moves them by orders more
+(the error through by millimetres, the tilt by 0.01 rad)."""
 
 
 def _solve(
@@ -78,8 +83,9 @@ def test_with_the_derived_weights_the_soft_constraint_is_the_hard_one_where_that
     the error stays within e_max and the inputs are the hard problem's; so with a linear weight a tenth
     of the derived one (below the multiplier of the first two cases, ~350 and ~550, through which a
     single soft solve let the error through by over a millimetre): the MPC solves the hard problem
-    where the soft one used slack. Near the edge (the third case) the multiplier exceeds any fixed
-    weight derived from the costs: a single solve with the derived weight used 4.9 mm of slack."""
+    first and flies it wherever OSQP solves it. Near the edge (the third case) the multiplier exceeds
+    any fixed weight derived from the costs: a single soft solve with the derived weight used 4.9 mm of
+    slack."""
     state, reference_velocity = FEASIBLE[case]
     _, free = _solve(state, reference_velocity, slack=False)
     assert free.max() > E_MAX + 2e-3  # the constraint is active
@@ -100,12 +106,12 @@ def test_with_the_derived_weights_the_soft_constraint_is_the_hard_one_where_that
         f"slack used where the hard constraint is feasible: {soft.slack_values}"
     )
     assert error.max() <= E_MAX + TOL
-    np.testing.assert_allclose(soft.predicted_inputs, hard.predicted_inputs, rtol=0, atol=1e-4)
+    assert np.all(np.abs(soft.predicted_inputs - hard.predicted_inputs) <= INPUT_TOL)
 
-    weak, weak_error = _solve(state, reference_velocity, linear=DERIVED / 10.0)  # the same: two stages
-    assert weak.stages == 2
+    weak, weak_error = _solve(state, reference_velocity, linear=DERIVED / 10.0)  # the hard problem
+    assert weak.stages == 1
     assert weak.slack_values.max() < TOL and weak_error.max() <= E_MAX + TOL
-    np.testing.assert_allclose(weak.predicted_inputs, hard.predicted_inputs, rtol=0, atol=1e-4)
+    assert np.all(np.abs(weak.predicted_inputs - hard.predicted_inputs) <= INPUT_TOL)
 
 
 def test_where_the_hard_constraint_is_infeasible_the_soft_one_violates_it_as_little_as_it_must():
@@ -118,7 +124,7 @@ def test_where_the_hard_constraint_is_infeasible_the_soft_one_violates_it_as_lit
     exact-penalty weight never buys more violation)."""
     state = np.array((0.0, 0.0, 1.0, 0.0, 1.0, 0.0, 0.0, 0.0))
     soft, error = _solve(state)
-    assert soft.stages == 2  # the hard problem tried from the soft solution, and failed
+    assert soft.stages == 2  # the hard problem tried first, and not solved
     start = soft.A_d @ state + soft.c_d
     reach = soft.B_d[1] * np.vstack((soft.input_lower[:NU], soft.input_upper[:NU]))
     nearest = start[1] + reach.min(axis=0).sum()  # the smallest y_1 any input in its bounds reaches

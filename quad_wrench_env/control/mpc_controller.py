@@ -27,9 +27,9 @@ give the reference acceleration against gravity and, with ``compensation``, agai
 its tilt. Soft constraint (Sec. IV-D c)): ``|p_x - p_r,x|, |p_y - p_r,y| <= e_max + ε_k``, ``ε_k >= 0`` on
 every predicted state, with the cost ``w_1·ε + w_2·ε²``. The linear term makes the penalty exact only
 where ``w_1`` exceeds the hard constraint's multiplier, which grows without bound towards the edge of
-feasibility; so where the soft solution uses slack, the hard problem (every ``ε`` bounded to 0) is
-solved from it, and its solution is flown where OSQP solves it: no slack is used while the constraint
-can be met, up to its edge.
+feasibility; so the hard problem (every ``ε`` bounded to 0) is solved first and flown where OSQP
+solves it, the soft one only where it does not (the constraint cannot be met): no slack is used while
+the constraint can be met, up to its edge.
 
 The input reference beyond the tilt limit puts the vertical channel first (roll and pitch clipped, the
 thrust whose vertical part balances): an input reference of the unclipped thrust ``|F|`` would pull
@@ -77,9 +77,6 @@ attitude, v from v and the attitude, each attitude angle from itself and its ref
 along every axis): the QP's constraint matrix keeps this pattern, so only its values change."""
 NEEDED_BLOCKS = ("position", "velocity", "attitude", "force", "reference_position", "reference_velocity")
 """The observation blocks the controller reads."""
-SLACK_USED = 1.0e-5
-"""m: a slack above this in the soft problem's solution sends the MPC to the hard problem (ten times
-OSQP's default tolerance: below it, the slack is the solver's rounding)."""
 ACTION_MAX_THRUST = 2.0
 """The attitude action's largest thrust, in hover thrusts (``(1 + a3)·m·g`` with ``a3 <= 1``)."""
 
@@ -266,7 +263,7 @@ class PositionMPC:
     (N, 3: thrust N, roll and pitch references rad), ``slack_values`` (N, zeros without slack),
     ``input_reference`` (N, 3), ``state_reference`` (N+1, 8), the model used (``A_d``, ``B_d``,
     ``c_d``), ``status`` (OSQP's), ``iterations``, ``solve_time`` (s, OSQP's own), ``stages`` (the
-    problems solved: 1, or 2 where the soft solution used slack and the hard problem was solved from it)
+    problems solved: 1, or 2 where OSQP did not solve the hard problem and the soft one was solved)
     and ``total_time`` (s, the whole call: linearisation, update and solve).
     """
 
@@ -304,6 +301,8 @@ class PositionMPC:
         self.solve_time = 0.0
         self.stages = 0
         self.total_time = 0.0
+        self._warm: tuple[np.ndarray, np.ndarray] | None = None
+        """The last solution flown (primal, dual; None before the first): the soft problem's start."""
 
     # -- set-up ----------------------------------------------------------------------------------
     def _build(self, osqp_settings: dict[str, Any]) -> None:
@@ -389,26 +388,16 @@ class PositionMPC:
         )
         self.solver.setup(p, np.zeros(size), matrix, self._lower, self._upper, **settings)
 
-    def _hard_or(self, soft: Any, lower: np.ndarray, upper: np.ndarray) -> Any:
-        """The hard problem's solution (every slack bounded to 0) where OSQP solves it, else ``soft``
-        (the solver warm-started from it again): the two-stage solve that keeps the slack at zero
-        whenever the hard constraint can be met, up to the edge of feasibility, where the hard
-        constraint's multiplier exceeds any fixed linear weight (Hentzen et al. 2019 Sec. IV-D c)).
-        ``lower`` and ``upper`` are the soft problem's bounds."""
-        n, nu = self.horizon, self.nu
-        hard_upper = upper.copy()
-        hard_upper[n * NX + NU + nu * np.arange(n)] = 0.0  # the slack's bounds ε_k <= ∞, now <= 0
-        self.solver.update(l=lower, u=hard_upper)
-        start = soft.x.copy()
-        start[n * NX + NU :: nu] = 0.0  # from the soft solution without its slack (worst case: 800
-        self.solver.warm_start(x=start)  # iterations where the soft solution itself took 1450)
-        hard = self.solver.solve(raise_error=False)
+    def _soft(self, lower: np.ndarray, upper: np.ndarray) -> Any:
+        """The soft problem's solution (bounds ``lower`` and ``upper``), warm-started from the last
+        solution flown (if any): where the hard problem has none (its constraint cannot be met), the
+        least violation the slack's cost allows (Hentzen et al. 2019 Sec. IV-D c))."""
         self.solver.update(l=lower, u=upper)
-        self.iterations += hard.info.iter
-        self.solve_time += hard.info.solve_time
-        if hard.info.status == "solved":
-            return hard
-        self.solver.warm_start(x=soft.x, y=soft.y)
+        if self._warm is not None:
+            self.solver.warm_start(x=self._warm[0], y=self._warm[1])
+        soft = self.solver.solve(raise_error=False)
+        self.iterations += soft.info.iter
+        self.solve_time += soft.info.solve_time
         return soft
 
     def _constraint_data(self, a_d: np.ndarray, b_d: np.ndarray) -> np.ndarray:
@@ -494,13 +483,16 @@ class PositionMPC:
         self.state_reference = data.state_reference[index]
         self.A_d, self.B_d, self.c_d = data.A_d[index], data.B_d[index], data.c_d[index]
         lower, upper = data.lower[index], data.upper[index]
+        first_upper = upper
+        if g.slack:  # the hard problem first: every slack's bound ε_k <= ∞ now <= 0
+            first_upper = upper.copy()
+            first_upper[n * NX + NU + nu * np.arange(n)] = 0.0
         # copies: osqp 1.1's binding reads a row of a 2-D array from the start of the array's buffer
-        self.solver.update(q=data.q[index].copy(), l=lower, u=upper, Ax=data.matrix[index].copy())
+        self.solver.update(q=data.q[index].copy(), l=lower, u=first_upper, Ax=data.matrix[index].copy())
         result = self.solver.solve(raise_error=False)
         self.iterations, self.solve_time, self.stages = result.info.iter, result.info.solve_time, 1
-        if g.slack and result.x is not None and result.x[n * NX + NU :: nu].max() > SLACK_USED:
-            result = self._hard_or(result, lower, upper)
-            self.stages = 2
+        if g.slack and result.info.status != "solved":
+            result, self.stages = self._soft(lower, upper), 2
         self.status = result.info.status
         z = result.x
         if z is None or not np.all(np.isfinite(z)):  # no solution: hold the equilibrium input
@@ -512,6 +504,8 @@ class PositionMPC:
             self.predicted_inputs = u[:, :NU].copy()
             self.slack_values = u[:, NU].copy() if g.slack else np.zeros(n)
             self.predicted_states = np.vstack((state, z[: n * NX].reshape(n, NX)))
+            if g.slack:
+                self._warm = (z.copy(), result.y.copy())
         return self.predicted_inputs[0].copy()
 
     def solve(
