@@ -3,7 +3,7 @@
     quad-wrench bench [--steps 2000] [--repeats 3] [--soak-minutes 60]
                       [--peers [--gym-pybullet-drones PATH] [--peers-dir DIR]]
     quad-wrench bench --estimators [--steps 4000] [--repeats 5]
-    quad-wrench bench --controllers [--steps 100] [--repeats 3]
+    quad-wrench bench --controllers [--steps 750] [--repeats 2]
     quad-wrench bench --training [--config configs/train_fan_tracking.yaml] [--steps N] [--repeats 5]
 
 
@@ -253,7 +253,9 @@ def run(args: argparse.Namespace) -> int:
         )
         return 0
     if args.controllers:
-        bench_controllers.report(args.steps or bench_controllers.STEPS, args.repeats or REPEATS)
+        bench_controllers.report(
+            args.steps or bench_controllers.STEPS, args.repeats or bench_controllers.REPEATS
+        )
         return 0
     if args.estimators:
         bench_estimators.report(

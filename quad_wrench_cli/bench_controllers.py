@@ -1,23 +1,25 @@
 """Microseconds per vehicle-step of the classical controllers, one vehicle at a time against a batch.
 
-    quad-wrench bench --controllers [--steps 100] [--repeats 3]
+    quad-wrench bench --controllers [--steps 750] [--repeats 2]
 
-A DisturbanceRejection vector env of 32 vehicles (``attitude`` action, seed 0) is flown for ``--steps``
-control steps by each controller as one batch, its observations recorded; then the same observations
-are fed to 32 controllers of one vehicle each (what the ``pid`` and ``mpc`` agents are) and to one batch
-of 32 (what the ``residual`` action type and a vector env's evaluation run), alternately, the best of
-``--repeats`` timings kept (the machine's noise only ever adds time). The controllers are those of
-``configs/compare_disturbance_rejection.yaml``. A second table splits the MPC's batch time: OSQP's own
-solve time, the rest (the constraint matrix's update, which refactors OSQP's KKT system, the QP data
-and Python) and the iterations, with the share of vehicle-steps that took the two-stage solve (the
-soft problem used slack, the hard one solved from it) and of the iterations spent there.
+A DisturbanceRejection vector env of 32 vehicles (``attitude`` action, seed 0, a scenario drawn for
+each) is flown for ``--steps`` control steps (by default one 15-s episode: the disturbances, where the
+MPC works hardest, come seconds into it) by each controller as one batch, its observations recorded;
+then the same observations are fed to 32 controllers of one vehicle each (what the ``pid`` and ``mpc``
+agents are) and to one batch of 32 (what the ``residual`` action type and a vector env's evaluation
+run), alternately, the best of ``--repeats`` timings kept (the machine's noise only ever adds time).
+The controllers are those of ``configs/compare_disturbance_rejection.yaml``. A second table splits the
+MPC's batch time: OSQP's own solve time, the rest (the constraint matrix's update, which refactors
+OSQP's KKT system, the QP data and Python) and the iterations, with the share of vehicle-steps that
+took two solves (OSQP did not solve the hard problem, the soft one was solved) and of the iterations
+spent there.
 """
 
 from __future__ import annotations
 
 from quad_wrench_env.bench import controller_step_seconds, recorded_observations, solver_profile
 
-STEPS, REPEATS, VEHICLES = 100, 3, 32
+STEPS, REPEATS, VEHICLES = 750, 2, 32
 """Defaults of ``--steps`` and ``--repeats``; the batch's size."""
 TUNED = {"position_weight": [1298.89, 1298.89, 625.0], "velocity_weight": [103.91, 103.91, 50.0]}
 CONTROLLERS = {
