@@ -410,9 +410,9 @@ def controller_batch(base: str, params: dict[str, Any], count: int, env: Any) ->
 def solver_profile(base: str, params: dict[str, Any], env: Any, observations: np.ndarray) -> dict[str, float]:
     """What the OSQP problems of a fresh batch of the ``mpc`` controller did over recorded
     ``observations`` (steps, count, width), over all vehicle-steps: OSQP's own solve time (s, mean),
-    the iterations (mean, median, max), the share of vehicle-steps solved in two stages (the soft
-    problem, then the hard one from it: :meth:`~quad_wrench_env.control.mpc_controller.PositionMPC.
-    solve_prepared`) and the share of all iterations spent in those."""
+    the iterations (mean, median, max), the share of vehicle-steps solved in two stages (OSQP did not
+    solve the hard problem, the soft one was solved: :meth:`~quad_wrench_env.control.mpc_controller.
+    PositionMPC.solve_prepared`) and the share of all iterations spent in those."""
     if base != "mpc":
         raise ValueError(f"solver_profile reads OSQP's problems: base must be 'mpc', not {base!r}")
     batch = controller_batch(base, params, observations.shape[1], env)
