@@ -249,7 +249,7 @@ class QPData(NamedTuple):
     q: np.ndarray
     """(V, n·(8 + nu)) linear cost."""
     lower: np.ndarray
-    """(V, rows) constraint bounds."""
+    """(V, rows) constraint bounds, the hard problem's (every slack bounded to 0)."""
     upper: np.ndarray
     matrix: np.ndarray
     """(V, nnz) the constraint matrix's values in OSQP's order."""
@@ -351,6 +351,10 @@ class PositionMPC:
         self._upper = np.full(row, np.inf)
         self._lower[n * NX : n * (NX + nu)] = np.tile(self.input_lower, n)
         self._upper[n * NX : n * (NX + nu)] = np.tile(self.input_upper, n)
+        self._slack_rows = n * NX + NU + nu * np.arange(n) if g.slack else np.zeros(0, dtype=int)
+        """Rows of the slack's bounds ``0 <= ε_k``: ``<= 0`` in the hard problem (the bounds every solve
+        starts from), ``<= ∞`` in the soft one (:meth:`_soft`)."""
+        self._upper[self._slack_rows] = 0.0
 
         q_state = np.array(
             (*g.position_weight, *g.velocity_weight, g.attitude_weight, g.attitude_weight), float
@@ -389,10 +393,13 @@ class PositionMPC:
         self.solver.setup(p, np.zeros(size), matrix, self._lower, self._upper, **settings)
 
     def _soft(self, lower: np.ndarray, upper: np.ndarray) -> Any:
-        """The soft problem's solution (bounds ``lower`` and ``upper``), warm-started from the last
-        solution flown (if any): where the hard problem has none (its constraint cannot be met), the
-        least violation the slack's cost allows (Hentzen et al. 2019 Sec. IV-D c))."""
-        self.solver.update(l=lower, u=upper)
+        """The soft problem's solution (the hard problem's bounds ``lower`` and ``upper`` with every
+        slack's upper bound lifted), warm-started from the last solution flown (if any): where the hard
+        problem has none (its constraint cannot be met), the least violation the slack's cost allows
+        (Hentzen et al. 2019 Sec. IV-D c))."""
+        soft_upper = upper.copy()
+        soft_upper[self._slack_rows] = np.inf
+        self.solver.update(l=lower, u=soft_upper)
         if self._warm is not None:
             self.solver.warm_start(x=self._warm[0], y=self._warm[1])
         soft = self.solver.solve(raise_error=False)
@@ -482,13 +489,9 @@ class PositionMPC:
         self.input_reference = inputs
         self.state_reference = data.state_reference[index]
         self.A_d, self.B_d, self.c_d = data.A_d[index], data.B_d[index], data.c_d[index]
-        lower, upper = data.lower[index], data.upper[index]
-        first_upper = upper
-        if g.slack:  # the hard problem first: every slack's bound ε_k <= ∞ now <= 0
-            first_upper = upper.copy()
-            first_upper[n * NX + NU + nu * np.arange(n)] = 0.0
+        lower, upper = data.lower[index], data.upper[index]  # the hard problem first
         # copies: osqp 1.1's binding reads a row of a 2-D array from the start of the array's buffer
-        self.solver.update(q=data.q[index].copy(), l=lower, u=first_upper, Ax=data.matrix[index].copy())
+        self.solver.update(q=data.q[index].copy(), l=lower, u=upper, Ax=data.matrix[index].copy())
         result = self.solver.solve(raise_error=False)
         self.iterations, self.solve_time, self.stages = result.info.iter, result.info.solve_time, 1
         if g.slack and result.info.status != "solved":
