@@ -9,9 +9,9 @@ then the same observations are fed to 32 controllers of one vehicle each (what t
 agents are) and to one batch of 32 (what the ``residual`` action type and a vector env's evaluation
 run), alternately, the best of ``--repeats`` timings kept (the machine's noise only ever adds time).
 The controllers are those of ``configs/compare_disturbance_rejection.yaml``. A second table splits the
-MPC's batch time: OSQP's own solve time, the rest (the constraint matrix's update, which refactors
-OSQP's KKT system, the QP data and Python) and the iterations, with the share of vehicle-steps that
-took two solves (OSQP did not solve the hard problem, the soft one was solved) and of the iterations
+MPC's batch time: DAQP's own solve time, the rest (the condensed QP's data for the batch, DAQP's
+update, which factors the Hessian, and Python) and the iterations, with the share of vehicle-steps
+that took two solves (the hard problem was infeasible, the soft one was solved) and of the iterations
 spent there.
 """
 
@@ -47,7 +47,7 @@ def report(steps: int, repeats: int) -> None:
         if base == "mpc":
             batches[label], profiles[label] = batch, solver_profile(base, params, env, observations)
     print(
-        f"\n{'batch of ' + str(VEHICLES):28s} {'OSQP solve':>10s} {'the rest':>9s} {'iterations':>18s} "
+        f"\n{'batch of ' + str(VEHICLES):28s} {'DAQP solve':>10s} {'the rest':>9s} {'iterations':>18s} "
         f"{'two-stage':>9s} {'its iterations':>14s}  [µs per vehicle-step; iterations mean/median/max]"
     )
     for label, p in profiles.items():

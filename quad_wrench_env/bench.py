@@ -408,13 +408,13 @@ def controller_batch(base: str, params: dict[str, Any], count: int, env: Any) ->
 
 
 def solver_profile(base: str, params: dict[str, Any], env: Any, observations: np.ndarray) -> dict[str, float]:
-    """What the OSQP problems of a fresh batch of the ``mpc`` controller did over recorded
-    ``observations`` (steps, count, width), over all vehicle-steps: OSQP's own solve time (s, mean),
-    the iterations (mean, median, max), the share of vehicle-steps solved in two stages (OSQP did not
-    solve the hard problem, the soft one was solved: :meth:`~quad_wrench_env.control.mpc_controller.
+    """What the QPs of a fresh batch of the ``mpc`` controller did over recorded ``observations``
+    (steps, count, width), over all vehicle-steps: DAQP's own solve time (s, mean), the iterations
+    (mean, median, max), the share of vehicle-steps solved in two stages (the hard problem was
+    infeasible, the soft one was solved: :meth:`~quad_wrench_env.control.mpc_controller.
     PositionMPC.solve_prepared`) and the share of all iterations spent in those."""
     if base != "mpc":
-        raise ValueError(f"solver_profile reads OSQP's problems: base must be 'mpc', not {base!r}")
+        raise ValueError(f"solver_profile reads the MPC's QPs: base must be 'mpc', not {base!r}")
     batch = controller_batch(base, params, observations.shape[1], env)
     iterations, seconds, stages = [], [], []
     for frame in observations:

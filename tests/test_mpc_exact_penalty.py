@@ -8,10 +8,10 @@ one still solves, with the slack exactly the excess, as small as the physics all
 step, and back to zero within the horizon.
 
 The cases are on the gains flown by ``configs/reproduce_hentzen.yaml`` (hummingbird), where the
-derived weight is 1298.89 (the docstring's "1300"). The hard problem's solution is the soft one with
-a linear weight of 1e6, far above any multiplier here; its feasibility is certified by rolling its
-inputs through the model and checking the bounds. Tolerances: OSQP's 1e-6 (tests/test_mpc.py's
-docstring): a bound holds to ~1e-5."""
+derived weight is 1298.89 (the docstring's "1300"). The hard problem's solution is the sparse QP of
+tests/reference_mpc.py with the cross-track bound imposed outright (no slack variables; OSQP
+polished to 1e-10); its feasibility is certified by rolling its inputs through the model and checking
+the bounds. Tolerances: DAQP's primal tolerance (1e-6) on a bound, 1e-5 with the rollout's rounding."""
 
 from __future__ import annotations
 
@@ -20,6 +20,7 @@ import pytest
 
 from quad_wrench_env.control.guidance import ReferenceExtrapolator
 from quad_wrench_env.control.mpc_controller import NU, MPCGains, PositionMPC
+from tests.reference_mpc import sparse_solution
 
 MASS = 0.716  # hummingbird
 TAU = 1.0 / 14.933  # 1/attitude_p of its autopilot
@@ -27,33 +28,19 @@ TUNED = {"position_weight": (1298.89, 1298.89, 625.0), "velocity_weight": (103.9
 E_MAX = 0.05  # cross_track_limit's default (m)
 TERMINAL = 10.0  # terminal_weight's default
 DERIVED = 2.0 * 1298.89 * E_MAX * TERMINAL  # 2·q_p·e_max·terminal_weight
-HARD = 1e6
-REFERENCE_TOLERANCE = 1e-9
-"""OSQP's tolerance for the hard problem's reference solution: with the weight of 1e6 the problem is
-ill-conditioned, and at the default 1e-6 its thrusts near the edge of feasibility are off by 7 mN."""
 TOL = 1e-5
-INPUT_TOL = np.array((5e-3, 5e-4, 5e-4))
-"""How close two solutions of the same QP at OSQP's default tolerance (1e-6) come to the reference's
-inputs (thrust N, roll and pitch rad): cold-started near the edge of feasibility they are 2.4 mN and
-1.3e-4 rad off (0.03 % of the 7 N hover thrust, 0.008°); flying with slack moves them by orders more
+INPUT_TOL = 1e-7
+"""Two exact solutions of the same QP (the controller's condensed one and the sparse reference) agree
+to rounding (tests/test_mpc.py: 1e-11 N observed); flying with slack moves the inputs by orders more
 (the error through by millimetres, the tilt by 0.01 rad)."""
 
 
 def _solve(
-    state, reference_velocity=(0.0, 0.0, 0.0), slack=True, linear=None, tolerance=1e-6
+    state, reference_velocity=(0.0, 0.0, 0.0), slack=True, linear=None
 ) -> tuple[PositionMPC, np.ndarray]:
     """The MPC solved from ``state`` (p, v, roll, pitch) for a reference at (0, 0, 1) moving at
-    ``reference_velocity``, to OSQP's ``tolerance``; with the predicted cross-track error (max over x
-    and y) of each step."""
-    gains = MPCGains(
-        attitude_time_constant=TAU,
-        slack=slack,
-        slack_weight_linear=linear,
-        eps_abs=tolerance,
-        eps_rel=tolerance,
-        max_iter=100_000,
-        **TUNED,
-    )
+    ``reference_velocity``; with the predicted cross-track error (max over x and y) of each step."""
+    gains = MPCGains(attitude_time_constant=TAU, slack=slack, slack_weight_linear=linear, **TUNED)
     mpc = PositionMPC(gains, MASS)
     guidance = ReferenceExtrapolator()
     guidance.update(np.array((0.0, 0.0, 1.0)), np.array(reference_velocity, dtype=float), 0.02)
@@ -83,35 +70,35 @@ def test_with_the_derived_weights_the_soft_constraint_is_the_hard_one_where_that
     the error stays within e_max and the inputs are the hard problem's; so with a linear weight a tenth
     of the derived one (below the multiplier of the first two cases, ~350 and ~550, through which a
     single soft solve let the error through by over a millimetre): the MPC solves the hard problem
-    first and flies it wherever OSQP solves it. Near the edge (the third case) the multiplier exceeds
+    first and flies it wherever it is feasible. Near the edge (the third case) the multiplier exceeds
     any fixed weight derived from the costs: a single soft solve with the derived weight used 4.9 mm of
     slack."""
     state, reference_velocity = FEASIBLE[case]
     _, free = _solve(state, reference_velocity, slack=False)
     assert free.max() > E_MAX + 2e-3  # the constraint is active
 
-    hard, _ = _solve(state, reference_velocity, linear=HARD, tolerance=REFERENCE_TOLERANCE)
-    assert hard.slack_values.max() < 1e-6
-    states = [hard.predicted_states[0]]
-    for u in hard.predicted_inputs:  # the model's own rollout of the hard problem's inputs
-        assert np.all(u >= hard.input_lower[:NU] - TOL) and np.all(u <= hard.input_upper[:NU] + TOL)
-        states.append(hard.A_d @ states[-1] + hard.B_d @ u + hard.c_d)
+    soft, error = _solve(state, reference_velocity)
+    _, hard_inputs, _ = sparse_solution(soft, hard=True)  # the hard problem, solved apart
+    states = [soft.predicted_states[0]]
+    for u in hard_inputs:  # the model's own rollout of the hard problem's inputs
+        assert np.all(u >= soft.input_lower[:NU] - TOL) and np.all(u <= soft.input_upper[:NU] + TOL)
+        states.append(soft.A_d @ states[-1] + soft.B_d @ u + soft.c_d)
     guidance = ReferenceExtrapolator()
     guidance.update(np.array((0.0, 0.0, 1.0)), np.array(reference_velocity), 0.02)
-    positions = guidance.horizon(hard.times)[0]
+    positions = guidance.horizon(soft.times)[0]
     assert np.abs(np.array(states)[1:, :2] - positions[1:, :2]).max() <= E_MAX + TOL  # feasible
 
-    soft, error = _solve(state, reference_velocity)
+    assert soft.stages == 1
     assert soft.slack_values.max() < TOL, (
         f"slack used where the hard constraint is feasible: {soft.slack_values}"
     )
     assert error.max() <= E_MAX + TOL
-    assert np.all(np.abs(soft.predicted_inputs - hard.predicted_inputs) <= INPUT_TOL)
+    np.testing.assert_allclose(soft.predicted_inputs, hard_inputs, atol=INPUT_TOL, rtol=0)
 
     weak, weak_error = _solve(state, reference_velocity, linear=DERIVED / 10.0)  # the hard problem
     assert weak.stages == 1
     assert weak.slack_values.max() < TOL and weak_error.max() <= E_MAX + TOL
-    assert np.all(np.abs(weak.predicted_inputs - hard.predicted_inputs) <= INPUT_TOL)
+    np.testing.assert_allclose(weak.predicted_inputs, hard_inputs, atol=INPUT_TOL, rtol=0)
 
 
 def test_where_the_hard_constraint_is_infeasible_the_soft_one_violates_it_as_little_as_it_must():
@@ -124,7 +111,8 @@ def test_where_the_hard_constraint_is_infeasible_the_soft_one_violates_it_as_lit
     exact-penalty weight never buys more violation)."""
     state = np.array((0.0, 0.0, 1.0, 0.0, 1.0, 0.0, 0.0, 0.0))
     soft, error = _solve(state)
-    assert soft.stages == 2  # the hard problem tried first, and not solved
+    assert soft.stages == 2  # the hard problem tried first, and infeasible
+    np.testing.assert_allclose(soft.slack_values, sparse_solution(soft)[2], atol=INPUT_TOL, rtol=0)
     start = soft.A_d @ state + soft.c_d
     reach = soft.B_d[1] * np.vstack((soft.input_lower[:NU], soft.input_upper[:NU]))
     nearest = start[1] + reach.min(axis=0).sum()  # the smallest y_1 any input in its bounds reaches

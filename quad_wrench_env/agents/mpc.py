@@ -1,5 +1,5 @@
 """Hentzen et al.'s (2019) MPC position controller (Sec. IV-D) as an agent:
-:class:`~quad_wrench_env.control.mpc_controller.MPCController` (the model, the QP and its OSQP solve) for
+:class:`~quad_wrench_env.control.mpc_controller.MPCController` (the model, the QP and its DAQP solve) for
 one vehicle, through the ``attitude`` action; the env's ``residual`` action type flies the same
 controller under a policy's correction.
 """

@@ -1,4 +1,4 @@
-"""Hentzen et al.'s (2019) MPC position controller (Sec. IV-D), as a linearised QP solved by OSQP.
+"""Hentzen et al.'s (2019) MPC position controller (Sec. IV-D), as a linearised QP solved by DAQP.
 
 Model (Hentzen et al. 2019 eqs. 1-2 with the attitude identified as a first-order system, Sec. IV-D a)), world
 z up, state ``x = [p, v, φ, θ]`` (8) and input ``u = [T_ref, φ_ref, θ_ref]`` (3, plus the slack ``ε``
@@ -15,10 +15,11 @@ The optimal control problem (Hentzen et al. 2019 eq. 4): quadratic cost on the s
 with a terminal cost, input bounds ``T_min <= T <= T_max``, ``|φ_ref|, |θ_ref| <= tilt_max``, 2 s
 horizon at 0.1 s. The nonlinear model is linearised once per solve about the current attitude (or
 the equilibrium one, ``linearization``) and the equilibrium thrust, discretised exactly (matrix
-exponential of the augmented system, zero-order hold on the input). The QP (states ``x_1..x_N`` and
-inputs ``u_0..u_{N-1}`` as decision variables, the dynamics as equality constraints) is set up in
-OSQP once; every solve only updates ``q``, ``l``, ``u`` and the dynamics blocks of ``A`` and
-warm-starts. The paper solves the nonlinear problem with ACADO/qpOASES (real-time iteration); one
+exponential of the augmented system, zero-order hold on the input). The QP is condensed (the states
+eliminated through the model: the inputs ``u_0..u_{N-1}`` are the decision variables, 3N of them) and
+solved by DAQP's dual active-set method (Arnström, Bemporad & Axehill 2022), warm-started from the
+previous step's working set, to its exact optimum; the paper solves the nonlinear problem with
+ACADO and qpOASES, an active-set method on the condensed QP, as a real-time iteration, and one
 linearisation per step is the same first-order step about the current state.
 
 The input reference (where the input cost pulls) is the equilibrium input: the thrust and tilt that
@@ -27,9 +28,9 @@ give the reference acceleration against gravity and, with ``compensation``, agai
 its tilt. Soft constraint (Sec. IV-D c)): ``|p_x - p_r,x|, |p_y - p_r,y| <= e_max + ε_k``, ``ε_k >= 0`` on
 every predicted state, with the cost ``w_1·ε + w_2·ε²``. The linear term makes the penalty exact only
 where ``w_1`` exceeds the hard constraint's multiplier, which grows without bound towards the edge of
-feasibility; so the hard problem (every ``ε`` bounded to 0) is solved first and flown where OSQP
-solves it, the soft one only where it does not (the constraint cannot be met): no slack is used while
-the constraint can be met, up to its edge.
+feasibility; so the hard problem (no slack) is solved first and flown where it is feasible, the soft
+one only where DAQP finds it infeasible (the constraint cannot be met): no slack is used while the
+constraint can be met, up to its edge.
 
 The input reference beyond the tilt limit puts the vertical channel first (roll and pitch clipped, the
 thrust whose vertical part balances): an input reference of the unclipped thrust ``|F|`` would pull
@@ -38,8 +39,8 @@ the vehicle up.
 :class:`MPCController` runs it for a batch of vehicles (the ``mpc`` agent is a batch of one, the env's
 ``residual`` action type a batch of every vehicle): their QP data (references, linearisation, the
 matrix exponentials, cost and bounds) computed for all vehicles at once (:meth:`PositionMPC.prepare`),
-then each vehicle's own OSQP problem updated and solved, warm-started from its previous solution, so a
-vehicle's commands are those of the single controller.
+then each vehicle's own DAQP workspace updated and solved, warm-started from its previous working set,
+so a vehicle's commands are those of the single controller.
 """
 
 from __future__ import annotations
@@ -48,12 +49,11 @@ import dataclasses
 import math
 import time
 from dataclasses import dataclass
-from typing import Any, NamedTuple
+from typing import NamedTuple
 
+import daqp
 import numpy as np
-import osqp
 import scipy.linalg
-from scipy import sparse
 
 from quad_wrench_env.autopilot import AutopilotGains
 from quad_wrench_env.control.guidance import ReferenceExtrapolator, attitude_from_acceleration
@@ -65,16 +65,6 @@ NX = 8
 """State size: position (3), velocity (3), roll, pitch."""
 NU = 3
 """Model input size: collective thrust (N), roll and pitch references (rad)."""
-_A_PATTERN = np.zeros((NX, NX), dtype=bool)
-_A_PATTERN[0:3, 0:3] = _A_PATTERN[0:3, 3:6] = _A_PATTERN[3:6, 3:6] = np.eye(3, dtype=bool)
-_A_PATTERN[0:6, 6:8] = True
-_A_PATTERN[6, 6] = _A_PATTERN[7, 7] = True
-_B_PATTERN = np.zeros((NX, NU), dtype=bool)
-_B_PATTERN[0:6, :] = True
-_B_PATTERN[6, 1] = _B_PATTERN[7, 2] = True
-"""Entries of ``A_d`` and ``B_d`` that can be non-zero at any linearisation point (p from p, v and the
-attitude, v from v and the attitude, each attitude angle from itself and its reference; the thrust
-along every axis): the QP's constraint matrix keeps this pattern, so only its values change."""
 NEEDED_BLOCKS = ("position", "velocity", "attitude", "force", "reference_position", "reference_velocity")
 """The observation blocks the controller reads."""
 ACTION_MAX_THRUST = 2.0
@@ -134,14 +124,10 @@ class MPCGains:
     """Heading (rad) that the policy holds with a proportional yaw-rate command."""
     yaw_gain: float = 1.0
     """Gain (1/s) of that yaw-rate command."""
-    eps_abs: float = 1.0e-6
-    """OSQP absolute tolerance."""
-    eps_rel: float = 1.0e-6
-    """OSQP relative tolerance."""
-    max_iter: int = 4000
-    """OSQP iteration limit."""
-    warm_start: bool = True
-    """Start each OSQP solve from the previous solution."""
+    primal_tolerance: float = 1.0e-6
+    """DAQP's primal feasibility tolerance (its ``primal_tol``): how far a bound may be exceeded."""
+    iteration_limit: int = 1000
+    """DAQP's iteration limit (active-set changes); the hard problem, warm-started, takes a few."""
 
     def __post_init__(self) -> None:
         positive = ("horizon_seconds", "step_seconds", "max_tilt_deg", "max_thrust", "cross_track_limit")
@@ -165,6 +151,13 @@ class MPCGains:
             raise ValueError(f"mpc.linearization={self.linearization!r} must be 'reference' or 'state'")
         if self.horizon_seconds < self.step_seconds:
             raise ValueError("mpc.horizon_seconds must be at least one step_seconds")
+        if not min(self.input_weight) > 0.0:
+            raise ValueError(f"mpc.input_weight={self.input_weight!r} must be > 0 (a strictly convex QP)")
+        if not self.primal_tolerance > 0.0 or self.iteration_limit < 1:
+            raise ValueError(
+                f"mpc: need primal_tolerance={self.primal_tolerance!r} > 0 and "
+                f"iteration_limit={self.iteration_limit!r} >= 1"
+            )
 
 
 def cos_sin(roll: np.ndarray, pitch: np.ndarray, yaw: np.ndarray) -> tuple[np.ndarray, ...]:
@@ -235,7 +228,9 @@ def linearize(
 
 
 class QPData(NamedTuple):
-    """A batch's QP data at one solve (:meth:`PositionMPC.prepare`), leading dimension the vehicle."""
+    """A batch's condensed QP data at one solve (:meth:`PositionMPC.prepare`), leading dimension the
+    vehicle: ``min ½ Uᵀ·H·U + fᵀ·U`` over the inputs ``U = (u_0, ..., u_{N-1})`` (3N), the states
+    eliminated through the model."""
 
     states: np.ndarray
     """(V, 8) current states."""
@@ -246,30 +241,46 @@ class QPData(NamedTuple):
     A_d: np.ndarray
     B_d: np.ndarray
     c_d: np.ndarray
-    q: np.ndarray
-    """(V, n·(8 + nu)) linear cost."""
+    hessian: np.ndarray
+    """(V, 3N, 3N) ``H``."""
+    gradient: np.ndarray
+    """(V, 3N) ``f``."""
+    cross_track: np.ndarray
+    """(V, 2N, 3N) the x and y positions of ``x_1..x_N`` (row ``2(k-1) + axis``) as functions of ``U``,
+    less their free response (no rows without slack)."""
     lower: np.ndarray
-    """(V, rows) constraint bounds, the hard problem's (every slack bounded to 0)."""
+    """(V, 2N) the hard constraint on those rows: the reference less ``e_max``, less the free response."""
     upper: np.ndarray
-    matrix: np.ndarray
-    """(V, nnz) the constraint matrix's values in OSQP's order."""
+
+
+EXIT_FLAGS = {
+    2: "soft optimal",
+    1: "solved",
+    -1: "infeasible",
+    -2: "cycling",
+    -3: "unbounded",
+    -4: "iteration limit",
+    -5: "nonconvex",
+    -6: "overdetermined initial working set",
+    -7: "time limit",
+}
+"""DAQP's exit flags (``daqp.h``) by the name :attr:`PositionMPC.status` reports."""
 
 
 class PositionMPC:
-    """The QP of Hentzen et al. 2019 eq. (4) for one vehicle, set up once in OSQP and re-solved warm.
+    """The QP of Hentzen et al. 2019 eq. (4) for one vehicle, condensed and solved warm by DAQP.
 
     ``max_tilt`` (rad), where given, lowers the roll and pitch bound to the attitude action's limit.
-    After :meth:`solve`: ``predicted_states`` (N+1, 8, row 0 the current state), ``predicted_inputs``
-    (N, 3: thrust N, roll and pitch references rad), ``slack_values`` (N, zeros without slack),
-    ``input_reference`` (N, 3), ``state_reference`` (N+1, 8), the model used (``A_d``, ``B_d``,
-    ``c_d``), ``status`` (OSQP's), ``iterations``, ``solve_time`` (s, OSQP's own), ``stages`` (the
-    problems solved: 1, or 2 where OSQP did not solve the hard problem and the soft one was solved)
-    and ``total_time`` (s, the whole call: linearisation, update and solve).
+    After :meth:`solve`: ``predicted_inputs`` (N, 3: thrust N, roll and pitch references rad),
+    ``predicted_states`` (N+1, 8, row 0 the current state: the model's rollout of those inputs),
+    ``slack_values`` (N, zeros without slack), ``input_reference`` (N, 3), ``state_reference``
+    (N+1, 8), the model used (``A_d``, ``B_d``, ``c_d``), ``status`` (:data:`EXIT_FLAGS`),
+    ``iterations``, ``solve_time`` (s, DAQP's own), ``stages`` (the problems solved: 1, or 2 where
+    the hard problem was infeasible and the soft one was solved) and ``total_time`` (s, the whole
+    call: linearisation, condensing and solve).
     """
 
-    def __init__(
-        self, gains: MPCGains, mass: float, max_tilt: float | None = None, **osqp_settings: Any
-    ) -> None:
+    def __init__(self, gains: MPCGains, mass: float, max_tilt: float | None = None) -> None:
         if gains.attitude_time_constant is None:
             raise ValueError("PositionMPC needs gains.attitude_time_constant (MPCPolicy derives it)")
         self.gains = g = gains
@@ -285,13 +296,29 @@ class PositionMPC:
         self.input_lower = np.array((g.min_thrust * hover, -tilt, -tilt, 0.0)[:nu])
         self.input_upper = np.array((g.max_thrust * hover, tilt, tilt, np.inf)[:nu])
         self.times = np.arange(n + 1) * self.step
-        self._x = lambda k: (k - 1) * NX  # column of x_k, k = 1..N
-        self._u = lambda k: n * NX + k * nu  # column of u_k, k = 0..N-1
+        self._stage_weight = np.array(
+            (*g.position_weight, *g.velocity_weight, g.attitude_weight, g.attitude_weight), float
+        )
+        self._state_weights = np.tile(self._stage_weight, (n, 1))  # (N, 8), rows x_1..x_N
+        self._state_weights[-1] *= g.terminal_weight
+        self._input_weight = np.array((g.input_weight[0] / mass**2, g.input_weight[1], g.input_weight[2]))
+        linear = g.slack_weight_linear
+        if linear is None:
+            linear = 2.0 * max(g.position_weight[:2]) * g.cross_track_limit * g.terminal_weight
+        quadratic = (
+            linear / g.cross_track_limit if g.slack_weight_quadratic is None else g.slack_weight_quadratic
+        )
+        self.slack_weights = (linear, quadratic)
+        """The slack's linear and quadratic costs in use."""
+        self._bounds = (np.tile(self.input_lower[:NU], n), np.tile(self.input_upper[:NU], n))
+        self._settings = {"primal_tol": g.primal_tolerance, "iter_limit": g.iteration_limit}
+        self._hard: daqp.Model | None = None
+        self._soft: daqp.Model | None = None
+        """DAQP's workspaces (set up at their first solve), each warm-started from its last working set."""
         self.A_d = np.eye(NX)
         self.B_d = np.zeros((NX, NU))
         self.c_d = np.zeros(NX)
-        self._build(osqp_settings)
-        self.predicted_states = np.zeros((n + 1, NX))
+        self._state = np.zeros(NX)
         self.predicted_inputs = np.zeros((n, NU))
         self.slack_values = np.zeros(n)
         self.input_reference = np.zeros((n, NU))
@@ -301,122 +328,15 @@ class PositionMPC:
         self.solve_time = 0.0
         self.stages = 0
         self.total_time = 0.0
-        self._warm: tuple[np.ndarray, np.ndarray] | None = None
-        """The last solution flown (primal, dual; None before the first): the soft problem's start."""
 
-    # -- set-up ----------------------------------------------------------------------------------
-    def _build(self, osqp_settings: dict[str, Any]) -> None:
-        g, n, nu = self.gains, self.horizon, self.nu
-        rows: list[np.ndarray] = []
-        cols: list[np.ndarray] = []
-        values: list[np.ndarray] = []
+    @property
+    def predicted_states(self) -> np.ndarray:
+        """(N+1, 8) the model's rollout of :attr:`predicted_inputs` from the current state."""
+        states = [self._state]
+        for u in self.predicted_inputs:
+            states.append(self.A_d @ states[-1] + self.B_d @ u + self.c_d)
+        return np.array(states)
 
-        def block(row: int, col: int, pattern: np.ndarray, value: float | np.ndarray = 0.0) -> None:
-            r, c = np.nonzero(pattern)
-            rows.append(row + r)
-            cols.append(col + c)
-            values.append(np.broadcast_to(value, pattern.shape)[r, c].astype(float))
-
-        for k in range(n):  # dynamics: x_{k+1} - A_d x_k - B_d u_k = c_d  (x_0 is data)
-            rows.append(k * NX + np.arange(NX))
-            cols.append(self._x(k + 1) + np.arange(NX))
-            values.append(np.ones(NX))
-        start = sum(v.size for v in values)
-        for k in range(1, n):
-            block(k * NX, self._x(k), _A_PATTERN)  # -A_d
-        for k in range(n):
-            block(k * NX, self._u(k), _B_PATTERN)  # -B_d
-        self._model_slice = slice(start, sum(v.size for v in values))
-        row = n * NX
-        for k in range(n):  # input bounds
-            rows.append(row + k * nu + np.arange(nu))
-            cols.append(self._u(k) + np.arange(nu))
-            values.append(np.ones(nu))
-        row += n * nu
-        if g.slack:  # p_x - ε <= p_r,x + e_max, p_x + ε >= p_r,x - e_max, same for y
-            for k in range(n):
-                for axis in range(2):
-                    r = row + 4 * k + 2 * axis
-                    block(r, self._x(k + 1) + axis, np.ones((2, 1), dtype=bool), 1.0)
-                    block(r, self._u(k) + NU, np.ones((2, 1), dtype=bool), np.array(((-1.0,), (1.0,))))
-            row += 4 * n
-        self._rows = row
-        r, c, self._values = np.concatenate(rows), np.concatenate(cols), np.concatenate(values)
-        size = n * (NX + nu)
-        ids = sparse.csc_matrix((np.arange(1.0, r.size + 1.0), (r, c)), shape=(row, size))
-        ids.sort_indices()
-        self._order = ids.data.astype(int) - 1  # CSC data slot -> entry of self._values
-        self._indices, self._indptr = ids.indices, ids.indptr
-        self._lower = np.full(row, -np.inf)
-        self._upper = np.full(row, np.inf)
-        self._lower[n * NX : n * (NX + nu)] = np.tile(self.input_lower, n)
-        self._upper[n * NX : n * (NX + nu)] = np.tile(self.input_upper, n)
-        self._slack_rows = n * NX + NU + nu * np.arange(n) if g.slack else np.zeros(0, dtype=int)
-        """Rows of the slack's bounds ``0 <= ε_k``: ``<= 0`` in the hard problem (the bounds every solve
-        starts from), ``<= ∞`` in the soft one (:meth:`_soft`)."""
-        self._upper[self._slack_rows] = 0.0
-
-        q_state = np.array(
-            (*g.position_weight, *g.velocity_weight, g.attitude_weight, g.attitude_weight), float
-        )
-        r_input = np.array((g.input_weight[0] / self.mass**2, g.input_weight[1], g.input_weight[2]))
-        linear = g.slack_weight_linear
-        if linear is None:
-            linear = 2.0 * max(g.position_weight[:2]) * g.cross_track_limit * g.terminal_weight
-        quadratic = (
-            linear / g.cross_track_limit if g.slack_weight_quadratic is None else g.slack_weight_quadratic
-        )
-        self.slack_weights = (linear, quadratic)
-        """The slack's linear and quadratic costs in use."""
-        if g.slack:
-            r_input = np.append(r_input, quadratic)
-        state_weights = np.tile(q_state, (n, 1))
-        state_weights[-1] *= g.terminal_weight
-        self._state_weights = state_weights  # (N, 8), rows x_1..x_N
-        self._input_weights = r_input
-        diagonal = np.concatenate((state_weights.ravel(), np.tile(r_input, n)))
-        p = sparse.diags(2.0 * diagonal, format="csc")
-        self.solver = osqp.OSQP()
-        settings = {
-            "eps_abs": g.eps_abs,
-            "eps_rel": g.eps_rel,
-            "max_iter": g.max_iter,
-            "warm_starting": g.warm_start,
-            "polishing": False,
-            "verbose": False,
-        }
-        settings.update(osqp_settings)
-        matrix = sparse.csc_matrix(
-            (self._constraint_data(self.A_d[None], self.B_d[None])[0], self._indices, self._indptr),
-            shape=(row, size),
-        )
-        self.solver.setup(p, np.zeros(size), matrix, self._lower, self._upper, **settings)
-
-    def _soft(self, lower: np.ndarray, upper: np.ndarray) -> Any:
-        """The soft problem's solution (the hard problem's bounds ``lower`` and ``upper`` with every
-        slack's upper bound lifted), warm-started from the last solution flown (if any): where the hard
-        problem has none (its constraint cannot be met), the least violation the slack's cost allows
-        (Hentzen et al. 2019 Sec. IV-D c))."""
-        soft_upper = upper.copy()
-        soft_upper[self._slack_rows] = np.inf
-        self.solver.update(l=lower, u=soft_upper)
-        if self._warm is not None:
-            self.solver.warm_start(x=self._warm[0], y=self._warm[1])
-        soft = self.solver.solve(raise_error=False)
-        self.iterations += soft.info.iter
-        self.solve_time += soft.info.solve_time
-        return soft
-
-    def _constraint_data(self, a_d: np.ndarray, b_d: np.ndarray) -> np.ndarray:
-        """(V, nnz) values of the constraint matrix in OSQP's order for models ``a_d`` (V, 8, 8) and
-        ``b_d`` (V, 8, 3)."""
-        n = self.horizon
-        values = np.repeat(self._values[None], len(a_d), axis=0)
-        blocks = [np.tile(-a_d[:, _A_PATTERN], (1, n - 1)), np.tile(-b_d[:, _B_PATTERN], (1, n))]
-        values[:, self._model_slice] = np.concatenate(blocks, axis=1)
-        return values[:, self._order]
-
-    # -- solve -----------------------------------------------------------------------------------
     def equilibrium_input(self, acceleration: np.ndarray, yaw: float, force: np.ndarray) -> np.ndarray:
         """``(T, φ, θ)`` that holds ``acceleration`` (m/s², world) against gravity and ``force`` (N)."""
         return np.array(
@@ -435,7 +355,7 @@ class PositionMPC:
         """The QP data of V vehicles flying with this QP's settings, all at once: their ``states`` (V, 8)
         and ``yaws`` (V,), references ``positions``, ``velocities`` and ``accelerations`` (V, N+1, 3)
         at ``times`` and estimated external ``forces`` (V, 3; ignored without ``compensation``)."""
-        g, n, nu = self.gains, self.horizon, self.nu
+        g, n = self.gains, self.horizon
         states = np.asarray(states, dtype=float)
         count = len(states)
         model_forces = (
@@ -457,58 +377,121 @@ class PositionMPC:
         if g.linearization == "reference":
             points[:, 6:8] = inputs[:, 0, 1:]
         a_d, b_d, c_d = linearize(points, inputs[:, 0, 0], yaws, model_forces, self.mass, self.tau, self.step)
-        q_state = -2.0 * self._state_weights * state_reference[:, 1:]
-        input_reference = inputs if nu == NU else np.concatenate((inputs, np.zeros((count, n, 1))), axis=2)
-        q_input = -2.0 * self._input_weights * input_reference
+        hessian, gradient, cross_track, free = self._condense(states, a_d, b_d, c_d, state_reference, inputs)
         if g.slack:
-            q_input[:, :, NU] = self.slack_weights[0]
-        rhs = np.tile(c_d, (1, n))
-        rhs[:, :NX] += (a_d @ states[..., None])[..., 0]
-        lower = np.repeat(self._lower[None], count, axis=0)
-        upper = np.repeat(self._upper[None], count, axis=0)
-        lower[:, : n * NX] = upper[:, : n * NX] = rhs
-        if g.slack:
-            bounds = positions[:, 1:, :2]
-            slack_rows = slice(n * (NX + nu), None)
-            slack_upper = np.full((count, n, 2, 2), np.inf)
-            slack_lower = np.full((count, n, 2, 2), -np.inf)
-            slack_upper[..., 0] = bounds + g.cross_track_limit
-            slack_lower[..., 1] = bounds - g.cross_track_limit
-            lower[:, slack_rows] = slack_lower.reshape(count, -1)
-            upper[:, slack_rows] = slack_upper.reshape(count, -1)
-        q = np.concatenate((q_state.reshape(count, -1), q_input.reshape(count, -1)), axis=1)
+            reference = positions[:, 1:, :2].reshape(count, -1) - free
+            lower, upper = reference - g.cross_track_limit, reference + g.cross_track_limit
+        else:
+            lower = upper = np.zeros((count, 0))
         return QPData(
-            states, inputs, state_reference, a_d, b_d, c_d, q, lower, upper, self._constraint_data(a_d, b_d)
+            states, inputs, state_reference, a_d, b_d, c_d, hessian, gradient, cross_track, lower, upper
         )
 
+    def _condense(
+        self,
+        states: np.ndarray,
+        a_d: np.ndarray,
+        b_d: np.ndarray,
+        c_d: np.ndarray,
+        state_reference: np.ndarray,
+        input_reference: np.ndarray,
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """``H``, ``f``, the cross-track rows and their free response of eq. (4) with the states
+        eliminated: ``x_k = x_k^0 + Σ_{j<k} A_d^{k-1-j}·B_d·u_j`` (``x^0`` the free response from
+        ``x_0`` with ``u = 0``), so with ``G_m = A_d^m·B_d`` and the stage weights ``Q`` (``Q_N`` the
+        terminal ones), ``H_jl = 2·Σ_{i ≥ max(j,l)} G_{i-j}ᵀ·Q_{i+1}·G_{i-l} + 2·R·δ_jl`` and
+        ``f_j = 2·Σ_{i ≥ j} G_{i-j}ᵀ·Q_{i+1}·(x^0_{i+1} - x^r_{i+1}) - 2·R·u^r_j``. ``H`` is built from
+        the N² products ``G_aᵀ·Q·G_b`` summed along its block diagonals (the sums share their tails)."""
+        g, n, count = self.gains, self.horizon, len(states)
+        steps = np.empty((count, n, NX, NU))  # G_m
+        steps[:, 0] = b_d
+        for m in range(1, n):
+            steps[:, m] = a_d @ steps[:, m - 1]
+        free = np.empty((count, n, NX))  # x^0_1..x^0_N
+        x = states
+        for k in range(n):
+            x = (a_d @ x[..., None])[..., 0] + c_d
+            free[:, k] = x
+        by_input = steps.transpose(0, 1, 3, 2).reshape(count, n * NU, NX)  # row (a, i): G_a[:, i]
+        products = (by_input * self._stage_weight) @ by_input.transpose(0, 2, 1)  # [(a,i), (b,j)]
+        flipped = products.reshape(count, n, NU, n, NU)[:, ::-1, :, ::-1]  # [j, l] = G_{N-1-j}ᵀQG_{N-1-l}
+        sums = np.zeros((count, n + 1, NU, n + 1, NU))
+        for j in range(n - 1, -1, -1):  # Σ over i >= max(j, l) of the stage terms: tails shared
+            sums[:, j, :, :n] = flipped[:, j] + sums[:, j + 1, :, 1:]
+        hessian = (sums[:, :n, :, :n] + (g.terminal_weight - 1.0) * flipped).reshape(count, n * NU, n * NU)
+        diagonal = np.arange(n * NU)
+        hessian[:, diagonal, diagonal] += np.tile(self._input_weight, n)
+        errors = self._state_weights * (free - state_reference[:, 1:])  # Q_k·(x^0_k - x^r_k)
+        ahead = np.arange(n)[:, None] + np.arange(n)[None]  # [j, t] = j + t
+        padded = np.concatenate((errors, np.zeros((count, n, NX))), axis=1)[:, ahead]  # (V, N, N, 8)
+        gradient = (padded.reshape(count, n, n * NX) @ steps.reshape(count, n * NX, NU)).reshape(count, -1)
+        gradient -= (self._input_weight * input_reference).reshape(count, -1)
+        if not g.slack:
+            return 2.0 * hessian, 2.0 * gradient, np.zeros((count, 0, n * NU)), np.zeros((count, 0))
+        lag = np.arange(n)[:, None] - np.arange(n)[None]  # [k, j] = k - j: G_{k-j} moves x_{k+1} by u_j
+        planar = np.concatenate((steps[:, :, :2], np.zeros((count, 1, 2, NU))), axis=1)
+        rows = planar[:, np.where(lag >= 0, lag, n)].transpose(0, 1, 3, 2, 4).reshape(count, 2 * n, n * NU)
+        return 2.0 * hessian, 2.0 * gradient, rows, free[:, :, :2].reshape(count, -1)
+
+    def _solved(self, model: daqp.Model | None, *problem: np.ndarray) -> tuple[daqp.Model, np.ndarray, int]:
+        """``model`` (a new one where None) given ``problem`` (``H, f, A, upper, lower``) and solved from
+        its last working set: (the model, the solution, DAQP's exit flag)."""
+        if model is None:
+            model = daqp.Model()
+            model.settings = self._settings
+            model.setup(*problem)
+        else:  # DAQP's update refuses a matrix of no rows (the box-constrained QP without slack)
+            hessian, gradient, matrix, upper, lower = problem
+            model.update(hessian, gradient, matrix if len(matrix) else None, upper, lower)
+        solution, _, flag, info = model.solve()
+        self.iterations += info["iterations"]
+        self.solve_time += info["solve_time"]
+        return model, solution, flag
+
+    def _soft_problem(self, data: QPData, index: int) -> tuple[np.ndarray, ...]:
+        """The soft problem (Hentzen et al. 2019 Sec. IV-D c)): the inputs and one slack ``ε_k >= 0``
+        per step, ``p - ε <= p_r + e_max`` and ``p + ε >= p_r - e_max`` on x and y, the cost
+        ``w_1·ε + w_2·ε²`` added."""
+        n = self.horizon
+        linear, quadratic = self.slack_weights
+        hessian = scipy.linalg.block_diag(data.hessian[index], 2.0 * quadratic * np.eye(n))
+        gradient = np.concatenate((data.gradient[index], np.full(n, linear)))
+        per_row = np.repeat(np.eye(n), 2, axis=0)  # row 2k + axis -> ε_k
+        rows = data.cross_track[index]
+        matrix = np.block([[rows, -per_row], [rows, per_row]])
+        unbounded = np.full(2 * n, np.inf)
+        upper = np.concatenate((self._bounds[1], np.full(n, np.inf), data.upper[index], unbounded))
+        lower = np.concatenate((self._bounds[0], np.zeros(n), -unbounded, data.lower[index]))
+        return hessian, gradient, matrix, upper, lower
+
     def solve_prepared(self, data: QPData, index: int) -> np.ndarray:
-        """Solve vehicle ``index`` of ``data`` (:meth:`prepare`) on this QP, warm-started from its
-        previous solution; the first input ``(T, φ_ref, θ_ref)`` (N, rad, rad)."""
-        g, n, nu = self.gains, self.horizon, self.nu
-        state, inputs = data.states[index], data.input_reference[index]
+        """Solve vehicle ``index`` of ``data`` (:meth:`prepare`), warm-started from this QP's last working
+        set: the hard problem, and where it is infeasible (or not solved) the soft one; the first input
+        ``(T, φ_ref, θ_ref)`` (N, rad, rad)."""
+        n = self.horizon
+        self._state, inputs = data.states[index], data.input_reference[index]
         self.input_reference = inputs
         self.state_reference = data.state_reference[index]
         self.A_d, self.B_d, self.c_d = data.A_d[index], data.B_d[index], data.c_d[index]
-        lower, upper = data.lower[index], data.upper[index]  # the hard problem first
-        # copies: osqp 1.1's binding reads a row of a 2-D array from the start of the array's buffer
-        self.solver.update(q=data.q[index].copy(), l=lower, u=upper, Ax=data.matrix[index].copy())
-        result = self.solver.solve(raise_error=False)
-        self.iterations, self.solve_time, self.stages = result.info.iter, result.info.solve_time, 1
-        if g.slack and result.info.status != "solved":
-            result, self.stages = self._soft(lower, upper), 2
-        self.status = result.info.status
-        z = result.x
-        if z is None or not np.all(np.isfinite(z)):  # no solution: hold the equilibrium input
+        self.iterations, self.solve_time, self.stages = 0, 0.0, 1
+        hard = (
+            data.hessian[index],
+            data.gradient[index],
+            data.cross_track[index],
+            np.concatenate((self._bounds[1], data.upper[index])),
+            np.concatenate((self._bounds[0], data.lower[index])),
+        )
+        self._hard, solution, flag = self._solved(self._hard, *hard)
+        if self.gains.slack and flag != 1:
+            self._soft, solution, flag = self._solved(self._soft, *self._soft_problem(data, index))
+            self.stages = 2
+        self.status = EXIT_FLAGS.get(flag, f"exit flag {flag}")
+        if flag < 1 or not np.all(np.isfinite(solution)):  # no solution: hold the equilibrium input
             self.predicted_inputs = inputs.copy()
             self.slack_values = np.zeros(n)
-            self.predicted_states = np.vstack((state, self.state_reference[1:]))
         else:
-            u = z[n * NX :].reshape(n, nu)
-            self.predicted_inputs = u[:, :NU].copy()
-            self.slack_values = u[:, NU].copy() if g.slack else np.zeros(n)
-            self.predicted_states = np.vstack((state, z[: n * NX].reshape(n, NX)))
-            if g.slack:
-                self._warm = (z.copy(), result.y.copy())
+            self.predicted_inputs = solution[: n * NU].reshape(n, NU)
+            self.slack_values = solution[n * NU :] if self.stages == 2 else np.zeros(n)
         return self.predicted_inputs[0].copy()
 
     def solve(
