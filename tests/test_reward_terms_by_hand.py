@@ -166,28 +166,48 @@ def _reference(scenario: str, t: float, hull_height: float) -> np.ndarray:
     return np.array((2.5 + 1.25 * math.sin(phase), 0.0, 1.5 + 0.75 * math.sin(2.0 * phase)))
 
 
+def _tracking(offset: np.ndarray, vertical_scale: float | None) -> float:
+    """The table's tracking term: one kernel on the 3-D error, or with ``vertical_scale`` half the
+    cap on the horizontal error (length ``tracking_scale``) and half on the vertical one."""
+    if vertical_scale is None:
+        return -TRACKING_CAP * (1.0 - math.exp(-float(np.linalg.norm(offset)) / TRACKING_SCALE))
+    horizontal = math.hypot(offset[0], offset[1])
+    return -0.5 * TRACKING_CAP * (1.0 - math.exp(-horizontal / TRACKING_SCALE)) - 0.5 * TRACKING_CAP * (
+        1.0 - math.exp(-abs(offset[2]) / vertical_scale)
+    )
+
+
 def _disturbance_rejection_terms(
-    info: dict, action: np.ndarray, reference: np.ndarray, terminated: bool
+    info: dict, action: np.ndarray, reference: np.ndarray, terminated: bool, vertical_scale: float | None
 ) -> dict[str, float]:
     return {
-        "tracking": -TRACKING_CAP
-        * (1.0 - math.exp(-float(np.linalg.norm(np.asarray(info["position"]) - reference)) / TRACKING_SCALE)),
+        "tracking": _tracking(np.asarray(info["position"]) - reference, vertical_scale),
         "alive": 0.0 if terminated else TRACKING_CAP,
         "effort": _effort(action),
         "crash": -CRASH_PENALTY if terminated else 0.0,
     }
 
 
-@pytest.mark.parametrize("scenario", list(OPTIONS))
-def test_disturbance_rejection_reward_terms_by_hand(make_env, scenario):
+@pytest.mark.parametrize(
+    ("scenario", "vertical_scale"),
+    [(scenario, None) for scenario in OPTIONS] + [("figure8", 0.02), ("jet_crossing", 0.02)],
+)
+def test_disturbance_rejection_reward_terms_by_hand(make_env, scenario, vertical_scale):
     """Two episodes of 1.5 s: the PID flying the path (every fourth step with its yaw rate beyond
     [-1, 1], clipped) to the truncation, then the thrust cut to a crash. At every step the path is the
     table's (worked out here from its numbers, time from ``info``), the three terms and the reward
     equal the table's with ``p`` the true position, the crash penalty on the early end and not on the
     truncation. Catches a tracking term on the horizontal error alone or against another reference, a
     linear kernel or another length, a sign error, an effort on the unclipped action or summed, a
-    crash penalty on a truncation or missing on an early end."""
-    env = make_env(DISTURBANCE_REJECTION, estimator="oracle", kf_spread=0.0, episode_seconds=1.5)
+    crash penalty on a truncation or missing on an early end; with ``reward.vertical_scale`` the
+    horizontal and vertical kernels (a 3-D kernel, or the lengths swapped, fail)."""
+    env = make_env(
+        DISTURBANCE_REJECTION,
+        estimator="oracle",
+        kf_spread=0.0,
+        episode_seconds=1.5,
+        reward={"vertical_scale": vertical_scale},
+    )
     hull = env.unwrapped.vehicle.hull_height
     policy = make_agent("pid")
     obs, info = env.reset(seed=4, options=OPTIONS[scenario])
@@ -203,7 +223,9 @@ def test_disturbance_rejection_reward_terms_by_hand(make_env, scenario):
         obs, reward, terminated, truncated, info = env.step(action)
         reference = _reference(scenario, info["time"], hull)
         np.testing.assert_allclose(info["reference_position"], reference, rtol=0, atol=1e-12)
-        _check(info, reward, _disturbance_rejection_terms(info, action, reference, terminated))
+        _check(
+            info, reward, _disturbance_rejection_terms(info, action, reference, terminated, vertical_scale)
+        )
         largest = max(largest, -info["reward_terms"]["tracking"])
         if terminated or truncated:
             break
@@ -216,7 +238,7 @@ def test_disturbance_rejection_reward_terms_by_hand(make_env, scenario):
     for _ in range(60):
         _, reward, terminated, truncated, info = env.step(cut)
         reference = _reference(scenario, info["time"], hull)
-        _check(info, reward, _disturbance_rejection_terms(info, cut, reference, terminated))
+        _check(info, reward, _disturbance_rejection_terms(info, cut, reference, terminated, vertical_scale))
         if terminated or truncated:
             break
     assert terminated and info["termination_reason"] == "crash"
