@@ -315,6 +315,34 @@ def test_policy_refuses_another_action_type_and_unknown_gains():
         MPCPolicy().reset(env)
 
 
+@pytest.mark.parametrize(
+    ("setting", "value"),
+    [("input_weight", (0.0, 200.0, 200.0)), ("primal_tolerance", 0.0), ("iteration_limit", 0)],
+)
+def test_gains_refuse_a_qp_daqp_cannot_solve(setting, value):
+    """A zero input weight leaves the condensed QP's Hessian singular; DAQP needs a positive
+    tolerance and at least one iteration: each refused by name."""
+    with pytest.raises(ValueError, match=setting):
+        MPCGains(**{setting: value})
+
+
+def test_an_unsolved_hard_problem_falls_back_to_the_soft_one_and_then_to_the_equilibrium_input():
+    """Drifting off the path at 0.44 m/s the cross-track constraint is active and the hard problem
+    feasible (tests/test_mpc_exact_penalty.py): with DAQP allowed a single iteration it stops at its
+    limit on the hard problem, the soft one is tried (``stages`` 2) and, stopped too, the MPC holds the
+    equilibrium input (the hover thrust, level) rather than fly a partial solution; with the default
+    limit the hard problem is solved in one stage."""
+    state = np.array((0.0, 0.0, 1.0, 0.0, 0.44, 0.0, 0.0, 0.0))
+    starved = make_mpc(slack=True, iteration_limit=1, **TUNED)
+    command = starved.solve(state, 0.0, *hover_reference(starved))
+    assert starved.stages == 2 and starved.status == "iteration limit"
+    np.testing.assert_allclose(command, (MASS * GRAVITY, 0.0, 0.0), rtol=0, atol=1e-12)
+    assert np.all(starved.slack_values == 0.0)
+    solved = make_mpc(slack=True, **TUNED)
+    solved.solve(state, 0.0, *hover_reference(solved))
+    assert solved.stages == 1 and solved.status == "solved"
+
+
 def test_a_batch_commands_what_one_controller_per_vehicle_commands():
     """Five vehicles in different states, references and forces, soft constraint and compensation on,
     over 30 control steps on a reference whose velocity changes, vehicle 2 restarting at step 12: the
