@@ -1,11 +1,9 @@
-"""Hentzen et al.'s (2019) MPC position controller (Sec. IV-D, eqs. 1, 2, 4) solved with OSQP, and its
-guidance.
+"""Hentzen et al.'s (2019) MPC position controller (Sec. IV-D, eqs. 1, 2, 4), its QP condensed and
+solved with DAQP, and its guidance.
 
-Tolerances: OSQP stops when every constraint row is met to ``eps_abs + eps_rel·scale`` (1e-6 each,
-``scale`` the size of the row's terms: a thrust bound ~10 N, a dynamics row ~1), so a bound holds to
-~1.4e-5 and a dynamics row to ~2e-6; a prediction chains 20 dynamics rows, each residual carried on
-by ``A_d`` (norm ~1.3 over a step), so the rollout of the model may drift from the predicted states
-by up to ~1e-4 (observed: 1e-9 without slack, 1e-7 with; bounds are met to 4e-6).
+Tolerances: DAQP's solution is the active set's exact one, its bounds met to its primal tolerance
+(1e-6 in the units of each bound: N, rad, m); the bound checks allow 2e-5, the margin the sparse QP in
+OSQP needed before (``eps_abs + eps_rel·|T|`` with a 12.6 N thrust).
 """
 
 from __future__ import annotations
@@ -30,7 +28,7 @@ from tests.reference_mpc import sparse_solution
 
 MASS = 0.716  # hummingbird
 TAU = 1.0 / 14.933
-BOUND_TOL = 2e-5  # one bound row: eps_abs + eps_rel·|T| <= 1e-6 + 1e-6·12.6 N (2 hover thrusts)
+BOUND_TOL = 2e-5  # a bound met to DAQP's 1e-6, with the margin of the module docstring
 TUNED = {"position_weight": (1298.89, 1298.89, 625.0), "velocity_weight": (103.91, 103.91, 50.0)}
 
 
@@ -51,13 +49,6 @@ def hover_reference(mpc: PositionMPC, position=(0.0, 0.0, 1.0)):
 
 def make_mpc(**settings) -> PositionMPC:
     return PositionMPC(MPCGains(attitude_time_constant=TAU, **settings), MASS)
-
-
-def rollout(mpc: PositionMPC) -> np.ndarray:
-    states = [mpc.predicted_states[0]]
-    for u in mpc.predicted_inputs:
-        states.append(mpc.A_d @ states[-1] + mpc.B_d @ u + mpc.c_d)
-    return np.array(states)
 
 
 def test_the_input_reference_beyond_the_tilt_limit_balances_the_weight():
@@ -346,9 +337,8 @@ def test_an_unsolved_hard_problem_falls_back_to_the_soft_one_and_then_to_the_equ
 def test_a_batch_commands_what_one_controller_per_vehicle_commands():
     """Five vehicles in different states, references and forces, soft constraint and compensation on,
     over 30 control steps on a reference whose velocity changes, vehicle 2 restarting at step 12: the
-    batch's commands are those of five
-    controllers of one vehicle each (the ``mpc`` agent's), fed the same observations, to OSQP's
-    tolerance (1e-6 on a normalised action: the bounds' 2e-5 over the thrust scale m·g)."""
+    batch's commands are those of five controllers of one vehicle each (the ``mpc`` agent's), fed the
+    same observations, to 1e-6 on a normalised action (observed: bit for bit)."""
     env, count = FakeEnv(), 5
     gains = MPCGains(slack=True, compensation=True, position_weight=(1298.89, 1298.89, 625.0))
     tilt = math.radians(env.cfg.action_limits.max_tilt_deg)

@@ -288,13 +288,13 @@ class PositionMPC:
         self.tau = float(g.attitude_time_constant)
         self.step = g.step_seconds
         self.horizon = n = max(1, round(g.horizon_seconds / g.step_seconds))
-        self.nu = nu = NU + int(g.slack)
         hover = mass * GRAVITY
         self.tilt = tilt = (
             math.radians(g.max_tilt_deg) if max_tilt is None else min(math.radians(g.max_tilt_deg), max_tilt)
         )
-        self.input_lower = np.array((g.min_thrust * hover, -tilt, -tilt, 0.0)[:nu])
-        self.input_upper = np.array((g.max_thrust * hover, tilt, tilt, np.inf)[:nu])
+        self.input_lower = np.array((g.min_thrust * hover, -tilt, -tilt))
+        self.input_upper = np.array((g.max_thrust * hover, tilt, tilt))
+        """Bounds of ``(T, φ_ref, θ_ref)`` (N, rad, rad)."""
         self.times = np.arange(n + 1) * self.step
         self._stage_weight = np.array(
             (*g.position_weight, *g.velocity_weight, g.attitude_weight, g.attitude_weight), float
@@ -310,7 +310,7 @@ class PositionMPC:
         )
         self.slack_weights = (linear, quadratic)
         """The slack's linear and quadratic costs in use."""
-        self._bounds = (np.tile(self.input_lower[:NU], n), np.tile(self.input_upper[:NU], n))
+        self._bounds = (np.tile(self.input_lower, n), np.tile(self.input_upper, n))
         self._settings = {"primal_tol": g.primal_tolerance, "iter_limit": g.iteration_limit}
         self._hard: daqp.Model | None = None
         self._soft: daqp.Model | None = None
