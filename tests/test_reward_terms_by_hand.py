@@ -243,3 +243,42 @@ def test_disturbance_rejection_reward_terms_by_hand(make_env, scenario, vertical
             break
     assert terminated and info["termination_reason"] == "crash"
     assert info["reward_terms"]["crash"] == -CRASH_PENALTY
+
+
+def test_the_peak_term_sums_to_the_episodes_largest_horizontal_deviation(make_env):
+    """``reward.peak_weight`` w: each step's ``peak`` term is ``-w·`` how far the step's horizontal
+    distance from the reference (true position, from ``info``) rises above the largest one of the
+    episode so far, that largest starting at the reset's distance; so an episode's terms sum to ``-w·``
+    (its largest horizontal deviation, the harness's score, minus the start's). Two episodes of one env:
+    the figure-8 in 12.1 m/s wind without compensation (decimetres off), then a hover in gusts
+    (centimetres), so that a
+    largest carried from the first episode into the second leaves the second's terms all zero and fails;
+    also fails on the 3-D error, a term on the distance itself, or the default (no term) changed."""
+    weight = 300.0
+    env = make_env(
+        DISTURBANCE_REJECTION, estimator="oracle", episode_seconds=1.5, reward={"peak_weight": weight}
+    )
+    policy = make_agent("pid", compensation=False)
+    sums = []
+    for options in ({"scenario": "figure8", "wind_speed": 12.1}, {"scenario": "gusts"}):
+        obs, info = env.reset(seed=5, options=options)
+        policy.reset(env)
+        offset = np.asarray(info["position"]) - np.asarray(info["reference_position"])
+        largest = start = math.hypot(offset[0], offset[1])
+        total, terminated, truncated = 0.0, False, False
+        while not (terminated or truncated):
+            obs, _, terminated, truncated, info = env.step(policy.act(obs))
+            offset = np.asarray(info["position"]) - np.asarray(info["reference_position"])
+            distance = math.hypot(offset[0], offset[1])
+            expected = -weight * (max(largest, distance) - largest)
+            assert info["reward_terms"]["peak"] == pytest.approx(expected, **EXACT)
+            largest = max(largest, distance)
+            total += info["reward_terms"]["peak"]
+        assert total == pytest.approx(-weight * (largest - start), rel=1e-9, abs=1e-12)
+        sums.append(total)
+    assert sums[0] < 4.0 * sums[1] < -weight * 1e-3, sums  # decimetres, then centimetres off
+
+    plain = make_env(DISTURBANCE_REJECTION, estimator="oracle", episode_seconds=1.5)
+    plain.reset(seed=5)
+    _, _, _, _, info = plain.step(np.zeros(4))
+    assert "peak" not in info["reward_terms"]

@@ -8,7 +8,9 @@ Isaac Lab's reward terms). A task's reward is the sum of its terms, each reporte
   DisturbanceRejection's tracking);
 - :func:`effort`: ``-w·mean(a²)`` over the action's components;
 - :func:`crash`: ``-penalty`` on the step that ends an episode early;
-- :func:`closeness` and :func:`linear_cost`: FanTracking's ``exp(-d/s)`` and ``-w·|e|``.
+- :func:`closeness` and :func:`linear_cost`: FanTracking's ``exp(-d/s)`` and ``-w·|e|``;
+- :func:`peak_rise`: ``-w·`` the rise of an episode's running maximum, whose sum over the episode is
+  ``-w·`` its maximum (DisturbanceRejection's score, Hentzen et al.'s (2019) Table I).
 
 :func:`effort`, :func:`crash`, :func:`closeness` and :func:`linear_cost` are compiled functions of one
 vehicle, for a task's compiled step to call (FanTracking's); :func:`efforts` and :func:`crashes` are
@@ -36,6 +38,17 @@ def saturating_cost(error: np.ndarray, cap: float, scale: float) -> np.ndarray:
     ``-cap`` far away; with :func:`alive` a step earns ``cap·exp(-error/scale)``, the exponential
     tracking kernel of Isaac Lab's reward terms."""
     return -cap * (1.0 - np.exp(-error / scale))
+
+
+def peak_rise(error: np.ndarray, peak: np.ndarray, weight: float) -> np.ndarray:
+    """``-weight·(max(peak, error) - peak)`` of (N,) arrays, and ``peak`` raised in place to
+    ``max(peak, error)``: summed over an episode whose ``peak`` started at the first step's error, the
+    terms telescope to ``-weight·(max_t error_t - error_0)``, so the return scores the episode's largest
+    error and not its mean."""
+    raised = np.maximum(peak, error)
+    cost = -weight * (raised - peak)
+    peak[...] = raised
+    return cost
 
 
 def alive(ended: np.ndarray, cap: float) -> np.ndarray:
