@@ -338,7 +338,9 @@ def test_a_batch_commands_what_one_controller_per_vehicle_commands():
     """Five vehicles in different states, references and forces, soft constraint and compensation on,
     over 30 control steps on a reference whose velocity changes, vehicle 2 restarting at step 12: the
     batch's commands are those of five controllers of one vehicle each (the ``mpc`` agent's), fed the
-    same observations, to 1e-6 on a normalised action (observed: bit for bit)."""
+    same observations, to 1e-6 on a normalised action (observed: bit for bit); the restarted vehicle's
+    solver counts the DAQP iterations of a new controller's (a working set kept across the restart would
+    warm-start it: the same exact solution in fewer iterations)."""
     env, count = FakeEnv(), 5
     gains = MPCGains(slack=True, compensation=True, position_weight=(1298.89, 1298.89, 625.0))
     tilt = math.radians(env.cfg.action_limits.max_tilt_deg)
@@ -372,5 +374,7 @@ def test_a_batch_commands_what_one_controller_per_vehicle_commands():
         largest = max(largest, float(np.abs(together - alone).max()))
         if k >= 12:  # a restart is a new solver (no warm start from before): the same data, the same bits
             np.testing.assert_array_equal(together[2], alone[2])
+            restarted, fresh = batch.qps[2], singles[2].qps[0]  # and the same DAQP iterations since
+            assert (restarted.iterations, restarted.stages) == (fresh.iterations, fresh.stages)
         assert all(qp.status == "solved" for qp in batch.qps)
     assert largest <= 1e-6
