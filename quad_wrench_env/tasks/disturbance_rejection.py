@@ -322,7 +322,7 @@ class DisturbanceRejectionReward:
     """m. None: one kernel on the 3-D error (above). A length: the horizontal and the vertical error
     each through their own kernel with half the cap, ``-c/2·(1 - exp(-|e_xy|/s)) - c/2·(1 -
     exp(-|e_z|/s_z))`` with ``s_z`` this length, so that a height given up (a controller at its tilt
-    limit, 0.6 m below the figure-8 in 12.1 m/s wind) does not flatten the horizontal term, which
+    limit, 0.6 m above the figure-8 in 12.1 m/s wind) does not flatten the horizontal term, which
     carries Hentzen et al.'s (2019) Table I metric; ``tracking + alive`` stays in (0, c]."""
     peak_weight: float = 0.0
     """per m; > 0 adds the term ``peak = -w·(max(P, |e_xy|) - P)``, ``P`` the episode's largest
