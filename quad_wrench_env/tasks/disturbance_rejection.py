@@ -467,7 +467,8 @@ class DisturbanceRejection(TaskDefaults):
         self.disturbance_speed = np.zeros(count)
         """Each vehicle's ``jet_speed`` (jet_crossing) or ``wind_speed`` (figure8), m/s; else 0."""
         self.peak_deviation = np.zeros(count)
-        """m: each vehicle's largest horizontal deviation in its episode so far (``reward.peak_weight``)."""
+        """m: each vehicle's largest horizontal deviation in its episode so far (kept with
+        ``reward.peak_weight`` > 0 only)."""
 
     def components(self) -> Components:
         """The gust fan's jets, the turbulence, the 1-cosine bump and the table; each vehicle's copy of
@@ -583,8 +584,9 @@ class DisturbanceRejection(TaskDefaults):
 
     def start(self, view: FleetView, index: np.ndarray) -> TaskRecord:
         record = self._record(view, None, None)
-        offset = view.state.position[index] - record.info["reference_position"][index]
-        self.peak_deviation[index] = np.hypot(offset[:, 0], offset[:, 1])
+        if self.cfg.reward.peak_weight > 0.0:
+            offset = view.state.position[index] - record.info["reference_position"][index]
+            self.peak_deviation[index] = _horizontal_distance(offset)
         return record
 
     def step(self, view: FleetView, actions: np.ndarray, ended: np.ndarray) -> TaskRecord:
@@ -613,8 +615,9 @@ class DisturbanceRejection(TaskDefaults):
                 "crash": terms.crashes(ended, r.crash_penalty),
             }
             if r.peak_weight > 0.0:
-                horizontal = np.hypot(offset[:, 0], offset[:, 1])
-                reward_terms["peak"] = terms.peak_rise(horizontal, self.peak_deviation, r.peak_weight)
+                reward_terms["peak"] = terms.peak_rise(
+                    _horizontal_distance(offset), self.peak_deviation, r.peak_weight
+                )
         info = {"reference_position": position, "reference_velocity": velocity, "tracking_error": error}
         return TaskRecord(reward_terms, blocks=self._blocks(view, position, velocity), info=info)
 
@@ -667,10 +670,16 @@ class DisturbanceRejection(TaskDefaults):
         the mean distance (m) and the largest vertical error (m), over the whole episode."""
         error = np.asarray(trace["position"]) - np.asarray(trace["reference_position"])
         return {
-            "max_horizontal_deviation": float(np.max(np.hypot(error[:, 0], error[:, 1]))),
+            "max_horizontal_deviation": float(np.max(_horizontal_distance(error))),
             "mean_tracking_error": float(np.mean(np.linalg.norm(error, axis=1))),
             "max_vertical_error": float(np.max(np.abs(error[:, 2]))),
         }
+
+
+def _horizontal_distance(offset: np.ndarray) -> np.ndarray:
+    """(N,) ``hypot(x, y)`` of (N, 3) offsets from the reference (m): the distance Hentzen et al.'s
+    (2019) Table I scores, which the ``peak`` term follows."""
+    return np.hypot(offset[:, 0], offset[:, 1])
 
 
 def _glide(t: np.ndarray, length: float, speed: float, ease: float) -> tuple[np.ndarray, np.ndarray]:
