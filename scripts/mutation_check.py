@@ -466,7 +466,7 @@ MUTATIONS = (
                 "attitude_from_acceleration(desired[n], yaw, self._mass)",
             ),
         ),
-        ("tests/test_pid_integral.py",),
+        ("tests/test_tilt_limit_height.py",),
     ),
     Mutation(
         "body drag linear in airspeed",
@@ -787,8 +787,8 @@ MUTATIONS = (
         (
             (
                 "quad_wrench_env/tasks/disturbance_rejection.py",
-                "error = np.linalg.norm(view.state.position - position, axis=1)",
-                "error = np.linalg.norm((view.state.position - position)[:, :2], axis=1)",
+                "error = np.linalg.norm(offset, axis=1)",
+                "error = np.linalg.norm(offset[:, :2], axis=1)",
             ),
         ),
         ("tests/test_reward_terms_by_hand.py",),
@@ -823,7 +823,7 @@ MUTATIONS = (
         (
             (
                 "quad_wrench_env/tasks/disturbance_rejection.py",
-                '"max_horizontal_deviation": float(np.max(np.hypot(error[:, 0], error[:, 1]))),',
+                '"max_horizontal_deviation": float(np.max(_horizontal_distance(error))),',
                 '"max_horizontal_deviation": float(np.max(np.linalg.norm(error, axis=1))),',
             ),
         ),
@@ -892,8 +892,26 @@ MUTATIONS = (
     Mutation(
         "MPC: the soft problem's slack kept where the hard problem solves",
         "mpc",
-        (("quad_wrench_env/control/mpc_controller.py", 'if hard.info.status == "solved":', "if False:"),),
+        (
+            (
+                "quad_wrench_env/control/mpc_controller.py",
+                "if self.gains.slack and flag != 1:",
+                "if self.gains.slack:",
+            ),
+        ),
         ("tests/test_mpc_exact_penalty.py",),
+    ),
+    Mutation(
+        "MPC: the band on x and y alone, the height free (it climbs at the tilt limit)",
+        "mpc",
+        (
+            (
+                "quad_wrench_env/control/mpc_controller.py",
+                "limits = (g.cross_track_limit,) * 2 + (() if g.height_limit is None else (g.height_limit,))",
+                "limits = (g.cross_track_limit,) * 2",
+            ),
+        ),
+        ("tests/test_tilt_limit_height.py",),
     ),
     Mutation(
         "MPC: the input reference's thrust unclipped beyond the tilt limit",
@@ -1070,8 +1088,9 @@ def _copy(destination: Path) -> None:
 
 
 def _apply(root: Path, mutation: Mutation) -> list[str]:
-    """Apply the edits; return the problems (a text missing or not unique)."""
-    problems = []
+    """Apply the edits; return the problems (a text missing or not unique, a listed test file not in the
+    copy: untracked, or gone)."""
+    problems = [f"{name}: no such tracked test file" for name in mutation.tests if not (root / name).exists()]
     for name, text, replacement in mutation.edits:
         path = root / name
         source = path.read_text()
@@ -1089,12 +1108,11 @@ def _restore(root: Path, mutation: Mutation) -> None:
 
 
 def _run(root: Path, mutation: Mutation, timeout: float) -> tuple[str, str, float]:
-    tests = [t for t in mutation.tests if (root / t).exists()]
     env = {**os.environ, "PYTHONPATH": str(root), "QUAD_WRENCH_CACHE_DIR": str(root / ".compositions")}
     start = time.perf_counter()
     try:
         done = subprocess.run(
-            [sys.executable, "-m", "pytest", "-x", "-q", "-p", "no:cacheprovider", *tests],
+            [sys.executable, "-m", "pytest", "-x", "-q", "-p", "no:cacheprovider", *mutation.tests],
             cwd=root,
             env=env,
             capture_output=True,

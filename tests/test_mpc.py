@@ -112,20 +112,21 @@ def test_discretised_linear_model_matches_the_nonlinear_model_for_small_deviatio
     assert 3.0 < error(1e-2) / error(5e-3) < 5.0
 
 
-@pytest.mark.parametrize("slack", [False, True])
-def test_the_condensed_qp_has_the_sparse_qps_solution(slack):
+@pytest.mark.parametrize(("slack", "height_limit"), [(False, None), (True, None), (True, 0.05)])
+def test_the_condensed_qp_has_the_sparse_qps_solution(slack, height_limit):
     """The controller's condensed QP (the states eliminated, DAQP) against eq. (4) as the sparse QP of
     tests/reference_mpc.py (states and inputs as variables, the model as equality rows, OSQP polished
     to 1e-10) on the same model and references: from states up to 0.5 m and 1 m/s off, with
     compensation, the cross-track constraint active in some (the hard problem where it is feasible,
-    the soft one where the controller found it not: ``stages``) and the thrust at its bound in some.
+    the soft one where the controller found it not: ``stages``) and the thrust at its bound in some;
+    the band on x and y alone (the paper's) and with the height band, its slack used in some.
     Tolerances: both are the active set's exact solution, so they differ by rounding, ~1e-16 times the
     condition of ``H`` (~1e7 with these weights): observed 1e-11 N on the thrust, 1e-12 m on a state;
     asserted 1e-7 and 1e-8."""
-    mpc = make_mpc(slack=slack, compensation=True, **TUNED)
+    mpc = make_mpc(slack=slack, compensation=True, height_limit=height_limit, **TUNED)
     reference = hover_reference(mpc)
     rng = np.random.default_rng(1)
-    stages, bounded = set(), 0
+    stages, bounded, height_slack = set(), 0, 0.0
     for trial in range(12):
         scale = (0.04, 0.5)[trial % 2]  # within e_max and its reach, or not
         offsets = (rng.uniform(-scale, scale, 3), rng.uniform(-2 * scale, 2 * scale, 3))
@@ -134,15 +135,18 @@ def test_the_condensed_qp_has_the_sparse_qps_solution(slack):
         mpc.solve(state, 0.3, *reference, force=np.array((0.3, 0.1, -0.2)))
         assert mpc.status == "solved"
         stages.add(mpc.stages)
-        states, inputs, slacks = sparse_solution(mpc, hard=mpc.stages == 1)
+        states, inputs, slacks, height_slacks = sparse_solution(mpc, hard=mpc.stages == 1)
         np.testing.assert_allclose(mpc.predicted_inputs, inputs, atol=1e-7, rtol=0)
         np.testing.assert_allclose(mpc.predicted_states, states, atol=1e-8, rtol=0)
         np.testing.assert_allclose(mpc.slack_values, slacks, atol=1e-8, rtol=0)
+        np.testing.assert_allclose(mpc.height_slack_values, height_slacks, atol=1e-8, rtol=0)
+        height_slack = max(height_slack, mpc.height_slack_values.max())
         bounded += int(
             np.any(np.isclose(inputs, mpc.input_lower[:NU]) | np.isclose(inputs, mpc.input_upper[:NU]))
         )
     assert stages == ({1, 2} if slack else {1})
     assert bounded >= 3  # an input bound active in some
+    assert (height_slack > 1e-3) == (height_limit is not None)
 
 
 @pytest.mark.parametrize("slack", [False, True])

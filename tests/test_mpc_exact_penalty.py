@@ -78,7 +78,7 @@ def test_with_the_derived_weights_the_soft_constraint_is_the_hard_one_where_that
     assert free.max() > E_MAX + 2e-3  # the constraint is active
 
     soft, error = _solve(state, reference_velocity)
-    _, hard_inputs, _ = sparse_solution(soft, hard=True)  # the hard problem, solved apart
+    hard_inputs = sparse_solution(soft, hard=True)[1]  # the hard problem, solved apart
     states = [soft.predicted_states[0]]
     for u in hard_inputs:  # the model's own rollout of the hard problem's inputs
         assert np.all(u >= soft.input_lower[:NU] - TOL) and np.all(u <= soft.input_upper[:NU] + TOL)

@@ -149,32 +149,3 @@ def test_the_tilt_limit_keeps_the_vertical_channel():
         assert attitude_from_acceleration(small, yaw, mass, limit) == attitude_from_acceleration(
             small, yaw, mass
         )
-
-
-def test_a_push_beyond_the_tilt_limit_does_not_make_the_pid_climb():
-    """Hentzen et al.'s (2019) PID hovering in still air, pushed sideways from 0.5 s by 1.1 m g tan 30°
-    (more than the 30° tilt can hold): it drifts with the push but keeps its height within 0.1 m (with
-    the thrust of the unclipped acceleration through the clipped tilt it rose 1.5 m in 2.4 s, to the
-    ceiling)."""
-    settings = {"action_type": "attitude", "gusts": {"w20": 0.0, "peak": [0.0, 0.0]}, "episode_seconds": 3.0}
-    probe = gym.make("QuadWrench/DisturbanceRejection-v0", **settings)
-    push = 1.1 * probe.unwrapped.vehicle.mass * GRAVITY * math.tan(math.radians(30.0))
-    probe.close()
-    env = gym.make(
-        "QuadWrench/DisturbanceRejection-v0", **settings, external_wrench=[[0.5, 10.0, push, 0, 0, 0, 0, 0]]
-    )
-    try:
-        policy = PIDPolicy()
-        observation, _ = env.reset(seed=0, options={"scenario": "gusts"})
-        policy.reset(env)
-        layout, heights, drift = env.unwrapped.obs_layout, [], []
-        for _ in range(100):
-            observation, _, terminated, truncated, info = env.step(policy.act(observation))
-            heights.append(info["position"][2] - observation[layout["reference_position"]][2])
-            drift.append(info["position"][0] - observation[layout["reference_position"]][0])
-            if terminated or truncated:
-                break
-        assert max(abs(h) for h in heights) < 0.1, max(heights)
-        assert drift[-1] > 0.5  # the push won: the check flew past the tilt limit
-    finally:
-        env.close()

@@ -32,6 +32,12 @@ feasibility; so the hard problem (no slack) is solved first and flown where it i
 one only where DAQP finds it infeasible (the constraint cannot be met): no slack is used while the
 constraint can be met, up to its edge.
 
+The constraint holds the height too, the vertical channel first: ``|p_z - p_r,z| <= e_z + ζ_k`` with
+its own slack at ``height_priority`` times the cost. On x and y alone, at the tilt limit the hard
+problem stays feasible by adding thrust (more thrust at the same tilt is more side force) and the
+vehicle climbs, 0.6 m above the fast figure-8 and out of the arena in off-axis wind; with the band the
+hard problem turns infeasible there and the soft one gives up the path before the height.
+
 The input reference beyond the tilt limit puts the vertical channel first (roll and pitch clipped, the
 thrust whose vertical part balances): an input reference of the unclipped thrust ``|F|`` would pull
 the vehicle up.
@@ -117,6 +123,14 @@ class MPCGains:
     slack_weight_quadratic: float | None = None
     """Quadratic cost on the slack (1/m², per step); None: the linear weight over ``e_max`` (both terms
     equal at a slack of ``e_max``)."""
+    height_limit: float | None = 0.05
+    """``e_z`` (m) of the band on the height error, ``|p_z - p_r,z| <= e_z``, that the cross-track
+    constraint (``slack``) also holds, the vertical channel first: without it, at the tilt limit the
+    hard constraint is met by adding thrust and the vehicle climbs (module docstring). None: the band
+    on x and y alone (Hentzen et al. 2019 Sec. IV-D c))."""
+    height_priority: float = 100.0
+    """The height band's slack costs this multiple of the cross-track slack's (both terms), so that the
+    soft problem gives up the path before the height."""
     linearization: str = "state"
     """Attitude about which the model is linearised, at the equilibrium thrust: ``"state"``, the current
     attitude, or ``"reference"``, the equilibrium tilt of the input reference (the hover point)."""
@@ -147,6 +161,10 @@ class MPCGains:
         for name in ("slack_weight_linear", "slack_weight_quadratic"):
             if getattr(self, name) is not None and not getattr(self, name) > 0.0:
                 raise ValueError(f"mpc.{name}={getattr(self, name)!r} must be > 0 or None (derived)")
+        if self.height_limit is not None and not self.height_limit > 0.0:
+            raise ValueError(f"mpc.height_limit={self.height_limit!r} must be > 0 or None (no height band)")
+        if not self.height_priority >= 1.0:
+            raise ValueError(f"mpc.height_priority={self.height_priority!r} must be >= 1 (the height first)")
         if self.linearization not in ("reference", "state"):
             raise ValueError(f"mpc.linearization={self.linearization!r} must be 'reference' or 'state'")
         if self.horizon_seconds < self.step_seconds:
@@ -246,10 +264,10 @@ class QPData(NamedTuple):
     gradient: np.ndarray
     """(V, 3N) ``f``."""
     cross_track: np.ndarray
-    """(V, 2N, 3N) the x and y positions of ``x_1..x_N`` (row ``2(k-1) + axis``) as functions of ``U``,
-    less their free response (no rows without slack)."""
+    """(V, BN, 3N) the positions of ``x_1..x_N`` on the band's B axes (:attr:`PositionMPC.band`; row
+    ``B(k-1) + axis``) as functions of ``U``, less their free response (no rows without slack)."""
     lower: np.ndarray
-    """(V, 2N) the hard constraint on those rows: the reference less ``e_max``, less the free response."""
+    """(V, BN) the hard constraint on those rows: the reference less the band, less the free response."""
     upper: np.ndarray
 
 
@@ -273,11 +291,11 @@ class PositionMPC:
     ``max_tilt`` (rad), where given, lowers the roll and pitch bound to the attitude action's limit.
     After :meth:`solve`: ``predicted_inputs`` (N, 3: thrust N, roll and pitch references rad),
     ``predicted_states`` (N+1, 8, row 0 the current state: the model's rollout of those inputs),
-    ``slack_values`` (N, zeros without slack), ``input_reference`` (N, 3), ``state_reference``
-    (N+1, 8), the model used (``A_d``, ``B_d``, ``c_d``), ``status`` (:data:`EXIT_FLAGS`),
-    ``iterations``, ``solve_time`` (s, DAQP's own), ``stages`` (the problems solved: 1, or 2 where
-    the hard problem was infeasible and the soft one was solved) and ``total_time`` (s, the whole
-    call: linearisation, condensing and solve).
+    ``slack_values`` and ``height_slack_values`` (N each, zeros without slack or height band),
+    ``input_reference`` (N, 3), ``state_reference`` (N+1, 8), the model used (``A_d``, ``B_d``,
+    ``c_d``), ``status`` (:data:`EXIT_FLAGS`), ``iterations``, ``solve_time`` (s, DAQP's own),
+    ``stages`` (the problems solved: 1, or 2 where the hard problem was infeasible and the soft one
+    was solved) and ``total_time`` (s, the whole call: linearisation, condensing and solve).
     """
 
     def __init__(self, gains: MPCGains, mass: float, max_tilt: float | None = None) -> None:
@@ -309,7 +327,12 @@ class PositionMPC:
             linear / g.cross_track_limit if g.slack_weight_quadratic is None else g.slack_weight_quadratic
         )
         self.slack_weights = (linear, quadratic)
-        """The slack's linear and quadratic costs in use."""
+        """The cross-track slack's linear and quadratic costs in use (the height slack's are
+        ``height_priority`` times these)."""
+        limits = (g.cross_track_limit,) * 2 + (() if g.height_limit is None else (g.height_limit,))
+        self.band = np.array(limits if g.slack else ())
+        """The band's half-widths on the constrained axes of each predicted position (x, y and, with a
+        ``height_limit``, z; none without slack)."""
         self._bounds = (np.tile(self.input_lower, n), np.tile(self.input_upper, n))
         self._settings = {"primal_tol": g.primal_tolerance, "iter_limit": g.iteration_limit}
         self._hard: daqp.Model | None = None
@@ -321,6 +344,7 @@ class PositionMPC:
         self._state = np.zeros(NX)
         self.predicted_inputs = np.zeros((n, NU))
         self.slack_values = np.zeros(n)
+        self.height_slack_values = np.zeros(n)
         self.input_reference = np.zeros((n, NU))
         self.state_reference = np.zeros((n + 1, NX))
         self.status = "unsolved"
@@ -378,11 +402,10 @@ class PositionMPC:
             points[:, 6:8] = inputs[:, 0, 1:]
         a_d, b_d, c_d = linearize(points, inputs[:, 0, 0], yaws, model_forces, self.mass, self.tau, self.step)
         hessian, gradient, cross_track, free = self._condense(states, a_d, b_d, c_d, state_reference, inputs)
-        if g.slack:
-            reference = positions[:, 1:, :2].reshape(count, -1) - free
-            lower, upper = reference - g.cross_track_limit, reference + g.cross_track_limit
-        else:
-            lower = upper = np.zeros((count, 0))
+        axes = len(self.band)
+        reference = positions[:, 1:, :axes].reshape(count, -1) - free
+        band = np.tile(self.band, n)
+        lower, upper = reference - band, reference + band
         return QPData(
             states, inputs, state_reference, a_d, b_d, c_d, hessian, gradient, cross_track, lower, upper
         )
@@ -396,7 +419,7 @@ class PositionMPC:
         state_reference: np.ndarray,
         input_reference: np.ndarray,
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """``H``, ``f``, the cross-track rows and their free response of eq. (4) with the states
+        """``H``, ``f``, the band's rows and their free response of eq. (4) with the states
         eliminated: ``x_k = x_k^0 + Σ_{j<k} A_d^{k-1-j}·B_d·u_j`` (``x^0`` the free response from
         ``x_0`` with ``u = 0``), so with ``G_m = A_d^m·B_d`` and the stage weights ``Q`` (``Q_N`` the
         terminal ones), ``H_jl = 2·Σ_{i ≥ max(j,l)} G_{i-j}ᵀ·Q_{i+1}·G_{i-l} + 2·R·δ_jl`` and
@@ -426,12 +449,11 @@ class PositionMPC:
         padded = np.concatenate((errors, np.zeros((count, n, NX))), axis=1)[:, ahead]  # (V, N, N, 8)
         gradient = (padded.reshape(count, n, n * NX) @ steps.reshape(count, n * NX, NU)).reshape(count, -1)
         gradient -= (self._input_weight * input_reference).reshape(count, -1)
-        if not g.slack:
-            return 2.0 * hessian, 2.0 * gradient, np.zeros((count, 0, n * NU)), np.zeros((count, 0))
+        axes = len(self.band)
         lag = np.arange(n)[:, None] - np.arange(n)[None]  # [k, j] = k - j: G_{k-j} moves x_{k+1} by u_j
-        planar = np.concatenate((steps[:, :, :2], np.zeros((count, 1, 2, NU))), axis=1)
-        rows = planar[:, np.where(lag >= 0, lag, n)].transpose(0, 1, 3, 2, 4).reshape(count, 2 * n, n * NU)
-        return 2.0 * hessian, 2.0 * gradient, rows, free[:, :, :2].reshape(count, -1)
+        banded = np.concatenate((steps[:, :, :axes], np.zeros((count, 1, axes, NU))), axis=1)
+        rows = banded[:, np.where(lag >= 0, lag, n)].transpose(0, 1, 3, 2, 4).reshape(count, axes * n, n * NU)
+        return 2.0 * hessian, 2.0 * gradient, rows, free[:, :, :axes].reshape(count, -1)
 
     def _solved(self, model: daqp.Model | None, *problem: np.ndarray) -> tuple[daqp.Model, np.ndarray, int]:
         """``model`` (a new one where None) given ``problem`` (``H, f, A, upper, lower``) and solved from
@@ -451,17 +473,22 @@ class PositionMPC:
     def _soft_problem(self, data: QPData, index: int) -> tuple[np.ndarray, ...]:
         """The soft problem (Hentzen et al. 2019 Sec. IV-D c)): the inputs and one slack ``ε_k >= 0``
         per step, ``p - ε <= p_r + e_max`` and ``p + ε >= p_r - e_max`` on x and y, the cost
-        ``w_1·ε + w_2·ε²`` added."""
-        n = self.horizon
+        ``w_1·ε + w_2·ε²`` added; with a ``height_limit`` one more, ``ζ_k >= 0`` on z with the band
+        ``e_z`` and ``height_priority`` times the costs."""
+        n, axes = self.horizon, len(self.band)
+        slacks = 1 + (axes == 3)
         linear, quadratic = self.slack_weights
-        hessian = scipy.linalg.block_diag(data.hessian[index], 2.0 * quadratic * np.eye(n))
-        gradient = np.concatenate((data.gradient[index], np.full(n, linear)))
-        per_row = np.repeat(np.eye(n), 2, axis=0)  # row 2k + axis -> ε_k
+        priority = np.repeat((1.0, self.gains.height_priority)[:slacks], n)  # ε_0..ε_{N-1}, ζ_0..ζ_{N-1}
+        hessian = scipy.linalg.block_diag(data.hessian[index], np.diag(2.0 * quadratic * priority))
+        gradient = np.concatenate((data.gradient[index], linear * priority))
+        own = (np.arange(axes) == 2).astype(int)  # axis -> its slack: ε on x and y, ζ on z
+        slack_of_row = (own[None] * n + np.arange(n)[:, None]).ravel()  # row axes·k + axis -> its column
+        per_row = np.eye(slacks * n)[slack_of_row]
         rows = data.cross_track[index]
         matrix = np.block([[rows, -per_row], [rows, per_row]])
-        unbounded = np.full(2 * n, np.inf)
-        upper = np.concatenate((self._bounds[1], np.full(n, np.inf), data.upper[index], unbounded))
-        lower = np.concatenate((self._bounds[0], np.zeros(n), -unbounded, data.lower[index]))
+        unbounded = np.full(axes * n, np.inf)
+        upper = np.concatenate((self._bounds[1], np.full(slacks * n, np.inf), data.upper[index], unbounded))
+        lower = np.concatenate((self._bounds[0], np.zeros(slacks * n), -unbounded, data.lower[index]))
         return hessian, gradient, matrix, upper, lower
 
     def solve_prepared(self, data: QPData, index: int) -> np.ndarray:
@@ -488,10 +515,12 @@ class PositionMPC:
         self.status = EXIT_FLAGS.get(flag, f"exit flag {flag}")
         if flag < 1 or not np.all(np.isfinite(solution)):  # no solution: hold the equilibrium input
             self.predicted_inputs = inputs.copy()
-            self.slack_values = np.zeros(n)
+            self.slack_values, self.height_slack_values = np.zeros(n), np.zeros(n)
         else:
             self.predicted_inputs = solution[: n * NU].reshape(n, NU)
-            self.slack_values = solution[n * NU :] if self.stages == 2 else np.zeros(n)
+            slacks = solution[n * NU :] if self.stages == 2 else np.zeros(2 * n)
+            self.slack_values = slacks[:n]
+            self.height_slack_values = slacks[n : 2 * n] if len(slacks) == 2 * n else np.zeros(n)
         return self.predicted_inputs[0].copy()
 
     def solve(
