@@ -321,6 +321,16 @@ def test_gains_refuse_a_qp_daqp_cannot_solve(setting, value):
         MPCGains(**{setting: value})
 
 
+@pytest.mark.parametrize(
+    ("setting", "value"), [("height_limit", 0.0), ("height_limit", -0.05), ("height_priority", 0.5)]
+)
+def test_gains_refuse_a_height_band_that_is_none_or_comes_second(setting, value):
+    """A height band of no width, or a height slack cheaper than the cross-track one (the path before
+    the height, the climb the band exists to stop): refused by name and value."""
+    with pytest.raises(ValueError, match=f"{setting}={value}"):
+        MPCGains(**{setting: value})
+
+
 def test_an_unsolved_hard_problem_falls_back_to_the_soft_one_and_then_to_the_equilibrium_input():
     """Drifting off the path at 0.44 m/s the cross-track constraint is active and the hard problem
     feasible (tests/test_mpc_exact_penalty.py): with DAQP allowed a single iteration it stops at its
