@@ -112,7 +112,7 @@ def test_discretised_linear_model_matches_the_nonlinear_model_for_small_deviatio
     assert 3.0 < error(1e-2) / error(5e-3) < 5.0
 
 
-@pytest.mark.parametrize(("slack", "height_limit"), [(False, None), (True, None), (True, 0.05)])
+@pytest.mark.parametrize(("slack", "height_limit"), [(False, None), (True, None), (True, 0.05), (True, 0.08)])
 def test_the_condensed_qp_has_the_sparse_qps_solution(slack, height_limit):
     """The controller's condensed QP (the states eliminated, DAQP) against eq. (4) as the sparse QP of
     tests/reference_mpc.py (states and inputs as variables, the model as equality rows, OSQP polished

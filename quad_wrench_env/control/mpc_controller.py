@@ -333,6 +333,12 @@ class PositionMPC:
         self.band = np.array(limits if g.slack else ())
         """The band's half-widths on the constrained axes of each predicted position (x, y and, with a
         ``height_limit``, z; none without slack)."""
+        slacks = 1 + (len(self.band) == 3)  # ε_k on x and y; ζ_k on z with a height band
+        priority = np.repeat((1.0, g.height_priority)[:slacks], n)  # ε_0..ε_{N-1}, ζ_0..ζ_{N-1}
+        self._slack_costs = (np.diag(2.0 * quadratic * priority), linear * priority)
+        own = (np.arange(len(self.band)) == 2).astype(int)  # axis -> its slack
+        self._slack_of_row = np.eye(slacks * n)[(own[None] * n + np.arange(n)[:, None]).ravel()]
+        """The soft problem's slack Hessian and gradient, and each band row's slack (row ``B·k + axis``)."""
         self._bounds = (np.tile(self.input_lower, n), np.tile(self.input_upper, n))
         self._settings = {"primal_tol": g.primal_tolerance, "iter_limit": g.iteration_limit}
         self._hard: daqp.Model | None = None
@@ -475,20 +481,15 @@ class PositionMPC:
         per step, ``p - ε <= p_r + e_max`` and ``p + ε >= p_r - e_max`` on x and y, the cost
         ``w_1·ε + w_2·ε²`` added; with a ``height_limit`` one more, ``ζ_k >= 0`` on z with the band
         ``e_z`` and ``height_priority`` times the costs."""
-        n, axes = self.horizon, len(self.band)
-        slacks = 1 + (axes == 3)
-        linear, quadratic = self.slack_weights
-        priority = np.repeat((1.0, self.gains.height_priority)[:slacks], n)  # ε_0..ε_{N-1}, ζ_0..ζ_{N-1}
-        hessian = scipy.linalg.block_diag(data.hessian[index], np.diag(2.0 * quadratic * priority))
-        gradient = np.concatenate((data.gradient[index], linear * priority))
-        own = (np.arange(axes) == 2).astype(int)  # axis -> its slack: ε on x and y, ζ on z
-        slack_of_row = (own[None] * n + np.arange(n)[:, None]).ravel()  # row axes·k + axis -> its column
-        per_row = np.eye(slacks * n)[slack_of_row]
-        rows = data.cross_track[index]
+        slack_hessian, slack_gradient = self._slack_costs
+        hessian = scipy.linalg.block_diag(data.hessian[index], slack_hessian)
+        gradient = np.concatenate((data.gradient[index], slack_gradient))
+        rows, per_row = data.cross_track[index], self._slack_of_row
         matrix = np.block([[rows, -per_row], [rows, per_row]])
-        unbounded = np.full(axes * n, np.inf)
-        upper = np.concatenate((self._bounds[1], np.full(slacks * n, np.inf), data.upper[index], unbounded))
-        lower = np.concatenate((self._bounds[0], np.zeros(slacks * n), -unbounded, data.lower[index]))
+        unbounded = np.full(len(rows), np.inf)
+        slacks = per_row.shape[1]
+        upper = np.concatenate((self._bounds[1], np.full(slacks, np.inf), data.upper[index], unbounded))
+        lower = np.concatenate((self._bounds[0], np.zeros(slacks), -unbounded, data.lower[index]))
         return hessian, gradient, matrix, upper, lower
 
     def solve_prepared(self, data: QPData, index: int) -> np.ndarray:
@@ -518,9 +519,9 @@ class PositionMPC:
             self.slack_values, self.height_slack_values = np.zeros(n), np.zeros(n)
         else:
             self.predicted_inputs = solution[: n * NU].reshape(n, NU)
-            slacks = solution[n * NU :] if self.stages == 2 else np.zeros(2 * n)
-            self.slack_values = slacks[:n]
-            self.height_slack_values = slacks[n : 2 * n] if len(slacks) == 2 * n else np.zeros(n)
+            slacks = solution[n * NU :] if self.stages == 2 else np.zeros(0)
+            slacks = np.concatenate((slacks, np.zeros(2 * n - len(slacks))))  # ζ zero without a height band
+            self.slack_values, self.height_slack_values = slacks[:n], slacks[n:]
         return self.predicted_inputs[0].copy()
 
     def solve(
