@@ -914,6 +914,24 @@ MUTATIONS = (
         ("tests/test_tilt_limit_height.py",),
     ),
     Mutation(
+        "MPC: the second pass linearised about the current attitude again",
+        "mpc",
+        (("quad_wrench_env/control/mpc_controller.py", "points[:, 6:8] = attitudes", "pass"),),
+        ("tests/test_mpc.py",),
+    ),
+    Mutation(
+        "MPC: the second pass about the attitude one step ahead",
+        "mpc",
+        (
+            (
+                "quad_wrench_env/control/mpc_controller.py",
+                "self.predicted_states[round(ahead / self.step), 6:8]",
+                "self.predicted_states[1, 6:8]",
+            ),
+        ),
+        ("tests/test_mpc.py",),
+    ),
+    Mutation(
         "MPC: the input reference's thrust unclipped beyond the tilt limit",
         "mpc",
         (

@@ -39,8 +39,16 @@ def _solve(
     state, reference_velocity=(0.0, 0.0, 0.0), slack=True, linear=None
 ) -> tuple[PositionMPC, np.ndarray]:
     """The MPC solved from ``state`` (p, v, roll, pitch) for a reference at (0, 0, 1) moving at
-    ``reference_velocity``; with the predicted cross-track error (max over x and y) of each step."""
-    gains = MPCGains(attitude_time_constant=TAU, slack=slack, slack_weight_linear=linear, **TUNED)
+    ``reference_velocity``; with the predicted cross-track error (max over x and y) of each step. One
+    pass: the exact-penalty property is one QP's (the second pass solves another model's:
+    tests/test_mpc.py)."""
+    gains = MPCGains(
+        attitude_time_constant=TAU,
+        slack=slack,
+        slack_weight_linear=linear,
+        second_pass_seconds=None,
+        **TUNED,
+    )
     mpc = PositionMPC(gains, MASS)
     guidance = ReferenceExtrapolator()
     guidance.update(np.array((0.0, 0.0, 1.0)), np.array(reference_velocity, dtype=float), 0.02)

@@ -38,6 +38,15 @@ problem stays feasible by adding thrust (more thrust at the same tilt is more si
 vehicle climbs, 0.6 m above the fast figure-8 and out of the arena in off-axis wind; with the band the
 hard problem turns infeasible there and the soft one gives up the path before the height.
 
+Where the soft problem flies (the vehicle at its limits), the current attitude can be far from the one
+the solution flies: at 30° of roll the linearisation credits a roll change of -56° with +0.49 of the
+thrust's vertical share (true: +0.03 at zero pitch), and with the height band first the QP "held the
+height" through that error, the tilt swinging between its limits while it recovered from a saturated
+phase. So there the QP is linearised again about the roll and pitch that its first solution predicts
+``second_pass_seconds`` ahead (about two of the attitude's time constants) and solved again: a second
+pass of the real-time iteration, only where the first cannot meet the constraint, so that every step
+within the band keeps the paper's single linearisation.
+
 The input reference beyond the tilt limit puts the vertical channel first (roll and pitch clipped, the
 thrust whose vertical part balances): an input reference of the unclipped thrust ``|F|`` would pull
 the vehicle up.
@@ -134,6 +143,11 @@ class MPCGains:
     linearization: str = "state"
     """Attitude about which the model is linearised, at the equilibrium thrust: ``"state"``, the current
     attitude, or ``"reference"``, the equilibrium tilt of the input reference (the hover point)."""
+    second_pass_seconds: float | None = 0.3
+    """Where the hard problem is infeasible (the vehicle at its limits: the soft problem flies), the QP
+    is linearised again about the roll and pitch that the first solution predicts this far ahead (s)
+    and solved again, a second pass of the real-time iteration (module docstring). None: one
+    linearisation per step, as the paper's."""
     yaw: float = 0.0
     """Heading (rad) that the policy holds with a proportional yaw-rate command."""
     yaw_gain: float = 1.0
@@ -169,6 +183,12 @@ class MPCGains:
             raise ValueError(f"mpc.linearization={self.linearization!r} must be 'reference' or 'state'")
         if self.horizon_seconds < self.step_seconds:
             raise ValueError("mpc.horizon_seconds must be at least one step_seconds")
+        ahead = self.second_pass_seconds
+        if ahead is not None and not self.step_seconds <= ahead <= self.horizon_seconds:
+            raise ValueError(
+                f"mpc.second_pass_seconds={ahead!r} must lie within the horizon, from step_seconds="
+                f"{self.step_seconds} to horizon_seconds={self.horizon_seconds}, or be None (one pass)"
+            )
         if not min(self.input_weight) > 0.0:
             raise ValueError(f"mpc.input_weight={self.input_weight!r} must be > 0 (a strictly convex QP)")
         if not self.primal_tolerance > 0.0 or self.iteration_limit < 1:
@@ -294,8 +314,9 @@ class PositionMPC:
     ``slack_values`` and ``height_slack_values`` (N each, zeros without slack or height band),
     ``input_reference`` (N, 3), ``state_reference`` (N+1, 8), the model used (``A_d``, ``B_d``,
     ``c_d``), ``status`` (:data:`EXIT_FLAGS`), ``iterations``, ``solve_time`` (s, DAQP's own),
-    ``stages`` (the problems solved: 1, or 2 where the hard problem was infeasible and the soft one
-    was solved) and ``total_time`` (s, the whole call: linearisation, condensing and solve).
+    ``stages`` (the problems solved in the last pass: 1, or 2 where the hard problem was infeasible and
+    the soft one was solved), ``passes`` (1, or 2 with the second pass: ``second_pass_seconds``) and
+    ``total_time`` (s, the whole call: linearisation, condensing and solve).
     """
 
     def __init__(self, gains: MPCGains, mass: float, max_tilt: float | None = None) -> None:
@@ -357,6 +378,7 @@ class PositionMPC:
         self.iterations = 0
         self.solve_time = 0.0
         self.stages = 0
+        self.passes = 0
         self.total_time = 0.0
 
     @property
@@ -381,10 +403,13 @@ class PositionMPC:
         velocities: np.ndarray,
         accelerations: np.ndarray,
         forces: np.ndarray | None = None,
+        attitudes: np.ndarray | None = None,
     ) -> QPData:
         """The QP data of V vehicles flying with this QP's settings, all at once: their ``states`` (V, 8)
         and ``yaws`` (V,), references ``positions``, ``velocities`` and ``accelerations`` (V, N+1, 3)
-        at ``times`` and estimated external ``forces`` (V, 3; ignored without ``compensation``)."""
+        at ``times`` and estimated external ``forces`` (V, 3; ignored without ``compensation``); the
+        model linearised about the roll and pitch ``attitudes`` (V, 2) where given, else as
+        ``linearization`` says."""
         g, n = self.gains, self.horizon
         states = np.asarray(states, dtype=float)
         count = len(states)
@@ -404,7 +429,9 @@ class PositionMPC:
         attitude = np.concatenate((inputs, inputs[:, -1:]), axis=1)[:, :, 1:]
         state_reference = np.concatenate((positions, velocities, attitude), axis=2)
         points = states.copy()
-        if g.linearization == "reference":
+        if attitudes is not None:
+            points[:, 6:8] = attitudes
+        elif g.linearization == "reference":
             points[:, 6:8] = inputs[:, 0, 1:]
         a_d, b_d, c_d = linearize(points, inputs[:, 0, 0], yaws, model_forces, self.mass, self.tau, self.step)
         hessian, gradient, cross_track, free = self._condense(states, a_d, b_d, c_d, state_reference, inputs)
@@ -492,16 +519,20 @@ class PositionMPC:
         lower = np.concatenate((self._bounds[0], np.zeros(slacks), -unbounded, data.lower[index]))
         return hessian, gradient, matrix, upper, lower
 
-    def solve_prepared(self, data: QPData, index: int) -> np.ndarray:
+    def solve_prepared(self, data: QPData, index: int, again: bool = False) -> np.ndarray:
         """Solve vehicle ``index`` of ``data`` (:meth:`prepare`), warm-started from this QP's last working
         set: the hard problem, and where it is infeasible (or not solved) the soft one; the first input
-        ``(T, φ_ref, θ_ref)`` (N, rad, rad)."""
+        ``(T, φ_ref, θ_ref)`` (N, rad, rad). ``again``: the step's second pass (its iterations and solve
+        time add to the first's)."""
         n = self.horizon
         self._state, inputs = data.states[index], data.input_reference[index]
         self.input_reference = inputs
         self.state_reference = data.state_reference[index]
         self.A_d, self.B_d, self.c_d = data.A_d[index], data.B_d[index], data.c_d[index]
-        self.iterations, self.solve_time, self.stages = 0, 0.0, 1
+        if not again:
+            self.iterations, self.solve_time, self.passes = 0, 0.0, 0
+        self.stages = 1
+        self.passes += 1
         hard = (
             data.hessian[index],
             data.gradient[index],
@@ -524,6 +555,15 @@ class PositionMPC:
             self.slack_values, self.height_slack_values = slacks[:n], slacks[n:]
         return self.predicted_inputs[0].copy()
 
+    def second_pass_attitude(self) -> np.ndarray | None:
+        """(2,) the roll and pitch that the last solution predicts ``second_pass_seconds`` ahead, about
+        which to solve again, where the last solve flew the soft problem; None where it did not, or
+        without a second pass."""
+        ahead = self.gains.second_pass_seconds
+        if ahead is None or self.stages != 2:
+            return None
+        return self.predicted_states[round(ahead / self.step), 6:8]
+
     def solve(
         self,
         state: np.ndarray,
@@ -536,19 +576,51 @@ class PositionMPC:
         """The first input ``(T, φ_ref, θ_ref)`` (N, rad, rad) from the current ``state`` (8: p, v, φ,
         θ) and ``yaw`` (rad), for the reference ``positions``, ``velocities`` and ``accelerations``
         ((N+1, 3) each, at ``times``) and the estimated external ``force`` (N, world frame; ignored
-        without ``compensation``): :meth:`prepare` for a batch of one, then :meth:`solve_prepared`."""
+        without ``compensation``): :func:`solve_batch` for a batch of one."""
         begin = time.perf_counter()
-        data = self.prepare(
+        command = solve_batch(
+            [self],
             np.asarray(state, dtype=float)[None],
             np.array([yaw]),
             np.asarray(positions, dtype=float)[None],
             np.asarray(velocities, dtype=float)[None],
             np.asarray(accelerations, dtype=float)[None],
             None if force is None else np.asarray(force, dtype=float)[None],
-        )
-        command = self.solve_prepared(data, 0)
+        )[0]
         self.total_time = time.perf_counter() - begin
         return command
+
+
+def solve_batch(
+    qps: list[PositionMPC],
+    states: np.ndarray,
+    yaws: np.ndarray,
+    positions: np.ndarray,
+    velocities: np.ndarray,
+    accelerations: np.ndarray,
+    forces: np.ndarray | None,
+) -> np.ndarray:
+    """(V, 3) the first input ``(T, φ_ref, θ_ref)`` of each of V vehicles, vehicle ``v`` solved by
+    ``qps[v]`` (:meth:`PositionMPC.prepare`'s arguments, one row per vehicle): every QP prepared at
+    once and solved, then those that flew the soft problem prepared again about their
+    :meth:`~PositionMPC.second_pass_attitude` and solved again."""
+    data = qps[0].prepare(states, yaws, positions, velocities, accelerations, forces)
+    commands = np.array([qp.solve_prepared(data, v) for v, qp in enumerate(qps)])
+    points = {v: qp.second_pass_attitude() for v, qp in enumerate(qps)}
+    again = np.array([v for v, point in points.items() if point is not None], dtype=int)
+    if len(again):
+        data = qps[0].prepare(
+            states[again],
+            yaws[again],
+            positions[again],
+            velocities[again],
+            accelerations[again],
+            None if forces is None else forces[again],
+            attitudes=np.array([points[v] for v in again]),
+        )
+        for row, v in enumerate(again):
+            commands[v] = qps[v].solve_prepared(data, row, again=True)
+    return commands
 
 
 def attitude_time_constant(vehicle: VehicleParams) -> float:
@@ -632,10 +704,9 @@ class MPCController:
             obs[:, layout["reference_position"]], obs[:, layout["reference_velocity"]], self._dt
         )
         reference = self.reference.horizon(self.qps[0].times)
-        data = self.qps[0].prepare(states, yaw, *reference, obs[:, layout["force"]])
+        commands = solve_batch(self.qps, states, yaw, *reference, obs[:, layout["force"]])
         out = np.empty((len(obs), 4), dtype=np.float32)
-        for vehicle, qp in enumerate(self.qps):
-            thrust, roll_ref, pitch_ref = qp.solve_prepared(data, vehicle)
+        for vehicle, (thrust, roll_ref, pitch_ref) in enumerate(commands):
             yaw_rate = g.yaw_gain * wrap_angle(g.yaw - yaw[vehicle])
             out[vehicle] = self._scaling.to_action((roll_ref, pitch_ref, yaw_rate, thrust))
         return out
