@@ -43,9 +43,9 @@ the solution flies: at 30° of roll the linearisation credits a roll change of -
 thrust's vertical share (true: +0.03 at zero pitch), and with the height band first the QP "held the
 height" through that error, the tilt swinging between its limits while it recovered from a saturated
 phase. So there the QP is linearised again about the roll and pitch that its first solution predicts
-``second_pass_seconds`` ahead (about two of the attitude's time constants) and solved again: a second
-pass of the real-time iteration, only where the first cannot meet the constraint, so that every step
-within the band keeps the paper's single linearisation.
+``second_pass_seconds`` ahead (0.3 s: by then the attitude has all but reached its command) and
+solved again: a second pass of the real-time iteration, only where the first cannot meet the
+constraint, so that every step within the band keeps the paper's single linearisation.
 
 The input reference beyond the tilt limit puts the vertical channel first (roll and pitch clipped, the
 thrust whose vertical part balances): an input reference of the unclipped thrust ``|F|`` would pull
