@@ -920,6 +920,18 @@ MUTATIONS = (
         ("tests/test_mpc.py",),
     ),
     Mutation(
+        "MPC: a batch's second pass reads each vehicle's row of the whole batch",
+        "mpc",
+        (
+            (
+                "quad_wrench_env/control/mpc_controller.py",
+                "commands[v] = qps[v].solve_prepared(data, row, again=True)",
+                "commands[v] = qps[v].solve_prepared(data, min(v, len(again) - 1), again=True)",
+            ),
+        ),
+        ("tests/test_mpc.py",),
+    ),
+    Mutation(
         "MPC: the second pass about the attitude one step ahead",
         "mpc",
         (

@@ -388,12 +388,13 @@ def test_an_unsolved_hard_problem_falls_back_to_the_soft_one_and_then_to_the_equ
 
 
 def test_a_batch_commands_what_one_controller_per_vehicle_commands():
-    """Five vehicles in different states, references and forces, soft constraint and compensation on,
-    over 30 control steps on a reference whose velocity changes, vehicle 2 restarting at step 12: the
-    batch's commands are those of five controllers of one vehicle each (the ``mpc`` agent's), fed the
-    same observations, to 1e-6 on a normalised action (observed: bit for bit); the restarted vehicle's
-    solver counts the DAQP iterations of a new controller's (a working set kept across the restart would
-    warm-start it: the same exact solution in fewer iterations)."""
+    """Five vehicles in different states, references and forces, soft constraint and compensation on
+    (vehicle 0 on the path, solved once per step, beside others that fly the soft problem and are
+    solved a second time), over 30 control steps on a reference whose velocity changes, vehicle 2
+    restarting at step 12: the batch's commands are those of five controllers of one vehicle each (the
+    ``mpc`` agent's), fed the same observations, to 1e-6 on a normalised action (observed: bit for bit);
+    the restarted vehicle's solver counts the DAQP iterations of a new controller's (a working set kept
+    across the restart would warm-start it: the same exact solution in fewer iterations)."""
     env, count = FakeEnv(), 5
     gains = MPCGains(slack=True, compensation=True, position_weight=(1298.89, 1298.89, 625.0))
     tilt = math.radians(env.cfg.action_limits.max_tilt_deg)
@@ -406,8 +407,9 @@ def test_a_batch_commands_what_one_controller_per_vehicle_commands():
     batch, singles = configured(count), [configured(1) for _ in range(count)]
     rng = np.random.default_rng(4)
     start = rng.uniform(-0.3, 0.3, (count, 3)) + np.array((0.0, 0.0, 1.0))
+    start[0] = (0.0, 0.0, 1.0)  # on the path: within the band, one pass, beside vehicles solved twice
     forces = rng.uniform(-1.0, 1.0, (count, 3))
-    largest = 0.0
+    largest, passes = 0.0, set()
     for k in range(30):
         if k == 12:
             batch.restart(2)
@@ -423,6 +425,7 @@ def test_a_batch_commands_what_one_controller_per_vehicle_commands():
         )
         frames[:, FakeEnv.LAYOUT["reference_velocity"]][:, 0] = 0.3 * np.sin(0.2 * k + np.arange(count))
         together = batch.actions(frames)
+        passes.add(tuple(qp.passes for qp in batch.qps))
         alone = np.array([single.actions(frames[v : v + 1])[0] for v, single in enumerate(singles)])
         largest = max(largest, float(np.abs(together - alone).max()))
         if k >= 12:  # a restart is a new solver (no warm start from before): the same data, the same bits
@@ -431,3 +434,4 @@ def test_a_batch_commands_what_one_controller_per_vehicle_commands():
             assert (restarted.iterations, restarted.stages) == (fresh.iterations, fresh.stages)
         assert all(qp.status == "solved" for qp in batch.qps)
     assert largest <= 1e-6
+    assert any(1 in step and 2 in step for step in passes)  # second passes over part of the batch
