@@ -5,6 +5,8 @@ episode; what it cannot fly is refused by name."""
 
 from __future__ import annotations
 
+import dataclasses
+
 import gymnasium as gym
 import numpy as np
 import pytest
@@ -12,6 +14,9 @@ import pytest
 import quad_wrench_env  # noqa: F401  (registers the env ids)
 from quad_wrench_env.agents import make_agent
 from quad_wrench_env.control.pid_controller import PIDController, PIDGains
+from quad_wrench_env.control.residual import ResidualActions
+from quad_wrench_env.engine.actions import ResidualSettings
+from quad_wrench_env.vehicle import GRAVITY
 
 REJECTION = "QuadWrench/DisturbanceRejection-v0"
 RESIDUAL = {"action_type": "residual", "residual": {"base": "pid", "params": {"compensation": True}}}
@@ -35,12 +40,16 @@ MPC_GAINS = {"position_weight": [1298.89, 1298.89, 625.0], "velocity_weight": [1
 
 
 @pytest.mark.parametrize(
-    "base, params",
-    [("pid", {"compensation": True}), ("mpc", {**MPC_GAINS, "slack": True, "compensation": True})],
+    "base, params, level",
+    [
+        ("pid", {"compensation": True}, "attitude"),
+        ("pid", {"compensation": True}, "acceleration"),
+        ("mpc", {**MPC_GAINS, "slack": True, "compensation": True}, "attitude"),
+    ],
 )
-def test_at_zero_action_the_residual_flies_the_classical_agent_bit_for_bit(base, params):
+def test_at_zero_action_the_residual_flies_the_classical_agent_bit_for_bit(base, params, level):
     agent = make_agent(base, **params)
-    settings = {"action_type": "residual", "residual": {"base": base, "params": params}}
+    settings = {"action_type": "residual", "residual": {"base": base, "params": params, "level": level}}
     classical, residual = gym.make(REJECTION, action_type="attitude"), gym.make(REJECTION, **settings)
     agent.reset(classical)
     expected = _fly(classical, agent.act)
@@ -85,6 +94,40 @@ def test_a_correction_is_added_as_scale_times_the_action_and_clipped():
     attitude.close()
 
 
+@pytest.mark.parametrize(
+    "correction",
+    [(0.3, -0.5, 0.2, 0.4), (-0.8, 0.9, -0.3, 0.0), (0.0, 1.0, -0.5, -1.0), (0.9, 0.2, -0.6, 0.5)],
+)
+def test_at_the_acceleration_level_a_correction_is_an_acceleration_the_pid_flies(correction):
+    """On the path at rest, no force (eq. (3)'s ``a_des`` = 0), the correction ``c = s·g·a`` (s = 0.5) is
+    the acceleration flown: the thrust vector ``F = m·(c + g·e_z)`` as tilt and thrust, the body z axis of
+    ``R = Rz(0)·Ry(θ)·Rx(φ)``, ``(sin θ cos φ, -sin φ, cos θ cos φ)``, along it, so ``φ = -asin(F_y/|F|)``,
+    ``θ = atan2(F_x, F_z)``, ``T = |F|``; where φ or θ passes the 30° limit (the last two cases) both are
+    clipped to it and the thrust's vertical part holds ``F_z`` (the vertical channel first). The yaw rate
+    is ``s·a_4`` of its range."""
+    settings = ResidualSettings(base="pid", scale=0.5, level="acceleration")
+    env = gym.make(REJECTION, action_type="residual", residual=dataclasses.asdict(settings))
+    u = env.unwrapped
+    tilt_limit = np.radians(30.0)
+    actions = ResidualActions(settings, 1, u.obs_layout, u.vehicle, u.dt, u.action_scaling, tilt_limit)
+    observation = np.zeros(u.observation_space.shape, dtype=np.float32)
+    layout = u.obs_layout
+    observation[layout["position"]] = observation[layout["reference_position"]] = (0.0, 0.0, 1.5)
+    observation[layout["attitude"]] = (1.0, 0.0, 0.0, 0.0, 1.0, 0.0)  # level, heading 0
+    a = np.array(correction, dtype=np.float32)
+    roll, pitch, yaw_rate, thrust = u.action_scaling.to_command(actions.flown(observation[None], a[None])[0])
+    force = u.vehicle.mass * (0.5 * GRAVITY * a[:3].astype(float) + np.array((0.0, 0.0, GRAVITY)))
+    expected = np.array((-np.arcsin(force[1] / np.linalg.norm(force)), np.arctan2(force[0], force[2])))
+    clipped = np.clip(expected, -tilt_limit, tilt_limit)
+    assert (roll, pitch) == pytest.approx(tuple(clipped), abs=1e-5)
+    if np.array_equal(clipped, expected):
+        assert thrust == pytest.approx(np.linalg.norm(force), rel=1e-5)
+    else:
+        assert thrust * np.cos(roll) * np.cos(pitch) == pytest.approx(force[2], rel=1e-5)
+    assert yaw_rate == pytest.approx(0.5 * a[3] * u.action_scaling.yaw_rate, abs=1e-5)
+    env.close()
+
+
 def test_a_vehicles_base_restarts_with_its_episode_and_leaves_the_others():
     """After steps, vehicle 0 restarts: its action is a fresh controller's on the same observation; vehicle
     1's that of the controller that went on (its integral and reference history kept)."""
@@ -125,6 +168,11 @@ def test_a_vehicles_base_restarts_with_its_episode_and_leaves_the_others():
         ({**RESIDUAL, "residual": {"base": "pid", "scale": 0.0}}, "residual.scale=0.0"),
         ({**RESIDUAL, "residual": {"base": "pid", "scale": -0.2}}, "residual.scale=-0.2"),
         ({**RESIDUAL, "residual": {"base": "pid", "params": {"k_q": 1.0}}}, "residual.params.k_q"),
+        ({**RESIDUAL, "residual": {"base": "pid", "level": "jerk"}}, r"residual.level='jerk' .* allowed"),
+        (
+            {**RESIDUAL, "residual": {"base": "mpc", "level": "acceleration"}},
+            r"residual.level='acceleration' .* base 'mpc' has none",
+        ),
         ({"action_type": "steer"}, r"unknown action_type 'steer'; allowed: .*'residual'"),
     ],
 )

@@ -156,11 +156,15 @@ class PIDController:
             desired -= obs[:, layout["force"]] / self._mass
         return desired
 
-    def actions(self, observations: np.ndarray) -> np.ndarray:
-        """(N, 4) float32 ``attitude`` actions for (N, width) observations; advances the integrators."""
+    def actions(self, observations: np.ndarray, offsets: np.ndarray | None = None) -> np.ndarray:
+        """(N, 4) float32 ``attitude`` actions for (N, width) observations, ``offsets`` (N, 3; m/s²,
+        world frame) added to eq. (3)'s ``a_des`` before its conversion (the vertical channel first where
+        the tilt saturates); advances the integrators."""
         if self._scaling is None:
             raise RuntimeError("call configure() before actions()")
         desired = self.desired_accelerations(observations)
+        if offsets is not None:
+            desired += offsets
         out = np.empty((len(desired), 4), dtype=np.float32)
         for n, body_x in enumerate(observations[:, self._layout["attitude"]]):
             yaw = math.atan2(float(body_x[1]), float(body_x[0]))

@@ -49,6 +49,10 @@ class ActionLimits:
             raise ValueError(f"action_limits.max_tilt_deg={self.max_tilt_deg} must be below 90")
 
 
+RESIDUAL_LEVELS = ("attitude", "acceleration")
+"""Where a residual policy's correction enters the base controller (:class:`ResidualSettings`)."""
+
+
 @dataclass
 class ResidualSettings:
     """The ``residual`` action type's base controller and the size of the policy's correction."""
@@ -60,10 +64,18 @@ class ResidualSettings:
     """The correction's bound: the policy's action times this is added to the base's normalised action."""
     params: dict[str, Any] = field(default_factory=dict)
     """The base controller's settings, as its agent takes them (e.g. ``{compensation: true}``)."""
+    level: str = "attitude"
+    """Where the correction enters: ``attitude``, added to the base's attitude action; ``acceleration``,
+    ``scale·g`` times the policy's first three components added to the PID's desired acceleration
+    before its conversion to tilt and thrust (the fourth to its yaw-rate action, as ``attitude``)."""
 
     def __post_init__(self) -> None:
         if not (self.base is None or (isinstance(self.base, str) and self.base)):
             raise ValueError(f"residual.base={self.base!r} must be a base controller's name, e.g. 'pid'")
+        if self.level not in RESIDUAL_LEVELS:
+            raise ValueError(
+                f"residual.level={self.level!r} is not a level; allowed: {list(RESIDUAL_LEVELS)}"
+            )
         check_numbers("residual", self, ("scale",))
         if not isinstance(self.params, dict):
             raise ValueError(f"residual.params={self.params!r} must be a mapping of the base's settings")
