@@ -104,6 +104,30 @@ MUTATIONS = (
         ("tests/test_residual.py",),
     ),
     Mutation(
+        "residual: the acceleration-level correction never reaches the PID",
+        "controller",
+        (
+            (
+                "quad_wrench_env/control/pid_controller.py",
+                "        if offsets is not None:\n            desired += offsets\n",
+                "",
+            ),
+        ),
+        ("tests/test_residual.py",),
+    ),
+    Mutation(
+        "residual: the acceleration level's yaw-rate correction not scaled",
+        "controller",
+        (
+            (
+                "quad_wrench_env/control/residual.py",
+                "flown[:, YAW_RATE] += self.scale * actions[:, 3]",
+                "flown[:, YAW_RATE] += actions[:, 3]",
+            ),
+        ),
+        ("tests/test_residual.py",),
+    ),
+    Mutation(
         "study: the sweep keeps the worst rate",
         "training",
         (
