@@ -830,6 +830,30 @@ MUTATIONS = (
         ("tests/test_reward_terms_by_hand.py",),
     ),
     Mutation(
+        "DisturbanceRejection's action rate: the previous action carried across a reset",
+        "rewards",
+        (
+            (
+                "quad_wrench_env/tasks/disturbance_rejection.py",
+                "        self.previous_action[index] = 0.0\n",
+                "",
+            ),
+        ),
+        ("tests/test_reward_terms_by_hand.py",),
+    ),
+    Mutation(
+        "DisturbanceRejection's action rate: the action itself, not its change",
+        "rewards",
+        (
+            (
+                "quad_wrench_env/tasks/terms.py",
+                "    cost = -weight * np.mean((actions - previous) ** 2, axis=1)",
+                "    cost = -weight * np.mean(actions**2, axis=1)",
+            ),
+        ),
+        ("tests/test_reward_terms_by_hand.py",),
+    ),
+    Mutation(
         "ForceExertion metrics' exerted force sign flipped",
         "metrics",
         (

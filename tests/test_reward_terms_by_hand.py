@@ -282,3 +282,32 @@ def test_the_peak_term_sums_to_the_episodes_largest_horizontal_deviation(make_en
     plain.reset(seed=5)
     _, _, _, _, info = plain.step(np.zeros(4))
     assert "peak" not in info["reward_terms"]
+
+
+def test_the_action_rate_term_prices_the_change_of_the_action_from_the_step_before(make_env):
+    """``reward.action_rate_weight`` w: each step's ``action_rate`` term is ``-w·mean((a - a_prev)²)`` of
+    the actions as clipped to [-1, 1], ``a_prev`` the step before's and zero on an episode's first step.
+    Two episodes of one env, the second's first action the first's last: a previous action carried
+    across the reset gives that step a term of zero and fails; so do the unclipped action, the action
+    itself in place of its change, or the default (no term) changed."""
+    weight = 7.0
+    env = make_env(DISTURBANCE_REJECTION, estimator="oracle", reward={"action_rate_weight": weight})
+    rng = np.random.default_rng(3)
+    actions = rng.uniform(-0.2, 0.2, size=(8, 4))
+    actions[3, 1] = 1.6  # clipped to 1 before the task sees it
+    for options in ({"scenario": "gusts"}, {"scenario": "table_pass"}):
+        env.reset(seed=11, options=options)
+        previous = np.zeros(4)
+        for action in actions:
+            _, _, terminated, truncated, info = env.step(action)
+            clipped = np.clip(action, -1.0, 1.0)
+            expected = -weight * float(np.mean((clipped - previous) ** 2))
+            assert info["reward_terms"]["action_rate"] == pytest.approx(expected, **EXACT)
+            previous = clipped
+            assert not (terminated or truncated)
+        actions = np.roll(actions, 1, axis=0)  # the next episode starts with this one's last action
+
+    plain = make_env(DISTURBANCE_REJECTION, estimator="oracle")
+    plain.reset(seed=11)
+    _, _, _, _, info = plain.step(np.zeros(4))
+    assert "action_rate" not in info["reward_terms"]

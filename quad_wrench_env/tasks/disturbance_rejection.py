@@ -69,7 +69,9 @@ Reward per step (terms in ``info["reward_terms"]``): ``tracking = -c·(1 - exp(-
 every step that does not end the episode early (``c = tracking_cap``, 5; ``s = tracking_scale``, 0.5 m),
 ``effort = -effort_weight·mean(a²)``, ``crash = -crash_penalty`` on an early end; with
 ``reward.peak_weight`` w > 0, ``peak = -w·`` the rise of the episode's largest horizontal deviation (the
-terms sum to ``-w·`` the episode's Table I score). ``tracking + alive = c·exp(-|p - p_ref|/s)`` lies in
+terms sum to ``-w·`` the episode's Table I score); with ``reward.action_rate_weight`` w > 0,
+``action_rate = -w·mean((a - a_prev)²)``, ``a_prev`` the action of the step before (zero on an
+episode's first step). ``tracking + alive = c·exp(-|p - p_ref|/s)`` lies in
 (0, c]: a step flown is never worth less than nothing, so ending an episode early never pays (with
 ``tracking = -|p - p_ref|`` alone a policy that crashed escaped the tracking cost, and PPO learned to end
 its episodes), and the kernel is steepest at the reference (with the linear ``-min(|p - p_ref|, c)`` PPO
@@ -331,8 +333,20 @@ class DisturbanceRejectionReward:
     kernel's mean over 750 steps hardly sees (a half-second transient at the start, a few saturated
     seconds). 0: no term."""
 
+    action_rate_weight: float = 0.0
+    """> 0 adds the term ``action_rate = -w·mean((a - a_prev)²)``, ``a_prev`` the step before's action
+    (zero on an episode's first step): the temporal smoothness of CAPS (Mysore et al. 2021, its temporal
+    loss) as a reward term. A residual that answers its sensors' noise with a correction that changes
+    every step moves a good base off its path by millimetres (docs/results.md, the table pass);
+    ``effort`` prices the correction's size, this its jitter. 0: no term."""
+
     def __post_init__(self) -> None:
-        check_numbers("reward", self, ("effort_weight", "crash_penalty", "peak_weight"), positive=False)
+        check_numbers(
+            "reward",
+            self,
+            ("effort_weight", "crash_penalty", "peak_weight", "action_rate_weight"),
+            positive=False,
+        )
         check_numbers("reward", self, ("tracking_cap", "tracking_scale"))
         if self.vertical_scale is not None:
             check_numbers("reward", self, ("vertical_scale",))
@@ -469,6 +483,9 @@ class DisturbanceRejection(TaskDefaults):
         self.peak_deviation = np.zeros(count)
         """m: each vehicle's largest horizontal deviation in its episode so far (kept with
         ``reward.peak_weight`` > 0 only)."""
+        self.previous_action = np.zeros((count, 4))
+        """Each vehicle's action of the step before (zero at its episode's start; kept with
+        ``reward.action_rate_weight`` > 0 only)."""
 
     def components(self) -> Components:
         """The gust fan's jets, the turbulence, the 1-cosine bump and the table; each vehicle's copy of
@@ -587,6 +604,7 @@ class DisturbanceRejection(TaskDefaults):
         if self.cfg.reward.peak_weight > 0.0:
             offset = view.state.position[index] - record.info["reference_position"][index]
             self.peak_deviation[index] = _horizontal_distance(offset)
+        self.previous_action[index] = 0.0
         return record
 
     def step(self, view: FleetView, actions: np.ndarray, ended: np.ndarray) -> TaskRecord:
@@ -617,6 +635,10 @@ class DisturbanceRejection(TaskDefaults):
             if r.peak_weight > 0.0:
                 reward_terms["peak"] = terms.peak_rise(
                     _horizontal_distance(offset), self.peak_deviation, r.peak_weight
+                )
+            if r.action_rate_weight > 0.0:
+                reward_terms["action_rate"] = terms.action_rate(
+                    actions, self.previous_action, r.action_rate_weight
                 )
         info = {"reference_position": position, "reference_velocity": velocity, "tracking_error": error}
         return TaskRecord(reward_terms, blocks=self._blocks(view, position, velocity), info=info)

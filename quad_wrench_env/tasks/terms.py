@@ -10,7 +10,8 @@ Isaac Lab's reward terms). A task's reward is the sum of its terms, each reporte
 - :func:`crash`: ``-penalty`` on the step that ends an episode early;
 - :func:`closeness` and :func:`linear_cost`: FanTracking's ``exp(-d/s)`` and ``-w·|e|``;
 - :func:`peak_rise`: ``-w·`` the rise of an episode's running maximum, whose sum over the episode is
-  ``-w·`` its maximum (DisturbanceRejection's score, Hentzen et al.'s (2019) Table I).
+  ``-w·`` its maximum (DisturbanceRejection's score, Hentzen et al.'s (2019) Table I);
+- :func:`action_rate`: ``-w·mean((a_t - a_{t-1})²)``, the change of the action from the step before.
 
 :func:`effort`, :func:`crash`, :func:`closeness` and :func:`linear_cost` are compiled functions of one
 vehicle, for a task's compiled step to call (FanTracking's); :func:`efforts` and :func:`crashes` are
@@ -48,6 +49,17 @@ def peak_rise(error: np.ndarray, peak: np.ndarray, weight: float) -> np.ndarray:
     raised = np.maximum(peak, error)
     cost = -weight * (raised - peak)
     peak[...] = raised
+    return cost
+
+
+def action_rate(actions: np.ndarray, previous: np.ndarray, weight: float) -> np.ndarray:
+    """(N,) ``-weight·mean((a - a_prev)²)`` of (N, 4) normalised actions and the (N, 4) ``previous``
+    ones, which then become ``actions`` in place: the temporal smoothness that CAPS (Mysore et al. 2021,
+    its temporal loss) asks of a quadrotor's policy, as a reward term. A policy answering its sensors'
+    noise with an action that changes every step pays; one that holds its action still does not,
+    however large the action."""
+    cost = -weight * np.mean((actions - previous) ** 2, axis=1)
+    previous[...] = actions
     return cost
 
 
