@@ -336,9 +336,8 @@ class DisturbanceRejectionReward:
     action_rate_weight: float = 0.0
     """> 0 adds the term ``action_rate = -w·mean((a - a_prev)²)``, ``a_prev`` the step before's action
     (zero on an episode's first step): the temporal smoothness of CAPS (Mysore et al. 2021, its temporal
-    loss) as a reward term. A residual that answers its sensors' noise with a correction that changes
-    every step moves a good base off its path by millimetres (docs/results.md, the table pass);
-    ``effort`` prices the correction's size, this its jitter. 0: no term."""
+    loss) as a reward term: ``effort`` prices an action's size, this its change from one step to the
+    next. 0: no term."""
 
     def __post_init__(self) -> None:
         check_numbers(
