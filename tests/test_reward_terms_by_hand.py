@@ -284,6 +284,35 @@ def test_the_peak_term_sums_to_the_episodes_largest_horizontal_deviation(make_en
     assert "peak" not in info["reward_terms"]
 
 
+def test_peak_scenario_factors_weigh_each_scenarios_peak_term(make_env):
+    """``reward.peak_scenario_factors``: in an episode of a named scenario the ``peak`` term is ``-w·f·``
+    the rise of the largest horizontal deviation, in one of a scenario not named ``-w·``; the same env
+    flies the named scenario, then the other, so a factor kept from the episode before, or applied to
+    every scenario, fails. A scenario not in the task, or a factor <= 0, is refused naming it."""
+    weight, factor = 300.0, 4.0
+    reward = {"peak_weight": weight, "peak_scenario_factors": {"gusts": factor}}
+    env = make_env(DISTURBANCE_REJECTION, estimator="oracle", episode_seconds=0.5, reward=reward)
+    policy = make_agent("pid", compensation=False)
+    for scenario, scale in (("gusts", factor), ("table_pass", 1.0)):
+        obs, info = env.reset(seed=2, options={"scenario": scenario})
+        policy.reset(env)
+        offset = np.asarray(info["position"]) - np.asarray(info["reference_position"])
+        largest = math.hypot(offset[0], offset[1])
+        rises = 0
+        for _ in range(25):
+            obs, _, _, _, info = env.step(policy.act(obs))
+            offset = np.asarray(info["position"]) - np.asarray(info["reference_position"])
+            distance = math.hypot(offset[0], offset[1])
+            expected = -weight * scale * (max(largest, distance) - largest)
+            assert info["reward_terms"]["peak"] == pytest.approx(expected, **EXACT), scenario
+            rises += distance > largest
+            largest = max(largest, distance)
+        assert rises > 0, scenario  # the term was not zero throughout
+    for factors, named in (({"tornado": 2.0}, "tornado"), ({"gusts": 0.0}, "gusts=0.0")):
+        with pytest.raises(ValueError, match=named):
+            make_env(DISTURBANCE_REJECTION, reward={"peak_weight": weight, "peak_scenario_factors": factors})
+
+
 def test_the_action_rate_term_prices_the_change_of_the_action_from_the_step_before(make_env):
     """``reward.action_rate_weight`` w: each step's ``action_rate`` term is ``-w·mean((a - a_prev)²)`` of
     the actions as clipped to [-1, 1], ``a_prev`` the step before's and zero on an episode's first step.

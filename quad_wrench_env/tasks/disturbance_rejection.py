@@ -89,6 +89,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from types import SimpleNamespace
 from typing import Any, ClassVar
 
 import numpy as np
@@ -332,6 +333,12 @@ class DisturbanceRejectionReward:
     episode's largest horizontal deviation, Hentzen et al.'s (2019) Table I score, which the tracking
     kernel's mean over 750 steps hardly sees (a half-second transient at the start, a few saturated
     seconds). 0: no term."""
+    peak_scenario_factors: dict[str, float] = field(default_factory=dict)
+    """Scenario (:data:`SCENARIOS`) -> factor (> 0) on ``peak_weight`` in that scenario's episodes; 1 for
+    a scenario not named. One weight prices a millimetre alike in every scenario, so the scenarios with
+    the largest deviations (a 12 m/s jet's 5-7 cm, a saturated figure-8's 27 cm) carry the term's
+    gradient and a table pass's 5 mm hardly counts; a factor weighs a scenario's Table I score (Hentzen
+    et al. 2019) by its own scale."""
 
     action_rate_weight: float = 0.0
     """> 0 adds the term ``action_rate = -w·mean((a - a_prev)²)``, ``a_prev`` the step before's action
@@ -347,6 +354,16 @@ class DisturbanceRejectionReward:
             positive=False,
         )
         check_numbers("reward", self, ("tracking_cap", "tracking_scale"))
+        if not isinstance(self.peak_scenario_factors, Mapping):
+            raise ValueError(
+                f"reward.peak_scenario_factors={self.peak_scenario_factors!r} must map scenarios "
+                f"{list(SCENARIOS)} to factors > 0"
+            )
+        unknown = sorted(set(self.peak_scenario_factors) - set(SCENARIOS))
+        if unknown:
+            raise ValueError(f"reward.peak_scenario_factors names {unknown}; allowed: {list(SCENARIOS)}")
+        factors = SimpleNamespace(**self.peak_scenario_factors)
+        check_numbers("reward.peak_scenario_factors", factors, tuple(self.peak_scenario_factors))
         if self.vertical_scale is not None:
             check_numbers("reward", self, ("vertical_scale",))
 
@@ -482,6 +499,9 @@ class DisturbanceRejection(TaskDefaults):
         self.peak_deviation = np.zeros(count)
         """m: each vehicle's largest horizontal deviation in its episode so far (kept with
         ``reward.peak_weight`` > 0 only)."""
+        factors = cfg.reward.peak_scenario_factors
+        self.peak_weights = cfg.reward.peak_weight * np.array([factors.get(s, 1.0) for s in SCENARIOS])
+        """per m: ``reward.peak_weight`` times each scenario's factor (index: :data:`SCENARIOS`)."""
         self.previous_action = np.zeros((count, 4))
         """Each vehicle's action of the step before (zero at its episode's start; kept with
         ``reward.action_rate_weight`` > 0 only)."""
@@ -633,7 +653,7 @@ class DisturbanceRejection(TaskDefaults):
             }
             if r.peak_weight > 0.0:
                 reward_terms["peak"] = terms.peak_rise(
-                    _horizontal_distance(offset), self.peak_deviation, r.peak_weight
+                    _horizontal_distance(offset), self.peak_deviation, self.peak_weights[self.scenario]
                 )
             if r.action_rate_weight > 0.0:
                 reward_terms["action_rate"] = terms.action_rate(
