@@ -42,10 +42,10 @@ def saturating_cost(error: np.ndarray, cap: float, scale: float) -> np.ndarray:
 
 
 def peak_rise(error: np.ndarray, peak: np.ndarray, weight: float | np.ndarray) -> np.ndarray:
-    """``-weight·(max(peak, error) - peak)`` of (N,) arrays (``weight`` one or (N,)), and ``peak`` raised in place to
-    ``max(peak, error)``: summed over an episode whose ``peak`` started at the first step's error, the
-    terms telescope to ``-weight·(max_t error_t - error_0)``, so the return scores the episode's largest
-    error and not its mean."""
+    """``-weight·(max(peak, error) - peak)`` of (N,) arrays (``weight`` a number or (N,)), and ``peak``
+    raised in place to ``max(peak, error)``: summed over an episode whose ``peak`` started at the first
+    step's error, the terms telescope to ``-weight·(max_t error_t - error_0)``, so the return scores the
+    episode's largest error and not its mean."""
     raised = np.maximum(peak, error)
     cost = -weight * (raised - peak)
     peak[...] = raised
