@@ -69,14 +69,14 @@ Reward per step (terms in ``info["reward_terms"]``): ``tracking = -c·(1 - exp(-
 every step that does not end the episode early (``c = tracking_cap``, 5; ``s = tracking_scale``, 0.5 m),
 ``effort = -effort_weight·mean(a²)``, ``crash = -crash_penalty`` on an early end; with
 ``reward.peak_weight`` w > 0, ``peak = -w·`` the rise of the episode's largest horizontal deviation (the
-terms sum to ``-w·`` the episode's Table I score); with ``reward.action_rate_weight`` w > 0,
-``action_rate = -w·mean((a - a_prev)²)``, ``a_prev`` the action of the step before (zero on an
-episode's first step). ``tracking + alive = c·exp(-|p - p_ref|/s)`` lies in
-(0, c]: a step flown is never worth less than nothing, so ending an episode early never pays (with
-``tracking = -|p - p_ref|`` alone a policy that crashed escaped the tracking cost, and PPO learned to end
-its episodes), and the kernel is steepest at the reference (with the linear ``-min(|p - p_ref|, c)`` PPO
-hovered 0.3 m off it). Episode end as FanTracking (crash, flip, out of the arena); truncated after
-``episode_seconds`` (15 s).
+terms sum to ``-w·`` the episode's Table I score; ``reward.peak_scenario_factors`` weighs it per
+scenario); with ``reward.action_rate_weight`` w > 0, ``action_rate = -w·mean((a - a_prev)²)``,
+``a_prev`` the action of the step before (zero on an episode's first step).
+``tracking + alive = c·exp(-|p - p_ref|/s)`` lies in (0, c]: a step flown is never worth less than
+nothing, so ending an episode early never pays (with ``tracking = -|p - p_ref|`` alone a policy that
+crashed escaped the tracking cost, and PPO learned to end its episodes), and the kernel is steepest at
+the reference (with the linear ``-min(|p - p_ref|, c)`` PPO hovered 0.3 m off it). Episode end as
+FanTracking (crash, flip, out of the arena); truncated after ``episode_seconds`` (15 s).
 
 Reset options: ``scenario``, ``jet_speed`` (m/s; implies ``jet_crossing``), ``wind_speed`` (m/s;
 implies ``figure8``). ``info`` adds ``reference_position`` (3,), ``reference_velocity`` (3,) and
