@@ -540,6 +540,7 @@ def figure(rows: list[dict[str, Any]], env_id: str) -> Any:
     cases = list(dict.fromkeys(r["case"] for r in chosen))
     fig, ax = plt.subplots(figsize=(1.6 * len(cases) + 3, 4.5))
     width = 0.8 / len(agents)
+    palette = plt.get_cmap("tab10" if len(agents) <= 10 else "tab20").colors
     for k, agent in enumerate(agents):
         picked = [next(r for r in chosen if r["agent"] == agent and r["case"] == c) for c in cases]
         ax.bar(
@@ -548,11 +549,12 @@ def figure(rows: list[dict[str, Any]], env_id: str) -> Any:
             width,
             yerr=[r["sd"] for r in picked],
             label=agent,
+            color=palette[k % len(palette)],
             capsize=2,
         )
     ax.set_xticks(np.arange(len(cases)) + 0.4 - width / 2, cases, rotation=20, ha="right")
     ax.set_xlabel("case")
     ax.set_ylabel(title)
     ax.set_title("arms: across training seeds; classical: across held-out seeds", fontsize=9)
-    ax.legend(fontsize=7)
+    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.0, 1.0))  # beside the bars, never on them
     return fig
