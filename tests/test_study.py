@@ -260,3 +260,24 @@ def test_a_slow_learners_run_starts_first_then_an_arm_another_waits_on():
     config = _config(arms=arms)
     order = sorted(arms, key=lambda label: _priority(config, label))
     assert order == ["lstm", "oracle", "plain", "shipped as is"]
+
+
+def test_the_figure_gives_every_agent_its_own_colour_and_keeps_the_legend_off_the_bars():
+    """Past ten agents tab10's colours repeat: with twelve every agent must still have its own, and
+    the legend (twelve entries) must sit beside the axes, not on the bars."""
+    from quad_wrench_env.agents.study import figure
+
+    agents = [f"agent {k}" for k in range(12)]
+    rows = [
+        {"agent": a, "case": c, "metric": "max_horizontal_deviation", "mean": 0.01 * (k + 1), "sd": 0.001}
+        for k, a in enumerate(agents)
+        for c in ("jet", "gusts")
+    ]
+    fig = figure(rows, "QuadWrench/DisturbanceRejection-v0")
+    ax = fig.axes[0]
+    bars = [c for c in ax.containers if hasattr(c, "patches")]
+    colours = {tuple(bar.patches[0].get_facecolor()) for bar in bars}
+    assert len(bars) == 12 and len(colours) == 12
+    fig.canvas.draw()
+    legend = ax.get_legend().get_window_extent()
+    assert legend.x0 >= ax.get_window_extent().x1
