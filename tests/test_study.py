@@ -11,7 +11,15 @@ import pytest
 from quad_wrench_env.agents import make_agent
 from quad_wrench_env.agents.evaluate import evaluate
 from quad_wrench_env.agents.sb3 import TrainingConfigError
-from quad_wrench_env.agents.study import StudyConfig, _priority, evaluate_all, status, study, train_all
+from quad_wrench_env.agents.study import (
+    StudyConfig,
+    _priority,
+    evaluate_all,
+    figure,
+    status,
+    study,
+    train_all,
+)
 from quad_wrench_env.config import build, load_yaml
 from tests.conftest import FAN_TRACKING
 
@@ -265,8 +273,6 @@ def test_a_slow_learners_run_starts_first_then_an_arm_another_waits_on():
 def test_the_figure_gives_every_agent_its_own_colour_and_keeps_the_legend_off_the_bars():
     """Past ten agents tab10's colours repeat: with twelve every agent must still have its own, and
     the legend (twelve entries) must sit beside the axes, not on the bars."""
-    from quad_wrench_env.agents.study import figure
-
     agents = [f"agent {k}" for k in range(12)]
     rows = [
         {"agent": a, "case": c, "metric": "max_horizontal_deviation", "mean": 0.01 * (k + 1), "sd": 0.001}
