@@ -430,6 +430,54 @@ def test_the_path_ahead_and_the_references_acceleration(scenario):
     env.close()
 
 
+def _jerk_by_hand(scenario: str, t: float) -> np.ndarray:
+    """The reference's jerk (m/s³) differentiated by hand from the task's defaults: the table pass's x
+    glides 2 m at 0.3 m/s after 1 s of hover, its speed easing as ``V(1 ∓ cos(π s))/2`` over the first and
+    last second (jerk ``±V π²/2·cos(π s)``, 0 while cruising); the figure-8 after its 2 s ease-in has
+    ``φ = 1 + (t - 2)`` and ``x = 2.5 + 1.25 sin φ``, ``z = 1.5 + 0.75 sin 2φ``."""
+    if scenario == "figure8":
+        phase = 1.0 + (t - 2.0)
+        return np.array([-1.25 * math.cos(phase), 0.0, -8.0 * 0.75 * math.cos(2.0 * phase)])
+    glide, cruise_end, peak = t - 1.0, 2.0 / 0.3, 0.3 * math.pi**2 / 2.0
+    if 0.0 < glide < 1.0:
+        return np.array([peak * math.cos(math.pi * glide), 0.0, 0.0])
+    if cruise_end < glide < cruise_end + 1.0:
+        return np.array([-peak * math.cos(math.pi * (glide - cruise_end)), 0.0, 0.0])
+    return np.zeros(3)
+
+
+@pytest.mark.parametrize("scenario", ["figure8", "table_pass"])
+def test_the_references_jerk_against_one_differentiated_by_hand(scenario):
+    """``observe_reference_jerk`` adds ``j_ref(t)`` after ``reference_acceleration``: checked against the
+    jerk of :func:`_jerk_by_hand` at every policy step away from an easing's end (where it steps), the
+    figure-8's after its ease-in; the time of each step pinned by the figure-8's own reference position."""
+    env = gym.make(
+        ENV_ID, action_type="velocity", observe_reference_acceleration=True, observe_reference_jerk=True
+    )
+    layout = env.unwrapped.obs_layout
+    assert layout["reference_jerk"].start == layout["reference_acceleration"].stop
+    obs, info = env.reset(
+        seed=0,
+        options={"scenario": scenario, "wind_speed": 0.0}
+        if scenario == "figure8"
+        else {"scenario": scenario},
+    )
+    dt, checked, largest = env.unwrapped.dt, 0, 0.0
+    for step in range(1, 500):
+        obs, _, terminated, truncated, info = env.step(np.zeros(4, dtype=np.float32))
+        assert not (terminated or truncated)
+        t = step * dt
+        if scenario == "figure8" and t > 2.0:
+            assert info["reference_position"][0] == pytest.approx(2.5 + 1.25 * math.sin(t - 1.0), abs=1e-9)
+        easing_ends = (1.0, 2.0, 1.0 + 2.0 / 0.3, 2.0 + 2.0 / 0.3) if scenario == "table_pass" else (2.0,)
+        if scenario == "figure8" and t < 2.0 or min(abs(t - end) for end in easing_ends) < 2e-3:
+            continue
+        np.testing.assert_allclose(obs[layout["reference_jerk"]], _jerk_by_hand(scenario, t), atol=1e-4)
+        checked, largest = checked + 1, max(largest, float(np.abs(obs[layout["reference_jerk"]]).max()))
+    assert checked > 300 and largest > 1.0  # the jerk is checked where it is large
+    env.close()
+
+
 @pytest.mark.parametrize(
     ("settings", "named"),
     [
@@ -438,6 +486,7 @@ def test_the_path_ahead_and_the_references_acceleration(scenario):
         ({"path_ahead_seconds": [0.1] * 11}, "path_ahead_seconds="),
         ({"path_ahead_seconds": "soon"}, "path_ahead_seconds='soon'"),
         ({"observe_reference_acceleration": "yes"}, "observe_reference_acceleration='yes'"),
+        ({"observe_reference_jerk": 1}, "observe_reference_jerk=1"),
     ],
 )
 def test_bad_path_ahead_settings_are_refused_by_name(settings, named):

@@ -62,12 +62,13 @@ MEANING_KEYS = (
     "observe_tracking_error",
     "preview_seconds",
     "observe_reference_acceleration",
+    "observe_reference_jerk",
     "path_ahead_seconds",
 )
 """Env settings that change what an action or an observation means (``history``, ``sensor_history``,
-``privileged``, ``preview_seconds``, ``observe_reference_acceleration`` and ``path_ahead_seconds`` its
-size too; ``action_limits`` the command an action stands for, ``residual`` the base controller it corrects;
-the last four and ``observe_tracking_error`` are
+``privileged``, ``preview_seconds``, ``observe_reference_acceleration``, ``observe_reference_jerk`` and
+``path_ahead_seconds`` its size too; ``action_limits`` the command an action stands for, ``residual`` the base
+controller it corrects; the last five and ``observe_tracking_error`` are
 DisturbanceRejection's own and count only where the config has them)."""
 
 

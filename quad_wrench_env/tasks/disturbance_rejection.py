@@ -50,7 +50,9 @@ With ``preview_seconds`` T > 0 the observation adds ``reference_velocity_ahead``
 about T times its acceleration), the feed-forward PID and MPC take from the reference.
 
 With ``observe_reference_acceleration=True`` the observation adds ``reference_acceleration`` (3, after
-the blocks above): the reference's acceleration now (m/s², world frame). With ``path_ahead_seconds``
+the blocks above): the reference's acceleration now (m/s², world frame); with ``observe_reference_jerk=True``
+``reference_jerk`` (3, after that): its jerk now (m/s³, world frame), which steps where a glide's or the
+figure-8's easing ends. With ``path_ahead_seconds``
 ``(τ_1, ..., τ_K)`` it adds ``path_ahead`` (3K, last): ``p_ref(t + τ_k) - p̂`` for each k, the path ahead
 relative to the vehicle's estimated position (m, world frame).
 
@@ -123,10 +125,13 @@ PREVIEW_BLOCK = ("reference_velocity_ahead", 3, 20.0)
 """The block ``preview_seconds`` > 0 adds after them."""
 ACCELERATION_BLOCK = ("reference_acceleration", 3, 50.0)
 """The block ``observe_reference_acceleration`` adds after those."""
+JERK_BLOCK = ("reference_jerk", 3, 200.0)
+"""The block ``observe_reference_jerk`` adds after that."""
 ACCELERATION_STEP = 1.0e-3
-"""s: the half-width of the central difference of the reference's velocity that gives its acceleration
+"""s: the half-width of the central differences of the reference's velocity that give its acceleration
 (exact to ~1e-6 m/s² on these paths, whose velocity is smooth but where a straight move's easing
-starts and ends)."""
+starts and ends) and its jerk (the second difference; within this of an easing's end it averages the
+jerk's step)."""
 PATH_AHEAD_MAX = 10
 """The most times ``path_ahead_seconds`` may name."""
 EASE = 1.0
@@ -394,6 +399,9 @@ class DisturbanceRejectionConfig(EnvConfig):
     observe_reference_acceleration: bool = False
     """True adds the block ``reference_acceleration``: the reference's acceleration now (m/s², world
     frame), what a tracking controller feeds forward."""
+    observe_reference_jerk: bool = False
+    """True adds the block ``reference_jerk``: the reference's jerk now (m/s³, world frame), the rate at
+    which that feed-forward changes (it steps where a glide's or the figure-8's easing ends)."""
     path_ahead_seconds: tuple[float, ...] = ()
     """s, increasing, each > 0 (at most :data:`PATH_AHEAD_MAX`); adds the block ``path_ahead``: for each
     time ``τ`` the reference position ``τ`` ahead relative to the vehicle's estimate, ``p_ref(t + τ) -
@@ -401,7 +409,7 @@ class DisturbanceRejectionConfig(EnvConfig):
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        for name in ("observe_tracking_error", "observe_reference_acceleration"):
+        for name in ("observe_tracking_error", "observe_reference_acceleration", "observe_reference_jerk"):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"{name}={getattr(self, name)!r} must be true or false")
         ahead = self.path_ahead_seconds
@@ -464,6 +472,8 @@ class DisturbanceRejection(TaskDefaults):
             self.observation_blocks = (*self.observation_blocks, PREVIEW_BLOCK)
         if cfg.observe_reference_acceleration:
             self.observation_blocks = (*self.observation_blocks, ACCELERATION_BLOCK)
+        if cfg.observe_reference_jerk:
+            self.observation_blocks = (*self.observation_blocks, JERK_BLOCK)
         if cfg.path_ahead_seconds:
             width = 3 * len(cfg.path_ahead_seconds)
             self.observation_blocks = (*self.observation_blocks, ("path_ahead", width, 20.0))
@@ -675,10 +685,14 @@ class DisturbanceRejection(TaskDefaults):
             _, ahead = self.reference(view.time + cfg.preview_seconds, self.scenario)
             out[:, 6:9] = ahead - velocity
             column = 9
-        if cfg.observe_reference_acceleration:
+        if cfg.observe_reference_acceleration or cfg.observe_reference_jerk:
             _, later = self.reference(view.time + ACCELERATION_STEP, self.scenario)
             _, earlier = self.reference(view.time - ACCELERATION_STEP, self.scenario)
+        if cfg.observe_reference_acceleration:
             out[:, column : column + 3] = (later - earlier) / (2.0 * ACCELERATION_STEP)
+            column += 3
+        if cfg.observe_reference_jerk:
+            out[:, column : column + 3] = (later - 2.0 * velocity + earlier) / ACCELERATION_STEP**2
             column += 3
         for k, ahead_seconds in enumerate(cfg.path_ahead_seconds):
             ahead, _ = self.reference(view.time + ahead_seconds, self.scenario)
