@@ -470,7 +470,7 @@ def test_the_references_jerk_against_one_differentiated_by_hand(scenario):
         if scenario == "figure8" and t > 2.0:
             assert info["reference_position"][0] == pytest.approx(2.5 + 1.25 * math.sin(t - 1.0), abs=1e-9)
         easing_ends = (1.0, 2.0, 1.0 + 2.0 / 0.3, 2.0 + 2.0 / 0.3) if scenario == "table_pass" else (2.0,)
-        if scenario == "figure8" and t < 2.0 or min(abs(t - end) for end in easing_ends) < 2e-3:
+        if (scenario == "figure8" and t < 2.0) or min(abs(t - end) for end in easing_ends) < 2e-3:
             continue
         np.testing.assert_allclose(obs[layout["reference_jerk"]], _jerk_by_hand(scenario, t), atol=1e-4)
         checked, largest = checked + 1, max(largest, float(np.abs(obs[layout["reference_jerk"]]).max()))
